@@ -1,0 +1,36 @@
+"""The bridge between Blender and the solver: registration, settings, conversions, batch jobs."""
+
+import logging
+
+import bpy
+
+from . import cli, preferences, properties
+
+log = logging.getLogger(preferences.PACKAGE)
+_cli_handle = None
+
+
+def register():
+    global _cli_handle
+    from .. import operators, panels  # they import the bridge: import them after it
+    bpy.utils.register_class(preferences.HumanAnimPreferences)
+    properties.register()
+    operators.register()
+    panels.register()
+    if hasattr(bpy.utils, "register_cli_command"):
+        _cli_handle = bpy.utils.register_cli_command("humananim", cli.blender_command)
+    prefs = preferences.get()
+    if prefs:
+        preferences.apply_log_level(prefs.log_level)
+
+
+def unregister():
+    global _cli_handle
+    from .. import operators, panels
+    if _cli_handle is not None:
+        bpy.utils.unregister_cli_command(_cli_handle)
+        _cli_handle = None
+    panels.unregister()
+    operators.unregister()
+    properties.unregister()
+    bpy.utils.unregister_class(preferences.HumanAnimPreferences)

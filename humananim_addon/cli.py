@@ -1,0 +1,203 @@
+"""The batch command line: `python -m humananim <command>` and `blender --command humananim <command>`.
+
+Every command prints a short summary, or with --json one JSON object of what it did, where it
+wrote and what it measured. A user mistake is one line on stderr and exit status 2."""
+
+import argparse
+import contextlib
+import json
+import logging
+import os
+import sys
+import time
+
+DEFAULT_CLIP = os.path.join(os.path.dirname(__file__), "data", "mocap", "cmu_131_01.bvh")
+log = logging.getLogger(__name__)
+
+
+class UsageError(Exception):
+    """A mistake in the command line or its files: reported in one line."""
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(prog="humananim", description="HumanAnim batch jobs")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="command")
+    info = sub.add_parser("info", help="bones, body roles, segment masses, frames of a rig")
+    info.add_argument("file", help="a .blend or .bvh file")
+    info.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
+    _common(info)
+    demo = sub.add_parser("demo", help="import the bundled CMU clip, build the body model, save a .blend")
+    demo.add_argument("--bvh", default=DEFAULT_CLIP, help="motion to import (default: bundled CMU 131_01)")
+    demo.add_argument("--out", default=os.path.join("out", "demo.blend"), help="the .blend to write")
+    _common(demo)
+    return parser
+
+
+def _common(p):
+    p.add_argument("--mass", type=float, help="total body mass in kg (default 70)")
+    p.add_argument("--scale", type=float, help="metres per BVH unit (default: guessed)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def main(argv=None):
+    logging.basicConfig(level=logging.WARNING, format="humananim: %(levelname)s: %(message)s")
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from ..solver.errors import HumanAnimError
+    try:
+        with _chatter_to_stderr(), _registered():
+            result = COMMANDS[args.command](args)
+    except (HumanAnimError, UsageError) as error:
+        print(f"humananim {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(result, indent=1))
+    else:
+        print(_text_summary(result))
+    return 0
+
+
+@contextlib.contextmanager
+def _chatter_to_stderr():
+    """Blender's importers print progress on stdout (from C and Python): send it to stderr so
+    stdout carries only the summary or the JSON object."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+def blender_command(argv):
+    """Handler for `blender --command humananim ...`."""
+    try:
+        return main(list(argv))
+    except SystemExit as stop:  # argparse's --help and usage errors
+        return int(stop.code or 0)
+
+
+@contextlib.contextmanager
+def _registered():
+    """In the bpy module the add-on is not enabled: register it for the command, and
+    unregister after (classes left registered crash bpy 4.2 at exit)."""
+    import bpy
+    if hasattr(bpy.types.Armature, "humananim"):
+        yield
+        return
+    from .. import register, unregister
+    register()
+    try:
+        yield
+    finally:
+        unregister()
+
+
+def cmd_info(args):
+    t0 = time.perf_counter()
+    obj, scene, imported = _load(args.file, args.armature, args.scale)
+    result = rig_summary(obj, scene, args.mass)
+    result.update(command="info", file=os.path.abspath(args.file), seconds=round(time.perf_counter() - t0, 3))
+    if imported:
+        result["bvh_unit"] = imported
+    return result
+
+
+def cmd_demo(args):
+    import bpy
+    from . import mass_model
+    from .armature import skeleton_from_armature
+    from .bvh_import import import_bvh
+    t0 = time.perf_counter()
+    bpy.ops.wm.read_homefile(use_empty=True)
+    obj, scale, unit = import_bvh(args.bvh, args.scale)
+    scene = bpy.context.scene
+    skeleton = skeleton_from_armature(obj, scene, args.mass)
+    mass_model.store(obj.data.humananim, skeleton, skeleton.mass, skeleton.com, skeleton.inertia)
+    out = os.path.abspath(args.out)
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=out)
+    result = rig_summary(obj, scene, args.mass)
+    result.update(command="demo", input=os.path.abspath(args.bvh), bvh_unit=unit, wrote=[out],
+                  seconds=round(time.perf_counter() - t0, 3))
+    return result
+
+
+def _load(path, armature_name, scale):
+    import bpy
+    from .bvh_import import import_bvh
+    if not os.path.isfile(path):
+        raise UsageError(f"no such file: {path}")
+    if path.lower().endswith(".bvh"):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        obj, _, unit = import_bvh(path, scale)
+        return obj, bpy.context.scene, unit
+    try:
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
+    except RuntimeError as error:
+        raise UsageError(f"cannot open {os.path.basename(path)}: {str(error).splitlines()[0]}") from None
+    armatures = [o for o in bpy.data.objects if o.type == "ARMATURE"]
+    if armature_name:
+        obj = bpy.data.objects.get(armature_name)
+        if obj is None or obj.type != "ARMATURE":
+            raise UsageError(f"no armature named '{armature_name}' (armatures: "
+                             f"{', '.join(o.name for o in armatures) or 'none'})")
+    elif len(armatures) == 1:
+        obj = armatures[0]
+    else:
+        raise UsageError(f"{len(armatures)} armatures in the file: pass --armature "
+                         f"({', '.join(o.name for o in armatures)})" if armatures else "no armature in the file")
+    scene = obj.users_scene[0] if obj.users_scene else bpy.context.scene
+    return obj, scene, None
+
+
+def rig_summary(obj, scene, total_mass=None):
+    """What a rig is to HumanAnim: bones, roles, masses, frames."""
+    from ..solver.errors import RigError
+    from .actions import scene_fps
+    from .armature import detect, skeleton_from_armature
+    from .properties import role_overrides
+    detection = detect(obj)
+    roles = detection.roles.with_overrides(role_overrides(obj.data.humananim))
+    result = {"armature": obj.name, "bone_count": len(obj.data.bones),
+              "bones": [b.name for b in obj.data.bones], "convention": detection.convention,
+              "roles": roles.to_dict(), "missing_roles": roles.missing(), "segments": {}}
+    try:
+        skeleton = skeleton_from_armature(obj, scene, total_mass)
+    except RigError as error:
+        result["refused"] = str(error)
+    else:
+        result["unit_scale_m"] = skeleton.unit_scale
+        result["segments"] = {name: {"role": roles.role_of(name), "mass_kg": round(float(m), 4)}
+                              for name, m in zip(skeleton.names, skeleton.mass) if m > 0}
+        result["total_mass_kg"] = round(skeleton.total_mass, 4)
+    action = obj.animation_data.action if obj.animation_data else None
+    result["action"] = action.name if action else None
+    result["frame_range"] = [float(v) for v in action.frame_range] if action else None
+    result["fps"] = round(scene_fps(scene), 4)
+    return result
+
+
+def _text_summary(r):
+    lines = [f"{r['command']}: armature '{r['armature']}', {r['bone_count']} bones, "
+             f"roles by {r['convention']}"]
+    if r.get("missing_roles"):
+        lines.append(f"  missing roles: {', '.join(r['missing_roles'])}")
+    if r.get("refused"):
+        lines.append(f"  refused: {r['refused']}")
+    if r.get("total_mass_kg") is not None:
+        lines.append(f"  mass: {r['total_mass_kg']:.1f} kg in {len(r['segments'])} segments")
+    if r.get("action"):
+        lines.append(f"  action '{r['action']}': frames {r['frame_range'][0]:g}-{r['frame_range'][1]:g} "
+                     f"at {r['fps']:g} fps")
+    for path in r.get("wrote", []):
+        lines.append(f"  wrote {path}")
+    lines.append(f"  took {r['seconds']:.2f} s")
+    return "\n".join(lines)
+
+
+COMMANDS = {"info": cmd_info, "demo": cmd_demo}

@@ -1,0 +1,17 @@
+"""Blender operators, one module per capability; each gathers through the bridge and reports."""
+
+import bpy
+
+from . import rig
+
+CLASSES = rig.CLASSES
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,17 @@
+"""Sidebar panels: View3D > Sidebar > HumanAnim, one panel per capability."""
+
+import bpy
+
+from . import rig
+
+CLASSES = rig.CLASSES
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)
