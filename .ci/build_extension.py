@@ -53,7 +53,7 @@ REQUIRED_DIRS = ("solver", "humananim_addon", "operators", "panels")
 ROOT_FILES = ("__init__.py", MANIFEST_NAME)
 ROOT_FILE_GLOBS = ("LICENSE*", "COPYING*", "README*")
 # Never inside the zip (checked after the build).
-FORBIDDEN_TOP = ("tests/", "benchmarks/", ".ci/", "build/", ".git/", "pyproject.toml", "__main__.py")
+FORBIDDEN_TOP = ("tests/", "benchmarks/", ".ci/", "build/", ".git/", "pyproject.toml", "setup.py", "__main__.py")
 IGNORE_IN_TREES = shutil.ignore_patterns("__pycache__", "*.pyc", "*.pyo", ".*", "*.egg-info", "*.blend[1-9]")
 
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..solver import rotations
 from ..solver.errors import MotionError
+from ..solver.progress import run_to_end
 from ..solver.skeleton import compose, decompose
 from ..solver.trajectories import Trajectories
 from . import action_api
@@ -49,6 +50,12 @@ def read_action(obj, scene, skeleton, action=None, frame_range=None, on_keys=Fal
 
     `exact` (default: when the rig has constraints or drivers) evaluates every frame through
     the depsgraph; otherwise F-curves are sampled directly, which is much faster."""
+    return run_to_end(iter_read_action(obj, scene, skeleton, action, frame_range, on_keys, exact))
+
+
+def iter_read_action(obj, scene, skeleton, action=None, frame_range=None, on_keys=False, exact=None):
+    """read_action as steps: yields progress in [0, 1], returns the Trajectories. Closing it
+    early restores the scene (frame, assigned action) and returns nothing."""
     ad = obj.animation_data
     action = action or (ad.action if ad else None)
     if action is None:
@@ -57,13 +64,12 @@ def read_action(obj, scene, skeleton, action=None, frame_range=None, on_keys=Fal
     if exact is None:
         exact = needs_evaluation(obj)
     if exact:
-        basis = _evaluated_basis(obj, scene, skeleton, action, frames)
+        basis = yield from _evaluated_basis(obj, scene, skeleton, action, frames)
     else:
         basis = _fcurve_basis(obj, skeleton, action, frames)
     trans, quats = decompose(basis)
-    traj = Trajectories(frames, scene_fps(scene), rotations.make_continuous(quats),
+    return Trajectories(frames, scene_fps(scene), rotations.make_continuous(quats),
                         trans * skeleton.unit_scale, armature_to_world(obj, scene))
-    return traj
 
 
 def _fcurve_basis(obj, skeleton, action, frames):
@@ -115,6 +121,7 @@ def _evaluated_basis(obj, scene, skeleton, action, frames):
         for i, f in enumerate(frames):
             scene.frame_set(int(np.floor(f)), subframe=float(f - np.floor(f)))
             obj.pose.bones.foreach_get("matrix", pose[i])
+            yield (i + 1) / len(frames)
     finally:
         if ad.action != saved[0]:
             ad.action = saved[0]

@@ -90,9 +90,13 @@ def register():
         bpy.utils.register_class(cls)
     bpy.types.Armature.humananim = PointerProperty(type=HumanAnimRigSettings)
     bpy.types.Scene.humananim = PointerProperty(type=HumanAnimSceneSettings)
+    bpy.types.WindowManager.humananim_progress = FloatProperty(default=-1.0, options={"SKIP_SAVE"})
+    bpy.types.WindowManager.humananim_job = StringProperty(options={"SKIP_SAVE"})
 
 
 def unregister():
+    del bpy.types.WindowManager.humananim_job
+    del bpy.types.WindowManager.humananim_progress
     del bpy.types.Scene.humananim
     del bpy.types.Armature.humananim
     for cls in reversed(CLASSES):

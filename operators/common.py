@@ -1,10 +1,16 @@
-"""What every HumanAnim operator shares: the armature poll and user-error reporting."""
+"""What every HumanAnim operator shares: the armature poll, user-error reporting, long jobs."""
 
 import logging
+import time
+
+import bpy
 
 from ..solver.errors import HumanAnimError
+from ..solver.progress import run_to_end
 
 log = logging.getLogger(__name__)
+
+CHUNK_SECONDS = 0.05  # work per timer tick, so the UI stays responsive
 
 
 def active_armature(context):
@@ -17,10 +23,92 @@ def run_reporting(operator, work):
     try:
         message = work()
     except HumanAnimError as error:
-        log.error("%s: %s", operator.bl_idname, error)
-        operator.report({"ERROR"}, str(error))
-        return {"CANCELLED"}
+        return _fail(operator, error)
+    return _finish(operator, message)
+
+
+def _fail(operator, error):
+    log.error("%s: %s", operator.bl_idname, error)
+    operator.report({"ERROR"}, str(error))
+    return {"CANCELLED"}
+
+
+def _finish(operator, message):
     if message:
         log.info("%s: %s", operator.bl_idname, message)
         operator.report({"INFO"}, message)
     return {"FINISHED"}
+
+
+class JobOperator:
+    """An operator whose work is a generator `job(context)`: it yields progress in [0, 1] and
+    returns the report message. It writes its result only after its last step, so Esc (which
+    closes the generator) leaves nothing half-written. In the background (batch jobs, the bpy
+    module) `execute` runs it to the end; in the UI `invoke` runs it in chunks on a timer with
+    a progress bar in the HumanAnim panel."""
+
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        steps = self.job(context)
+        return run_reporting(self, lambda: run_to_end(steps))
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        start_job(self, context)
+        self._timer = context.window_manager.event_timer_add(0.01, window=context.window)
+        context.window_manager.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            return cancel_job(self, context)
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        return step_job(self, context)
+
+
+def start_job(op, context):
+    op._steps = op.job(context)
+    set_progress(context, op.bl_label, 0.0)
+
+
+def step_job(op, context):
+    """Advance the job for one chunk of time; FINISHED, CANCELLED or RUNNING_MODAL."""
+    deadline = time.perf_counter() + CHUNK_SECONDS
+    try:
+        while time.perf_counter() < deadline:
+            set_progress(context, op.bl_label, next(op._steps))
+    except StopIteration as done:
+        _end_job(op, context)
+        return _finish(op, done.value)
+    except HumanAnimError as error:
+        _end_job(op, context)
+        return _fail(op, error)
+    return {"RUNNING_MODAL"}
+
+
+def cancel_job(op, context):
+    op._steps.close()  # the job's finally blocks restore what it changed
+    _end_job(op, context)
+    op.report({"WARNING"}, f"{op.bl_label}: cancelled, nothing written")
+    return {"CANCELLED"}
+
+
+def _end_job(op, context):
+    timer = getattr(op, "_timer", None)
+    if timer is not None:
+        context.window_manager.event_timer_remove(timer)
+    set_progress(context, "", -1.0)
+
+
+def set_progress(context, label, fraction):
+    """Shown by the panels while a job runs; -1 hides it."""
+    wm = context.window_manager
+    if hasattr(wm, "humananim_progress"):
+        wm.humananim_progress = fraction
+        wm.humananim_job = label
+    for area in getattr(context.screen, "areas", ()):
+        if area.type == "VIEW_3D":
+            area.tag_redraw()

@@ -5,7 +5,8 @@ from bpy.props import EnumProperty, StringProperty
 
 from ..humananim_addon import actions, armature, mass_model, properties
 from ..solver.role_detection import require_roles
-from .common import active_armature, run_reporting
+from ..solver.errors import MotionError
+from .common import JobOperator, active_armature, run_reporting
 
 
 class HUMANANIM_OT_detect_roles(bpy.types.Operator):
@@ -59,12 +60,11 @@ class HUMANANIM_OT_compute_mass_model(bpy.types.Operator):
         return run_reporting(self, work)
 
 
-class HUMANANIM_OT_bake_action(bpy.types.Operator):
+class HUMANANIM_OT_bake_action(JobOperator, bpy.types.Operator):
     """Bake the active action, as Blender evaluates it, to a new action with a key on every frame"""
 
     bl_idname = "humananim.bake_action"
     bl_label = "Bake to New Action"
-    bl_options = {"REGISTER", "UNDO"}
 
     action: StringProperty(name="Source Action", description="Empty: the active action")
     output: EnumProperty(name="Output", items=(
@@ -76,21 +76,18 @@ class HUMANANIM_OT_bake_action(bpy.types.Operator):
         obj = active_armature(context)
         return obj is not None and obj.animation_data is not None and obj.animation_data.action is not None
 
-    def execute(self, context):
-        def work():
-            obj, scene = active_armature(context), context.scene
-            source = bpy.data.actions.get(self.action) if self.action else obj.animation_data.action
-            if source is None:
-                from ..solver.errors import MotionError
-                raise MotionError(f"no action named '{self.action}'")
-            settings = scene.humananim
-            skeleton = armature.skeleton_from_armature(obj, scene, require=False)
-            exact = {"AUTO": None, "FCURVES": False, "DEPSGRAPH": True}[settings.exact]
-            traj = actions.read_action(obj, scene, skeleton, source, exact=exact)
-            output = settings.output if self.output == "SCENE" else self.output
-            result = actions.write_action(obj, skeleton, traj, f"{source.name}.baked", output, source)
-            return f"'{result.name}': {traj.frame_count} frames of {skeleton.joint_count} bones"
-        return run_reporting(self, work)
+    def job(self, context):
+        obj, scene = active_armature(context), context.scene
+        source = bpy.data.actions.get(self.action) if self.action else obj.animation_data.action
+        if source is None:
+            raise MotionError(f"no action named '{self.action}'")
+        settings = scene.humananim
+        skeleton = armature.skeleton_from_armature(obj, scene, require=False)
+        exact = {"AUTO": None, "FCURVES": False, "DEPSGRAPH": True}[settings.exact]
+        traj = yield from actions.iter_read_action(obj, scene, skeleton, source, exact=exact)
+        output = settings.output if self.output == "SCENE" else self.output
+        result = actions.write_action(obj, skeleton, traj, f"{source.name}.baked", output, source)
+        return f"'{result.name}': {traj.frame_count} frames of {skeleton.joint_count} bones"
 
 
 CLASSES = (HUMANANIM_OT_detect_roles, HUMANANIM_OT_compute_mass_model, HUMANANIM_OT_bake_action)

@@ -22,6 +22,10 @@ class VIEW3D_PT_humananim_rig(HumanAnimPanel, bpy.types.Panel):
     def draw(self, context):
         settings = context.active_object.data.humananim
         layout = self.layout
+        wm = context.window_manager
+        if wm.humananim_progress >= 0.0:
+            layout.progress(factor=wm.humananim_progress, type="BAR",
+                            text=f"{wm.humananim_job}: {100 * wm.humananim_progress:.0f}% (Esc cancels)")
         layout.operator("humananim.detect_roles", icon="ARMATURE_DATA")
         if settings.detected_convention:
             layout.label(text=f"Convention: {settings.detected_convention}")

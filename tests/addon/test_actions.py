@@ -158,3 +158,44 @@ def test_constraints_and_drivers_are_read_as_blender_shows_them(metarig, empty_s
     naive = actions.read_action(obj, scene, skeleton, exact=False)
     with pytest.raises(AssertionError):
         assert_same_pose(naive.world_frames(skeleton), blender)
+
+
+def _stand_in_operator(reports):
+    """What the modal steps need of an operator instance (bpy can't instantiate one headless)."""
+    from types import SimpleNamespace
+    cls = bpy.types.HUMANANIM_OT_bake_action
+    op = SimpleNamespace(action="", output="SCENE", bl_label=cls.bl_label, bl_idname=cls.bl_idname,
+                         report=lambda kind, text: reports.append((set(kind), text)))
+    op.job = lambda context: cls.job(op, context)
+    return op
+
+
+def test_long_bake_shows_progress_and_finishes(cmu_rig, empty_scene):
+    from humananim.operators import common
+    empty_scene.humananim.exact = "DEPSGRAPH"
+    source, reports, seen = cmu_rig.animation_data.action, [], []
+    op = _stand_in_operator(reports)
+    common.start_job(op, bpy.context)
+    while (state := common.step_job(op, bpy.context)) == {"RUNNING_MODAL"}:
+        seen.append(bpy.context.window_manager.humananim_progress)
+        assert cmu_rig.animation_data.action == source  # nothing written before the end
+    assert state == {"FINISHED"}
+    assert len(seen) >= 2 and seen == sorted(seen) and 0.0 < seen[0] < seen[-1] <= 1.0
+    assert cmu_rig.animation_data.action.name == f"{source.name}.baked"
+    assert bpy.context.window_manager.humananim_progress == -1.0
+    assert reports and "995 frames" in reports[-1][1]
+
+
+def test_escape_cancels_a_bake_and_leaves_nothing(cmu_rig, empty_scene):
+    from humananim.operators import common
+    empty_scene.humananim.exact = "DEPSGRAPH"
+    empty_scene.frame_set(7)
+    source, reports = cmu_rig.animation_data.action, []
+    n_actions = len(bpy.data.actions)
+    op = _stand_in_operator(reports)
+    common.start_job(op, bpy.context)
+    assert common.step_job(op, bpy.context) == {"RUNNING_MODAL"}
+    assert common.cancel_job(op, bpy.context) == {"CANCELLED"}
+    assert len(bpy.data.actions) == n_actions
+    assert cmu_rig.animation_data.action == source and empty_scene.frame_current == 7
+    assert reports[-1][0] == {"WARNING"} and "nothing written" in reports[-1][1]
