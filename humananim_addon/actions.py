@@ -130,11 +130,13 @@ def _evaluated_basis(obj, scene, skeleton, action, frames):
         ad.use_nla = saved[2]
         scene.frame_set(saved[3], subframe=saved[4])
     matrices = pose.reshape(len(frames), n, 4, 4).transpose(0, 1, 3, 2)
+    # Stretch and scale (e.g. Rigify's stretchy limbs) can't live in a rigid skeleton: make every
+    # evaluated frame rigid first, so the rigid chain reproduces each bone's world pose exactly.
+    matrices[..., :3, :3] /= np.linalg.norm(matrices[..., :3, :3], axis=-2, keepdims=True)
     matrices[..., :3, 3] *= skeleton.unit_scale
     parent = np.where(skeleton.parents[None, :, None, None] >= 0,
                       matrices[:, np.maximum(skeleton.parents, 0)], np.eye(4))
     basis = np.linalg.solve(parent @ skeleton.rest_local, matrices)
-    basis[..., :3, :3] /= np.linalg.norm(basis[..., :3, :3], axis=-2, keepdims=True)  # drop scale
     basis[..., :3, 3] /= skeleton.unit_scale
     return basis
 

@@ -91,3 +91,26 @@ def fcurve_snapshot(action, obj):
         fc.keyframe_points.foreach_get("co", co)
         snap[(fc.data_path, fc.array_index)] = co
     return snap
+
+
+@pytest.fixture(scope="session")
+def generated_rigify_file(tmp_path_factory):
+    """A Rigify rig generated from the human metarig, once per session (about 30 s), with a
+    keyed FK arm and leg, saved so each test can open a fresh copy."""
+    import addon_utils
+    addon_utils.enable("rigify", default_set=True)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.object.armature_human_metarig_add()
+    bpy.ops.pose.rigify_generate()
+    rig = bpy.context.active_object
+    bpy.ops.object.mode_set(mode="POSE")
+    for frame, angle in ((1, 0.0), (12, 0.7), (24, -0.3)):
+        for name in ("upper_arm_fk.L", "forearm_fk.L", "thigh_fk.R", "chest", "head"):
+            pb = rig.pose.bones[name]
+            pb.rotation_mode = "XYZ"
+            pb.rotation_euler = (angle, 0.4 * angle, -0.2 * angle)
+            pb.keyframe_insert("rotation_euler", frame=frame)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    path = tmp_path_factory.mktemp("rigify") / "generated.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    return str(path), rig.name

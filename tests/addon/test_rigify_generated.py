@@ -1,0 +1,44 @@
+"""A generated Rigify rig: DEF- bones carry the roles, constraints move them, so poses are read
+through the depsgraph."""
+
+import pytest
+
+bpy = pytest.importorskip("bpy")
+import numpy as np  # noqa: E402
+
+from conftest import assert_same_pose, world_pose  # noqa: E402
+from humananim.humananim_addon import actions  # noqa: E402
+from humananim.humananim_addon.armature import skeleton_from_armature  # noqa: E402
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture
+def rig(generated_rigify_file):
+    path, name = generated_rigify_file
+    bpy.ops.wm.open_mainfile(filepath=path)
+    return bpy.data.objects[name]
+
+
+def test_roles_and_masses_on_deform_bones(rig):
+    skeleton = skeleton_from_armature(rig, bpy.context.scene)
+    roles = skeleton.roles
+    assert roles.bone("pelvis") == "DEF-spine"
+    assert [roles.bone(r) for r in ("thigh.L", "shin.L", "foot.L", "upper_arm.R", "hand.R")] == [
+        "DEF-thigh.L", "DEF-shin.L", "DEF-foot.L", "DEF-upper_arm.R", "DEF-hand.R"]
+    assert skeleton.total_mass == pytest.approx(70.0)
+    massive = [skeleton.names[j] for j in np.flatnonzero(skeleton.mass > 0)]
+    assert all(name.startswith("DEF-") for name in massive)
+
+
+def test_constrained_pose_is_read_exactly(rig):
+    scene = bpy.context.scene
+    skeleton = skeleton_from_armature(rig, scene)
+    assert actions.needs_evaluation(rig)
+    traj = actions.read_action(rig, scene, skeleton)
+    blender = world_pose(rig, scene, traj.frames)
+    assert_same_pose(traj.world_frames(skeleton), blender)
+    # the keyed controls (chest, head, FK leg) really moved deform bones
+    deform = [j for j, n in enumerate(skeleton.names) if n.startswith("DEF-")]
+    moved = np.linalg.norm(blender[11, deform, :3, 3] - blender[0, deform, :3, 3], axis=-1)
+    assert (moved > 0.05).sum() >= 10
