@@ -45,22 +45,22 @@ class VIEW3D_PT_humananim_roles(HumanAnimPanel, bpy.types.Panel):
         col = self.layout.column(align=True)
         col.use_property_split = True
         for role in CENTRE_ROLES + CENTRE_CHAINS:
-            self._role_row(col, obj, settings, role, detected)
+            role_row(col, obj, settings, role, detected)
         for side in SIDES:
             col.separator()
             for role in SIDED_ROLES + FINGERS:
-                self._role_row(col, obj, settings, sided(role, side), detected)
+                role_row(col, obj, settings, sided(role, side), detected)
 
-    @staticmethod
-    def _role_row(col, obj, settings, role, detected):
-        row = col.row(align=True)
-        key = role_key(role)
-        if role.split(".")[0] in CENTRE_CHAINS + FINGERS:
-            row.prop(settings.roles, key, text=role)
-        else:
-            row.prop_search(settings.roles, key, obj.data, "bones", text=role)
-        if not getattr(settings.roles, key):
-            row.label(text=detected.get(role, "-"))
+
+def role_row(col, obj, settings, role, detected):
+    row = col.row(align=True)
+    key = role_key(role)
+    if role.split(".")[0] in CENTRE_CHAINS + FINGERS:
+        row.prop(settings.roles, key, text=role)
+    else:
+        row.prop_search(settings.roles, key, obj.data, "bones", text=role)
+    if not getattr(settings.roles, key):
+        row.label(text=detected.get(role, "-"))
 
 
 class HUMANANIM_UL_segments(bpy.types.UIList):
