@@ -379,6 +379,15 @@ def build(platforms: list[str], out: Path, blender_ext: Path, build_dir: Path) -
     }
 
 
+def generate_repository(blender_ext: Path, out: Path) -> str:
+    """A static extensions repository of the zips in `out`, made by Blender's own tool."""
+    run_tool([sys.executable, str(blender_ext), "server-generate", "--repo-dir", str(out), "--html"])
+    index = out / "index.json"
+    if not index.is_file():
+        raise BuildError(f"blender_ext.py server-generate wrote no {index}")
+    return index.as_uri()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -388,11 +397,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--build-dir", type=Path, default=REPO / "build",
                     help="work folder holding stage/ and the wheel cache wheels/ (default build)")
     ap.add_argument("--blender-ext", help="path to Blender's blender_ext.py (default: found in an installed bpy)")
+    ap.add_argument("--repository", action="store_true",
+                    help="also write a static extensions repository (index.json, index.html) in --out, "
+                         "for Blender's Preferences > Get Extensions > Repositories > Add Remote Repository")
     ap.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     args = ap.parse_args(argv)
     platforms = list(dict.fromkeys(args.platforms))
     try:
         result = build(platforms, args.out.resolve(), find_blender_ext(args.blender_ext), args.build_dir.resolve())
+        if args.repository:
+            result["repository"] = generate_repository(find_blender_ext(args.blender_ext), args.out.resolve())
     except BuildError as ex:
         log(f"ERROR: {ex}")
         return 1
@@ -401,6 +415,8 @@ def main(argv: list[str] | None = None) -> int:
     else:
         for z in result["zips"]:
             print(f"{z['bytes'] / 1e6:8.1f} MB  {z['path']}")
+        if result.get("repository"):
+            print(f"repository: {result['repository']} (add it in Blender as a remote repository)")
         print(f"built {len(result['zips'])} zip(s) in {result['seconds']['total']:.1f} s "
               f"({result['wheels_downloaded']} wheel(s) downloaded, {result['wheels_cached']} cached)")
     return 0

@@ -24,17 +24,20 @@ def mass_model_for(obj, scene, skeleton, total_mass=None):
 def compute(obj, scene, skeleton, total_mass=None):
     settings = obj.data.humananim
     total = settings.total_mass if total_mass is None else total_mass
-    if settings.mass_source == "MESH":
+    if settings.mass_source in {"AUTO", "MESH"}:
         meshes = bound_meshes(obj)
         if meshes:
             return mesh_model(obj, meshes, skeleton, settings.density, scene)
-        log.warning("'%s' has no bound mesh: using anthropometric tables", obj.name)
+        if settings.mass_source == "MESH":
+            log.warning("'%s' deforms no mesh: using anthropometric tables", obj.name)
     return anthropometric_model(skeleton, total, settings.body_type.lower())
 
 
 def bound_meshes(armature):
-    return [o for o in armature.users_scene[0].objects if o.type == "MESH" and any(
-        m.type == "ARMATURE" and m.object == armature for m in o.modifiers)] if armature.users_scene else []
+    """Mesh objects deformed by the armature (through an Armature modifier)."""
+    import bpy
+    return [o for o in bpy.data.objects if o.type == "MESH" and any(
+        m.type == "ARMATURE" and m.object == armature for m in o.modifiers)]
 
 
 def segment_owner(skeleton):

@@ -46,9 +46,10 @@ class HumanAnimRigSettings(bpy.types.PropertyGroup):
     detected_convention: StringProperty(name="Convention")
     missing_roles: StringProperty(name="Missing Roles")
     mass_source: EnumProperty(name="Mass From", items=(
+        ("AUTO", "Auto", "The bound mesh when the armature deforms one, else the body tables"),
         ("ANTHROPOMETRIC", "Body Tables", "de Leva 1996 segment tables scaled to the bones and total mass"),
         ("MESH", "Bound Mesh", "Volumes of the skin weighted to each bone, at the body density"),
-    ), default="ANTHROPOMETRIC")
+    ), default="AUTO")
     total_mass: FloatProperty(name="Total Mass", unit="MASS", default=70.0, min=1.0, soft_max=200.0)
     density: FloatProperty(name="Body Density", default=1050.0, min=100.0, soft_max=2000.0,
                            description="kg per cubic metre, for the mesh volumes")

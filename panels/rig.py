@@ -80,9 +80,9 @@ class VIEW3D_PT_humananim_mass(HumanAnimPanel, bpy.types.Panel):
         col = layout.column()
         col.use_property_split = True
         col.prop(settings, "mass_source")
-        if settings.mass_source == "MESH":
+        if settings.mass_source != "ANTHROPOMETRIC":
             col.prop(settings, "density")
-        else:
+        if settings.mass_source != "MESH":
             col.prop(settings, "total_mass")
             col.prop(settings, "body_type")
         layout.operator("humananim.compute_mass_model", icon="PHYSICS")

@@ -176,7 +176,8 @@ def linux_zip() -> dict:
     out = REPO / "build" / "test-dist"
     t0 = time.monotonic()
     res = subprocess.run(
-        [sys.executable, str(BUILD_SCRIPT), "--platforms", "linux-x64", "--out", str(out), "--json"],
+        [sys.executable, str(BUILD_SCRIPT), "--platforms", "linux-x64", "--out", str(out), "--repository",
+         "--json"],
         capture_output=True, text=True, timeout=900,
     )
     if res.returncode != 0:
@@ -185,7 +186,19 @@ def linux_zip() -> dict:
     info["elapsed"] = time.monotonic() - t0
     (z,) = info["zips"]
     assert z["platform"] == "linux-x64"
+    z["repository"] = info["repository"]
     return z
+
+
+def test_build_writes_an_extensions_repository(linux_zip):
+    if "repository" not in linux_zip:
+        pytest.skip("a prebuilt zip was given")
+    index = Path(linux_zip["repository"].removeprefix("file://"))
+    listing = json.loads(index.read_text())
+    (entry,) = [p for p in listing["data"] if p["id"] == PKG_ID]
+    assert entry["platforms"] == ["linux-x64"]
+    assert (index.parent / entry["archive_url"]).resolve() == Path(linux_zip["path"]).resolve()
+    assert (index.parent / "index.html").is_file()
 
 
 def test_zip_has_no_development_files(linux_zip):

@@ -114,12 +114,15 @@ def _box_body(armature, scene, density):
 def test_mesh_mass_model_integrates_the_bound_skin(cmu_rig, empty_scene):
     expected = _box_body(cmu_rig, empty_scene, 1000.0)
     settings = cmu_rig.data.humananim
-    settings.mass_source, settings.density = "MESH", 1000.0
+    assert settings.mass_source == "AUTO"  # a bound mesh is used without asking
+    settings.density = 1000.0
     skeleton = skeleton_from_armature(cmu_rig, empty_scene)
     for name, m in expected.items():
         assert skeleton.mass[skeleton.index(name)] == pytest.approx(m, rel=1e-6), name
     j = skeleton.index("LeftKnee")  # the box's centre sits half way along the bone
     assert np.allclose(skeleton.com[j], [0, max(skeleton.lengths[j], 0.02) / 2, 0], atol=1e-6)
+    settings.mass_source = "ANTHROPOMETRIC"  # the animator can still choose the tables
+    assert skeleton_from_armature(cmu_rig, empty_scene).total_mass == pytest.approx(70.0)
 
 
 def test_register_unregister_register_cycle():
