@@ -1,0 +1,92 @@
+"""Balance: zero moment point, support polygon and minimum moment point (Oshita 2003, sec. 2.3.3
+and eq. 2.11-2.12), on a horizontal ground at z = ground_height (Blender's Z up)."""
+
+import numpy as np
+
+from . import spatial
+from .inverse_dynamics import rnea
+from .kinematics import body_accelerations, body_com
+
+
+def zmp(model, data, q, v, a, f_ext=None, ground_height=0.0, gravity=None, exact=True):
+    """Zero moment point (x, y) on the ground for the motion (q, v, a).
+
+    exact=True: from the total rate of change of spatial momentum minus gravity and f_ext (the
+    ground reaction wrench the motion needs, as RNEA's base wrench), segment rotations included.
+    exact=False: Oshita's eq. 2.11-2.12 rewritten for Z up, treating each segment as a point mass
+    at its centre of mass: x = sum m (x (z'' + g) - (z - h) x'') / sum m (z'' + g).
+    """
+    if exact:
+        _, total = rnea(model, data, q, v, a, f_ext=f_ext, gravity=gravity, return_wrenches=True)
+        n, f = total[0, :3], total[0, 3:]
+        h = ground_height
+        return np.array([(h * f[0] - n[1]) / f[2], (n[0] + h * f[1]) / f[2]])
+    g = -(model.gravity if gravity is None else np.asarray(gravity, float))[2]
+    c = body_com(model, data, q)
+    vel, acc = body_accelerations(model, data, q, v, a)
+    cdot = vel[:, 3:] + spatial.cross(vel[:, :3], c)
+    cdd = acc[:, 3:] + spatial.cross(acc[:, :3], c) + spatial.cross(vel[:, :3], cdot)
+    m = model.mass
+    lift = m * (cdd[:, 2] + g)
+    height = c[:, 2] - ground_height
+    return np.array([(lift @ c[:, 0] - (m * height) @ cdd[:, 0]) / lift.sum(),
+                     (lift @ c[:, 1] - (m * height) @ cdd[:, 1]) / lift.sum()])
+
+
+def convex_hull(points):
+    """Counter-clockwise convex hull (m, 2) of points (k, 2) by Andrew's monotone chain; collinear
+    and duplicate points are dropped, so degenerate sets give 1 or 2 vertices."""
+    pts = np.unique(np.asarray(points, dtype=float).reshape(-1, 2), axis=0)
+    if len(pts) <= 2:
+        return pts
+
+    def half(seq):
+        out = []
+        for p in seq:
+            while len(out) >= 2 and _turn(out[-2], out[-1], p) <= 1e-14:
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(pts[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def _turn(o, a, b):
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
+def support_polygon(contact_points, ground_height=0.0, tolerance=0.01):
+    """Convex hull (m, 2) of the contact points (k, 3, world) within `tolerance` of the ground:
+    the feet's sole points and those of any other segment touching it (Oshita's support area)."""
+    pts = np.asarray(contact_points, dtype=float).reshape(-1, 3)
+    touching = pts[pts[:, 2] <= ground_height + tolerance]
+    return convex_hull(touching[:, :2]) if len(touching) else np.zeros((0, 2))
+
+
+def inside(polygon, point):
+    """Whether a point (2,) lies in a counter-clockwise convex polygon (m, 2), boundary included."""
+    polygon = np.asarray(polygon, float)
+    if len(polygon) < 3:
+        return len(polygon) > 0 and np.allclose(minimum_moment_point(polygon, point), point)
+    edge = np.roll(polygon, -1, axis=0) - polygon
+    rel = np.asarray(point, float) - polygon
+    return bool(np.all(edge[:, 0] * rel[:, 1] - edge[:, 1] * rel[:, 0] >= -1e-10))
+
+
+def minimum_moment_point(polygon, zmp_point):
+    """The point of the support polygon closest to the ZMP (the ZMP itself when inside): where the
+    ground can take the body's moment best (Oshita's MMP)."""
+    polygon = np.asarray(polygon, float).reshape(-1, 2)
+    p = np.asarray(zmp_point, float)
+    if len(polygon) == 0:
+        raise ValueError("no support polygon: nothing touches the ground")
+    if len(polygon) >= 3 and inside(polygon, p):
+        return p.copy()
+    a = polygon
+    b = np.roll(polygon, -1, axis=0) if len(polygon) > 1 else polygon
+    ab = b - a
+    length2 = np.einsum("ij,ij->i", ab, ab)
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
+    closest = a + t[:, None] * ab
+    return closest[np.argmin(np.linalg.norm(closest - p, axis=1))]

@@ -1,0 +1,65 @@
+"""Inverse dynamics by the recursive Newton-Euler algorithm (Luh, Walker and Paul 1980; Huang
+1996 appendix B), O(n), in world coordinates and vectorised over bodies.
+
+The outward recursion (velocities and accelerations) is a sum of joint contributions over each
+body's ancestors and the inward recursion (forces) a sum over each body's subtree; both are one
+product with the model's ancestor matrix, so no Python loop runs over bodies.
+"""
+
+import numpy as np
+
+from . import spatial
+from .kinematics import update_frames
+
+
+def external_wrenches(model, data, q, joints, points, forces, torques=None):
+    """World wrenches (nb, 6) about the origin of forces (k, 3, world) applied at points (k, 3)
+    given in the frames of bones `joints` (k,), plus optional pure torques (k, 3, world)."""
+    from .kinematics import point_positions
+    joints = np.atleast_1d(np.asarray(joints, dtype=int))
+    forces = np.asarray(forces, dtype=float).reshape(-1, 3)
+    x = point_positions(model, data, q, joints, points)
+    w = np.concatenate((spatial.cross(x, forces), forces), axis=1)
+    if torques is not None:
+        w[:, :3] += np.asarray(torques, dtype=float).reshape(-1, 3)
+    out = np.zeros((model.nb, 6))
+    np.add.at(out, model.joint_body[joints], w)
+    return out
+
+
+def world_point_wrenches(model, bodies, points, forces):
+    """World wrenches (nb, 6) of forces (k, 3) acting at world points (k, 3) on bodies (k,)."""
+    forces = np.asarray(forces, dtype=float).reshape(-1, 3)
+    w = np.concatenate((spatial.cross(np.asarray(points, float).reshape(-1, 3), forces), forces), axis=1)
+    out = np.zeros((model.nb, 6))
+    np.add.at(out, np.asarray(bodies, int), w)
+    return out
+
+
+def rnea(model, data, q, v, a, f_ext=None, gravity=None, return_wrenches=False):
+    """Generalised forces tau (nv,) with tau = H a + C + G + F.
+
+    tau[:6] is the wrench the base would need (root axes: torque, then force); it vanishes
+    for a motion that the joint torques, gravity and f_ext can produce alone. f_ext (nb, 6)
+    world wrenches on bodies (see external_wrenches). With return_wrenches, also the world
+    wrench (nb, 6) each body receives from its parent (index 0: from the outside world).
+    """
+    update_frames(model, data, q)
+    g = model.gravity if gravity is None else np.asarray(gravity, dtype=float)
+    xm = data.motion
+    # joint contributions of v and a in one product: (nb, 6, 2)
+    both = xm @ np.concatenate((v, [0.0], a, [0.0]))[model.pair_index]
+    u = both[:, :, 0]
+    vel = model.ancestors @ u
+    cr = spatial.crm(vel)
+    own = both[:, :, 1] + (cr @ u[:, :, None])[:, :, 0]
+    acc = model.ancestors @ own
+    acc[:, 3:] -= g  # gravity as an upward acceleration of the whole body (Luh et al.)
+    ia = data.inertia @ np.stack((acc, vel), axis=2)  # I a and the momentum I v
+    f = ia[:, :, 0] - (np.swapaxes(cr, 1, 2) @ ia[:, :, 1:])[:, :, 0]
+    if f_ext is not None:
+        f = f - f_ext
+    total = model.ancestors.T @ f  # each body's subtree
+    tau6 = (np.swapaxes(xm, 1, 2) @ total[:, :, None])[:, :, 0]
+    tau = tau6.ravel()[model.flat_dof] + model.armature_v * a
+    return (tau, total) if return_wrenches else tau

@@ -1,0 +1,212 @@
+"""Forward kinematics: frames, spatial velocities and accelerations of every body, points on
+segments, Jacobians and the whole-body centre of mass.
+
+Everything is vectorised over bodies: velocities are sums of joint contributions over each body's
+ancestors, which is one product with the model's ancestor matrix, and frames come from a few
+batched products by pointer doubling. World spatial vectors are (omega, v) at the world origin.
+"""
+
+import numpy as np
+
+from . import spatial
+from .model import Data, Model
+
+
+def update_frames(model: Model, data: Data, q):
+    """World frames (nb, 4, 4), spatial transforms and world inertias for configuration q; cached
+    in `data` until q changes."""
+    q = np.asarray(q, dtype=float)
+    if data.q is not None and np.array_equal(q, data.q):
+        return data
+    nb = model.nb
+    local = data.local
+    local[:nb, :3, :3] = model.tree_rotation @ spatial.quat_to_matrix(q[3:].reshape(nb, 4))
+    local[0, :3, 3] = q[:3]
+    frames = local
+    for a in model.doubling:
+        frames = frames[a] @ frames
+    data.frames = frames[:nb]
+    rot = data.frames[:, :3, :3]
+    lever = spatial.skew(data.frames[:, :3, 3]) @ rot
+    parts = np.concatenate((rot.reshape(nb, 9), lever.reshape(nb, 9), np.zeros((nb, 1))), axis=1)
+    data.motion = parts[:, model.motion_gather].reshape(nb, 6, 6)
+    xf = parts[:, model.force_gather].reshape(nb, 6, 6)
+    data.inertia = xf @ model.spatial_inertia @ np.swapaxes(xf, 1, 2)
+    data.q = q.copy()
+    return data
+
+
+def joint_contributions(model, data, v):
+    """Per-body spatial velocity added by its own joint, world (nb, 6)."""
+    return (data.motion @ model.expand(v)[:, :, None])[:, :, 0]
+
+
+def body_velocities(model, data, q, v):
+    """World spatial velocities (nb, 6) of every body."""
+    update_frames(model, data, q)
+    return model.ancestors @ joint_contributions(model, data, v)
+
+
+def body_accelerations(model, data, q, v, a):
+    """World spatial velocities and accelerations (nb, 6) of every body (gravity not included)."""
+    update_frames(model, data, q)
+    u = joint_contributions(model, data, v)
+    vel = model.ancestors @ u
+    own = np.einsum("bij,bj->bi", data.motion, model.expand(a)) \
+        + np.einsum("bij,bj->bi", spatial.crm(vel), u)
+    return vel, model.ancestors @ own
+
+
+def joint_frames(model, data, q):
+    """World frames (J, 4, 4) of every bone inside the dynamic body (identity outside it)."""
+    update_frames(model, data, q)
+    inside = model.joint_body >= 0
+    out = np.broadcast_to(np.eye(4), model.joint_offset.shape).copy()
+    out[inside] = data.frames[model.joint_body[inside]] @ model.joint_offset[inside]
+    return out
+
+
+def points_on_bodies(model, joints, points):
+    """Bodies (k,) and body-frame points (k, 3) of points given in bones' own frames."""
+    joints = np.atleast_1d(np.asarray(joints, dtype=int))
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    bodies = model.joint_body[joints]
+    if np.any(bodies < 0):
+        raise ValueError("a point lies on a bone outside the dynamic body")
+    off = model.joint_offset[joints]
+    return bodies, np.einsum("kij,kj->ki", off[:, :3, :3], points) + off[:, :3, 3]
+
+
+def point_positions(model, data, q, joints, points):
+    """World positions (k, 3) of points given in the frames of bones `joints`."""
+    update_frames(model, data, q)
+    bodies, local = points_on_bodies(model, joints, points)
+    f = data.frames[bodies]
+    return np.einsum("kij,kj->ki", f[:, :3, :3], local) + f[:, :3, 3]
+
+
+def point_velocities(model, data, q, v, joints, points):
+    """World velocities (k, 3) of points on bones."""
+    x = point_positions(model, data, q, joints, points)
+    vel = body_velocities(model, data, q, v)[model.joint_body[np.atleast_1d(joints)]]
+    return vel[:, 3:] + spatial.cross(vel[:, :3], x)
+
+
+def point_accelerations(model, data, q, v, a, joints, points):
+    """World accelerations (k, 3) of points on bones: a_O + alpha x x + omega x (velocity)."""
+    x = point_positions(model, data, q, joints, points)
+    vel, acc = body_accelerations(model, data, q, v, a)
+    b = model.joint_body[np.atleast_1d(joints)]
+    vel, acc = vel[b], acc[b]
+    xdot = vel[:, 3:] + spatial.cross(vel[:, :3], x)
+    return acc[:, 3:] + spatial.cross(acc[:, :3], x) + spatial.cross(vel[:, :3], xdot)
+
+
+def motion_subspace(model, data, q):
+    """World motion subspace columns (nv, 6): the spatial velocity each DOF gives its body."""
+    update_frames(model, data, q)
+    return np.swapaxes(data.motion, 1, 2).reshape(-1, 6)[model.flat_dof]
+
+
+def body_jacobian(model, data, q, body):
+    """(6, nv) map from v to the world spatial velocity (omega, v at the origin) of one body."""
+    cols = motion_subspace(model, data, q)
+    mask = model.ancestors[body][model.dof_body]
+    return (cols * mask[:, None]).T
+
+
+def point_jacobian(model, data, q, joint, point):
+    """(3, nv) map from v to the world velocity of a point given in a bone's frame."""
+    body, local = points_on_bodies(model, [joint], [point])
+    x = point_positions(model, data, q, [joint], [point])[0]
+    j6 = body_jacobian(model, data, q, body[0])
+    return j6[3:] - spatial.skew(x) @ j6[:3]
+
+
+def segment_jacobian(model, data, q, joint):
+    """(6, nv) map from v to a bone's world angular velocity (rows 0-2) and the velocity of its
+    head, the bone frame's origin (rows 3-5)."""
+    body = model.joint_body[joint]
+    x = joint_frames(model, data, q)[joint, :3, 3]
+    j6 = body_jacobian(model, data, q, body)
+    return np.vstack((j6[:3], j6[3:] - spatial.skew(x) @ j6[:3]))
+
+
+def body_com(model, data, q):
+    """World centre of mass of every body (nb, 3)."""
+    update_frames(model, data, q)
+    f = data.frames
+    return np.einsum("bij,bj->bi", f[:, :3, :3], model.com) + f[:, :3, 3]
+
+
+def center_of_mass(model, data, q):
+    """Whole-body centre of mass (3,), world."""
+    return model.mass @ body_com(model, data, q) / model.mass.sum()
+
+
+def com_jacobian(model, data, q):
+    """(3, nv) map from v to the velocity of the whole-body centre of mass.
+
+    Column of DOF c: its motion (omega_c, v_c) moves every body below it, so the momentum it
+    creates is m_sub v_c + omega_c x (m c)_sub, summed over the subtree of its body."""
+    c = body_com(model, data, q)
+    m = model.mass
+    sub_m = model.ancestors.T @ m  # subtree masses
+    sub_mc = model.ancestors.T @ (m[:, None] * c)
+    cols = motion_subspace(model, data, q)
+    b = model.dof_body
+    lin = sub_m[b, None] * cols[:, 3:] + spatial.cross(cols[:, :3], sub_mc[b])
+    return (lin / m.sum()).T
+
+
+def spatial_momentum(model, data, q, v):
+    """Total world spatial momentum (angular about the origin, linear) (6,)."""
+    vel = body_velocities(model, data, q, v)
+    return np.einsum("bij,bj->i", data.inertia, vel)
+
+
+def kinetic_energy(model, data, q, v):
+    vel = body_velocities(model, data, q, v)
+    return 0.5 * np.einsum("bi,bij,bj->", vel, data.inertia, vel)
+
+
+def potential_energy(model, data, q, gravity=None):
+    g = model.gravity if gravity is None else np.asarray(gravity, float)
+    return -float(model.mass @ body_com(model, data, q) @ g)
+
+
+def integrate(model, q, v, dt=1.0):
+    """q (+) v dt on the configuration manifold: the root moves along its own axes, every
+    quaternion turns by exp of its local angular velocity (locked axes stay at zero)."""
+    q = np.asarray(q, dtype=float)
+    full = model.expand(np.asarray(v, float) * dt)
+    out = np.empty_like(q)
+    quats = q[3:].reshape(model.nb, 4)
+    out[:3] = q[:3] + spatial.quat_to_matrix(quats[0]) @ full[0, 3:]
+    turned = spatial.quat_multiply(quats, spatial.quat_exp(full[:, :3]))
+    out[3:] = (turned / np.sqrt(np.einsum("bi,bi->b", turned, turned))[:, None]).ravel()
+    return out
+
+
+def difference(model, q0, q1):
+    """The velocity-space step v with integrate(q0, v) ~ q1 (exact for the rotations on free
+    axes; the root translation is expressed in the root axes of q0)."""
+    q0 = np.asarray(q0, float)
+    q1 = np.asarray(q1, float)
+    a = q0[3:].reshape(model.nb, 4)
+    b = q1[3:].reshape(model.nb, 4)
+    full = np.zeros((model.nb, 6))
+    full[:, :3] = spatial.quat_log(spatial.quat_multiply(spatial.quat_conjugate(a), b))
+    full[0, 3:] = spatial.quat_to_matrix(a[0]).T @ (q1[:3] - q0[:3])
+    return full.ravel()[model.flat_dof].copy()
+
+
+def configuration_rate(model, q, v):
+    """dq/dt in the embedding coordinates of q (for Runge-Kutta integration)."""
+    full = model.expand(v)
+    quats = np.asarray(q, float)[3:].reshape(model.nb, 4)
+    out = np.empty(model.nq)
+    out[:3] = spatial.quat_to_matrix(quats[0]) @ full[0, 3:]
+    pure = np.concatenate((np.zeros((model.nb, 1)), full[:, :3]), axis=1)
+    out[3:] = 0.5 * spatial.quat_multiply(quats, pure).ravel()
+    return out

@@ -1,0 +1,123 @@
+"""Huang's closed-loop simulation: ragdoll, tracking, strength clamp, pushes and loads."""
+
+import numpy as np
+import pytest
+
+from humananim.solver import rotations
+from humananim.solver.dynamics import (GroundModel, Push, Settings, build_model, default_contacts,
+                                       joint_frames, oshita_figure, point_positions, rnea, simulate)
+from humananim.solver.trajectories import Trajectories
+
+FPS = 60.0
+
+
+def motion(seconds=1.0, swing=True):
+    """The figure standing on z = 0, swinging its arms, bending its trunk and turning its head."""
+    sk = oshita_figure()
+    n = int(seconds * FPS)
+    t = np.arange(n) / FPS
+    rot = np.zeros((n, sk.joint_count, 4))
+    rot[..., 0] = 1.0
+
+    def turn(name, axis, angle):
+        j = sk.index(name)
+        rot[:, j] = rotations.multiply(rotations.axis_rotation(axis, angle), rot[:, j])
+
+    if swing:
+        turn("upper_arm.L", 0, 0.9 * np.sin(2 * np.pi * 0.8 * t))
+        turn("upper_arm.R", 0, -0.9 * np.sin(2 * np.pi * 0.8 * t))
+        turn("forearm.L", 0, -0.6 - 0.4 * np.sin(2 * np.pi * 1.1 * t))  # elbow flexion is -X
+        turn("spine", 0, 0.25 * np.sin(2 * np.pi * 0.5 * t))
+        turn("head", 2, 0.4 * np.sin(2 * np.pi * 0.7 * t))
+    return sk, Trajectories(np.arange(n) + 1, FPS, rot, np.zeros((n, sk.joint_count, 3)), np.eye(4))
+
+
+def errors(sk, result, tr):
+    rot = rotations.angle_between(result.trajectories.rotations, tr.rotations)
+    root = np.linalg.norm(result.trajectories.root_pose(sk)[0] - tr.root_pose(sk)[0], axis=1)
+    return rot, root
+
+
+@pytest.fixture(scope="module")
+def tracked():
+    sk, tr = motion()
+    return sk, tr, simulate(sk, tr, Settings(tracking=1.0, root_support=1.0))
+
+
+def test_full_tracking_reproduces_the_motion(tracked):
+    """Stated accuracy: joints within 0.05 rad (mean 0.01), root within 5 mm, at 60 fps input."""
+    sk, tr, res = tracked
+    rot, root = errors(sk, res, tr)
+    assert rot.max() < 0.05 and rot.mean() < 0.01
+    assert root.max() < 0.005
+    assert res.torques.shape == (tr.frame_count, 39) and len(res.dof_names) == 39
+    assert np.abs(res.torques).max() > 1.0  # the arms really are driven
+
+
+def test_strength_clamp_is_respected(tracked):
+    sk, tr, full = tracked
+    weak = simulate(sk, tr, Settings(tracking=1.0, root_support=1.0, strength_scale=0.03))
+    low, high = weak.available[..., 0], weak.available[..., 1]
+    assert np.all(weak.torques <= high + 1e-9) and np.all(weak.torques >= low - 1e-9)
+    assert weak.usage.max() > 1.0  # the clamp acted
+    assert errors(sk, weak, tr)[0].max() > 3 * errors(sk, full, tr)[0].max()
+
+
+def test_ragdoll_falls_and_rests_on_the_ground():
+    sk, tr = motion(seconds=2.5, swing=False)
+    res = simulate(sk, tr, Settings(tracking=0.0))
+    pos, _ = res.trajectories.root_pose(sk)
+    assert np.all(np.isfinite(pos))
+    assert pos[0, 2] == pytest.approx(0.95) and pos[-1, 2] < 0.3  # it fell
+    speed = np.linalg.norm(np.diff(pos[-15:], axis=0), axis=1) * FPS
+    assert speed.max() < 0.05  # and came to rest
+    # never sinks: contact spheres enter the penalty ground less than 5 cm on impact, 1 cm at rest
+    model = build_model(sk)
+    data = model.create_data()
+    contacts = default_contacts(model)
+    from humananim.solver.dynamics import desired_motion
+    qs = desired_motion(model, sk, res.trajectories)[0]
+    lowest = np.array([(point_positions(model, data, q, contacts.joints, contacts.points)[:, 2]
+                        - contacts.radii).min() for q in qs])
+    assert lowest.min() > -0.05 and lowest[-10:].min() > -0.01
+    assert res.contact_force[-1, 2] == pytest.approx(72.0 * 9.81, rel=0.05)  # resting weight
+
+
+def test_push_deflects_and_the_loop_recovers(tracked):
+    sk, tr, calm = tracked
+    push = Push(time=0.3, joint="chest", point=(0.0, 0.15, 0.0), direction=(0, 1, 0), magnitude=400.0,
+                duration=0.1)
+    res = simulate(sk, tr, Settings(tracking=1.0, root_support=1.0, pushes=(push,)))
+    chest = sk.index("chest")
+    dev = rotations.angle_between(res.trajectories.rotations[:, chest], tr.rotations[:, chest])
+    calm_dev = rotations.angle_between(calm.trajectories.rotations[:, chest], tr.rotations[:, chest])
+    hit = int(0.45 * FPS)
+    assert dev[hit - 3:hit + 6].max() > 5 * calm_dev.max() + 0.01
+    assert dev[-5:].max() < 0.5 * dev.max()  # the feedback brings it back
+
+
+def test_loads_in_the_hands():
+    """10 kg in a hand held with the elbow at 90 degrees: the elbow torque holds its weight."""
+    sk = oshita_figure()
+    base = build_model(sk)
+    loaded = build_model(sk, loads={"hand.L": 10.0})
+    q = base.neutral()
+    forearm = sk.index("forearm.L")
+    i = base.dof_names.index("forearm.L.x")
+    q[base.q_index[base.joint_body[forearm]]:][:4] = rotations.axis_rotation(0, np.pi / 2)
+    z = np.zeros(base.nv)
+    extra = rnea(loaded, loaded.create_data(), q, z, z) - rnea(base, base.create_data(), q, z, z)
+    hand = sk.index("hand.L")
+    grip = point_positions(base, base.create_data(), q, [hand], [sk.com[hand]])[0]
+    frame = joint_frames(base, base.create_data(), q)[forearm]
+    moment = np.cross(grip - frame[:3, 3], (0.0, 0.0, -10.0 * 9.81))  # the load's weight about the elbow
+    assert np.linalg.norm(grip - frame[:3, 3]) > 0.1
+    assert -extra[i] == pytest.approx(moment @ frame[:3, 0], rel=1e-9)  # the muscles hold it
+
+
+def test_pd_servo_and_ground_settings(tracked):
+    sk, tr, _ = tracked
+    res = simulate(sk, tr, Settings(controller="pd", tracking=1.0, root_support=1.0,
+                                    ground=GroundModel(height=-0.01)))
+    rot, root = errors(sk, res, tr)
+    assert rot.max() < 0.4 and root.max() < 0.02
