@@ -4,7 +4,7 @@ import logging
 
 import bpy
 
-from . import cli, preferences, properties
+from . import cli, preferences, properties, simulation
 
 log = logging.getLogger(preferences.PACKAGE)
 _cli_handle = None
@@ -15,6 +15,7 @@ def register():
     from .. import operators, panels  # they import the bridge: import them after it
     bpy.utils.register_class(preferences.HumanAnimPreferences)
     properties.register()
+    simulation.register()
     operators.register()
     panels.register()
     if hasattr(bpy.utils, "register_cli_command"):
@@ -32,5 +33,6 @@ def unregister():
         _cli_handle = None
     panels.unregister()
     operators.unregister()
+    simulation.unregister()
     properties.unregister()
     bpy.utils.unregister_class(preferences.HumanAnimPreferences)

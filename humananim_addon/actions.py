@@ -141,10 +141,12 @@ def _evaluated_basis(obj, scene, skeleton, action, frames):
     return basis
 
 
-def write_action(obj, skeleton, traj, name, output="ACTION", source=None):
+def write_action(obj, skeleton, traj, name, output="ACTION", source=None, extra_channels=None):
     """A new action from trajectories; `output` 'ACTION' makes it active, 'NLA' adds a track.
 
-    The source action is never changed; it gets a fake user so it can't be lost."""
+    `extra_channels` maps (data path, group) to (F, k) values keyed on the same frames (e.g.
+    custom-property curves of joint torques). The source action is never changed; it gets a
+    fake user so it can't be lost."""
     action = bpy.data.actions.new(name)
     writer = action_api.ChannelWriter(action, obj)
     frames = traj.frames
@@ -158,6 +160,8 @@ def write_action(obj, skeleton, traj, name, output="ACTION", source=None):
             _write_channels(writer, f"{path}.location", bone, frames, trans)
         prop, values = channels[j]
         _write_channels(writer, f"{path}.{prop}", bone, frames, values)
+    for (data_path, group), values in (extra_channels or {}).items():
+        _write_channels(writer, data_path, group, frames, np.asarray(values, float).reshape(len(frames), -1))
     if source is not None:
         source.use_fake_user = True
     if output == "NLA":
@@ -200,6 +204,10 @@ def _write_channels(writer, data_path, group, frames, values):
         fc.keyframe_points.foreach_set("co", np.column_stack((frames, values[:, i])).ravel())
         fc.keyframe_points.foreach_set("interpolation", np.full(len(frames), linear, dtype=np.int32))
         fc.update()
+
+
+def bone_path(bone):
+    return f'pose.bones["{_escape(bone)}"]'
 
 
 def _escape(name):

@@ -2,9 +2,9 @@
 
 import bpy
 
-from . import rig
+from . import rig, simulate
 
-CLASSES = rig.CLASSES
+CLASSES = rig.CLASSES + simulate.CLASSES
 
 
 def register():

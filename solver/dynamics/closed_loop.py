@@ -17,6 +17,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .. import rotations
+from ..errors import HumanAnimError
+from ..progress import run_to_end
 from ..trajectories import Trajectories
 from . import kinematics, spatial
 from .balance import minimum_moment_point, support_polygon, zmp
@@ -26,6 +29,10 @@ from .inertia_matrix import bias_forces, crba
 from .inverse_dynamics import external_wrenches, rnea
 from .model import GRAVITY, build_model
 from .strength import StrengthModel, default_strength, joint_angles, limit_torques
+
+
+class SimulationError(HumanAnimError):
+    """The simulation blew up: reported to the animator, with what to change."""
 
 
 @dataclass
@@ -68,6 +75,9 @@ class Settings:
     # keeps modes of tiny segments (helper bones, fingers, a short root bone) slow enough for the
     # millisecond step; 0 for exact rigid bodies
     armature: float = 1e-3
+    # massless helper joints that the motion never turns (e.g. a BVH's LHipJoint) are welded:
+    # a second free ball joint at the same point makes H nearly singular
+    weld_static_helpers: bool = True
 
 
 @dataclass
@@ -111,8 +121,15 @@ def desired_motion(model, skeleton, trajectories):
 
 def simulate(skeleton, trajectories, settings=None):
     """Simulate a skeleton tracking `trajectories` under gravity, ground contact, loads and pushes."""
+    return run_to_end(iter_simulate(skeleton, trajectories, settings))
+
+
+def iter_simulate(skeleton, trajectories, settings=None):
+    """simulate() as steps: yields the fraction of frames done, returns the Result."""
     st = settings or Settings()
     tr = trajectories
+    if st.weld_static_helpers:
+        skeleton = weld_static_helpers(skeleton, tr)
     model = build_model(skeleton, reference_basis=tr.basis()[0], loads=st.loads, gravity=st.gravity,
                         armature=st.armature)
     data = model.create_data()
@@ -191,10 +208,25 @@ def simulate(skeleton, trajectories, settings=None):
                     q, v = step_explicit(model, data, q, v, servo, dt, st, contacts, push, passive, forward)
                 t += dt
             if not np.all(np.isfinite(q)):
-                raise FloatingPointError(f"the simulation diverged at frame {tr.frames[f]:g}")
+                raise SimulationError(f"the simulation diverged at frame {tr.frames[f]:g}: "
+                                      "try a smaller step, more damping or a lower tracking gain")
+        yield (f + 1) / nf
     return Result(trajectories=_to_trajectories(model, skeleton, tr, out_q), torques=torques,
                   usage=usage, available=available, dof_names=model.dof_names[6:], root_wrench=root_wrench,
                   contact_force=contact_force, zmp=zmps, mmp=mmps, model=model)
+
+
+def weld_static_helpers(skeleton, trajectories, tolerance=1e-3):
+    """The skeleton with no free axis on massless joints whose rotation stays within
+    `tolerance` radians of its first frame (they keep that rotation, welded)."""
+    turn = rotations.angle_between(trajectories.rotations[:1], trajectories.rotations).max(axis=0)
+    static = (turn < tolerance) & (skeleton.mass <= 0.0)
+    static[skeleton.root] = False
+    if not static.any():
+        return skeleton
+    dof = skeleton.dof.copy()
+    dof[static] = False
+    return replace(skeleton, dof=dof)
 
 
 def step_explicit(model, data, q, v, servo, dt, st, contacts, push, passive, forward=aba):

@@ -1,0 +1,123 @@
+"""Closed-loop simulation in Blender: its settings, pushes from Empties, stress curves back out."""
+
+import bpy
+import numpy as np
+from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+
+from ..solver.body_roles import SIDES, sided
+from ..solver.dynamics.closed_loop import Push, Settings
+from ..solver.dynamics.ground_contact import GroundModel
+from .actions import bone_path
+
+TORQUE = "humananim_torque"  # N m, magnitude over the joint's axes
+USAGE = "humananim_strength_usage"  # required / available torque, worst axis; > 1: too weak
+ASSIST = "humananim_balance_assist"  # N of residual force the pelvis needed
+
+
+def _is_empty(_self, obj):
+    return obj.type == "EMPTY"
+
+
+class HumanAnimPush(bpy.types.PropertyGroup):
+    empty: PointerProperty(name="Arrow", type=bpy.types.Object, poll=_is_empty,
+                           description="An Empty whose location is where the push hits and whose Z axis is its direction")
+    bone: StringProperty(name="Bone", description="The bone that is pushed")
+    frame: IntProperty(name="Frame", default=1)
+    duration: FloatProperty(name="Duration", default=0.1, min=0.001, soft_max=2.0, unit="TIME_ABSOLUTE")
+    magnitude: FloatProperty(name="Force", default=300.0, min=0.0, soft_max=3000.0,
+                             description="Newtons")
+
+
+class HumanAnimSimulation(bpy.types.PropertyGroup):
+    action: PointerProperty(name="Source Action", type=bpy.types.Action,
+                            description="The motion to follow; empty: the active action")
+    frame_start: IntProperty(name="Start", default=0, description="0: the action's first frame")
+    frame_end: IntProperty(name="End", default=0, description="0: the action's last frame")
+    tracking: FloatProperty(name="Tracking", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
+                            description="0: a ragdoll that just falls, 1: the muscles follow the motion")
+    controller: EnumProperty(name="Controller", items=(
+        ("INVERSE_DYNAMICS", "Inverse Dynamics", "Torques that realise the motion, clamped by strength (Huang)"),
+        ("PD", "PD Servo", "A proportional-derivative servo on every joint"),
+    ))
+    balance_assist: FloatProperty(
+        name="Balance Assist", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
+        description="Share of the pelvis force the feet can't provide that is applied anyway "
+                    "(0: fully physical, the body must balance on its feet)")
+    strength_scale: FloatProperty(name="Strength", default=1.0, min=0.0, soft_max=3.0,
+                                  description="Scale of the muscle strength model")
+    ground_height: FloatProperty(name="Ground Height", default=0.0, unit="LENGTH")
+    load_left: FloatProperty(name="Left Hand Load", default=0.0, min=0.0, soft_max=50.0, unit="MASS")
+    load_right: FloatProperty(name="Right Hand Load", default=0.0, min=0.0, soft_max=50.0, unit="MASS")
+    pushes: CollectionProperty(type=HumanAnimPush)
+    push_index: IntProperty()
+
+
+CLASSES = (HumanAnimPush, HumanAnimSimulation)
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.humananim_simulation = PointerProperty(type=HumanAnimSimulation)
+
+
+def unregister():
+    del bpy.types.Scene.humananim_simulation
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)
+
+
+def frame_range(props, action):
+    start = props.frame_start or action.frame_range[0]
+    end = props.frame_end or action.frame_range[1]
+    return start, end
+
+
+def solver_settings(scene, props, skeleton, traj):
+    """The solver's Settings from the panel's values, the scene's gravity and the pushes."""
+    gravity = tuple(scene.gravity) if scene.use_gravity else (0.0, 0.0, 0.0)
+    loads = {}
+    for side, kg in zip(SIDES, (props.load_left, props.load_right)):
+        hand = skeleton.roles.bone(sided("hand", side))
+        if kg > 0.0 and hand:
+            loads[hand] = kg
+    return Settings(gravity=gravity, ground=GroundModel(height=props.ground_height), loads=loads,
+                    pushes=tuple(pushes(props, skeleton, traj)), strength_scale=props.strength_scale,
+                    tracking=props.tracking, controller=props.controller.lower(),
+                    root_support=props.balance_assist)
+
+
+def pushes(props, skeleton, traj):
+    """Each arrow Empty becomes a force at its location, along its Z axis, on its bone."""
+    world = None
+    for item in props.pushes:
+        if item.empty is None or item.bone not in skeleton.names or item.magnitude <= 0.0:
+            continue
+        if world is None:
+            world = traj.world_frames(skeleton)
+        f = int(np.clip(np.searchsorted(traj.frames, item.frame), 0, traj.frame_count - 1))
+        bone_world = world[f, skeleton.index(item.bone)]
+        m = np.array(item.empty.matrix_world)
+        point = np.linalg.solve(bone_world, np.append(m[:3, 3], 1.0))[:3]
+        direction = m[:3, 2] / np.linalg.norm(m[:3, 2])
+        yield Push(time=(traj.frames[f] - traj.frames[0]) / traj.fps, joint=item.bone, point=tuple(point),
+                   direction=tuple(direction), magnitude=item.magnitude, duration=item.duration)
+
+
+def stress_channels(obj, skeleton, result):
+    """Custom-property curves per bone (torque, strength usage) and on the object (assist)."""
+    joints = result.model.dof_joint[6:]
+    channels = {}
+    for j in np.unique(joints):
+        cols = joints == j
+        bone = skeleton.names[j]
+        pb = obj.pose.bones[bone]
+        for prop in (TORQUE, USAGE):
+            if prop not in pb:
+                pb[prop] = 0.0  # the property must exist for its curve to evaluate
+        channels[(f'{bone_path(bone)}["{TORQUE}"]', bone)] = np.linalg.norm(result.torques[:, cols], axis=1)
+        channels[(f'{bone_path(bone)}["{USAGE}"]', bone)] = np.abs(result.usage[:, cols]).max(axis=1)
+    if ASSIST not in obj:
+        obj[ASSIST] = 0.0
+    channels[(f'["{ASSIST}"]', "HumanAnim")] = np.linalg.norm(result.root_wrench[:, 3:6], axis=1)
+    return channels
