@@ -11,6 +11,8 @@ import os
 import sys
 import time
 
+import numpy as np
+
 DEFAULT_CLIP = os.path.join(os.path.dirname(__file__), "data", "mocap", "cmu_131_01.bvh")
 log = logging.getLogger(__name__)
 
@@ -30,6 +32,25 @@ def build_parser():
     demo.add_argument("--bvh", default=DEFAULT_CLIP, help="motion to import (default: bundled CMU 131_01)")
     demo.add_argument("--out", default=os.path.join("out", "demo.blend"), help="the .blend to write")
     _common(demo)
+    sim = sub.add_parser("simulate", help="closed-loop simulation: the rig follows its action under "
+                                          "gravity, loads and pushes; writes a new action")
+    sim.add_argument("file", help="a .blend or .bvh file")
+    sim.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
+    sim.add_argument("--action", help="source action (default: the armature's active action)")
+    sim.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
+    sim.add_argument("--tracking", type=float, default=1.0, help="0 ragdoll .. 1 full tracking (default 1)")
+    sim.add_argument("--controller", choices=("inverse_dynamics", "pd"), default="inverse_dynamics")
+    sim.add_argument("--balance-assist", type=float, default=1.0,
+                     help="share of the pelvis force the feet can't give that is applied anyway (default 1)")
+    sim.add_argument("--strength", type=float, default=1.0, help="muscle strength scale (default 1)")
+    sim.add_argument("--ground", type=float, default=0.0, help="ground height in metres")
+    sim.add_argument("--load-left", type=float, default=0.0, help="kg carried in the left hand")
+    sim.add_argument("--load-right", type=float, default=0.0, help="kg carried in the right hand")
+    sim.add_argument("--push", action="append", default=[], metavar="FRAME:BONE:FX,FY,FZ[:SECONDS]",
+                     help="a push of the force vector (N, world axes) on a bone; repeatable")
+    sim.add_argument("--output", choices=("ACTION", "NLA"), default="ACTION")
+    sim.add_argument("--out", default=os.path.join("out", "simulate.blend"), help="the .blend to write")
+    _common(sim)
     return parser
 
 
@@ -127,6 +148,53 @@ def cmd_demo(args):
     return result
 
 
+def cmd_simulate(args):
+    import bpy
+    from ..solver.progress import run_to_end
+    from . import simulation
+    t0 = time.perf_counter()
+    obj, scene, unit = _load(args.file, args.armature, args.scale)
+    if args.mass:
+        obj.data.humananim.total_mass = args.mass
+    props = scene.humananim_simulation
+    if args.action:
+        props.action = bpy.data.actions.get(args.action)
+        if props.action is None:
+            raise UsageError(f"no action named '{args.action}'")
+    if args.frames:
+        props.frame_start, props.frame_end = args.frames
+    props.tracking, props.controller = args.tracking, args.controller.upper()
+    props.balance_assist, props.strength_scale = args.balance_assist, args.strength
+    props.ground_height, props.load_left, props.load_right = args.ground, args.load_left, args.load_right
+    scene.humananim.output = args.output
+    for text in args.push:
+        frame, bone, force, seconds = _parse_push(text, obj)
+        simulation.add_push(obj, scene, bone, frame, force, float(np.linalg.norm(force)), seconds)
+    summary = run_to_end(simulation.run(obj, scene))
+    out = os.path.abspath(args.out)
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=out)
+    summary.update(command="simulate", file=os.path.abspath(args.file), armature=obj.name, wrote=[out],
+                   seconds=round(time.perf_counter() - t0, 3))
+    if unit:
+        summary["bvh_unit"] = unit
+    return summary
+
+
+def _parse_push(text, obj):
+    parts = text.split(":")
+    try:
+        frame, bone, force = int(parts[0]), parts[1], np.array([float(v) for v in parts[2].split(",")])
+        seconds = float(parts[3]) if len(parts) > 3 else 0.1
+    except (IndexError, ValueError):
+        raise UsageError(f"--push {text!r}: expected FRAME:BONE:FX,FY,FZ[:SECONDS]") from None
+    if bone not in obj.data.bones:
+        raise UsageError(f"--push {text!r}: no bone named '{bone}'")
+    if force.shape != (3,) or not np.linalg.norm(force) > 0.0:
+        raise UsageError(f"--push {text!r}: the force needs three components, not all zero")
+    return frame, bone, force, seconds
+
+
 def _load(path, armature_name, scale):
     import bpy
     from .bvh_import import import_bvh
@@ -183,6 +251,13 @@ def rig_summary(obj, scene, total_mass=None):
 
 
 def _text_summary(r):
+    if r["command"] == "simulate":
+        return "\n".join([
+            f"simulate: '{r['armature']}' followed '{r['source_action']}' for {r['frames']} frames "
+            f"({r['simulated_seconds']:.2f} s) in {r['seconds']:.2f} s, {r['real_time_factor']:.2f}x real time",
+            f"  tracking error {r['tracking_error_deg_rms']:.2f} deg RMS, peak strength use "
+            f"{r['peak_strength_usage']:.2f}, peak balance assist {r['peak_balance_assist_n']:.0f} N",
+            f"  wrote action '{r['action']}' and {r['wrote'][0]}"])
     lines = [f"{r['command']}: armature '{r['armature']}', {r['bone_count']} bones, "
              f"roles by {r['convention']}"]
     if r.get("missing_roles"):
@@ -200,4 +275,4 @@ def _text_summary(r):
     return "\n".join(lines)
 
 
-COMMANDS = {"info": cmd_info, "demo": cmd_demo}
+COMMANDS = {"info": cmd_info, "demo": cmd_demo, "simulate": cmd_simulate}

@@ -4,10 +4,18 @@ import bpy
 import numpy as np
 from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
+import time
+
+from mathutils import Vector
+
+from ..solver import rotations
 from ..solver.body_roles import SIDES, sided
-from ..solver.dynamics.closed_loop import Push, Settings
+from ..solver.dynamics.closed_loop import Push, Settings, iter_simulate
 from ..solver.dynamics.ground_contact import GroundModel
+from ..solver.errors import MotionError
+from . import actions
 from .actions import bone_path
+from .armature import skeleton_from_armature
 
 TORQUE = "humananim_torque"  # N m, magnitude over the joint's axes
 USAGE = "humananim_strength_usage"  # required / available torque, worst axis; > 1: too weak
@@ -121,3 +129,54 @@ def stress_channels(obj, skeleton, result):
         obj[ASSIST] = 0.0
     channels[(f'["{ASSIST}"]', "HumanAnim")] = np.linalg.norm(result.root_wrench[:, 3:6], axis=1)
     return channels
+
+
+def run(obj, scene):
+    """The simulation job: read the source motion, simulate, write a new action with stress
+    curves. Yields progress; returns a summary dict."""
+    props = scene.humananim_simulation
+    source = props.action or (obj.animation_data.action if obj.animation_data else None)
+    if source is None:
+        raise MotionError(f"'{obj.name}' has no action to simulate: choose a source action")
+    skeleton = skeleton_from_armature(obj, scene)
+    traj = yield from actions.iter_read_action(obj, scene, skeleton, source,
+                                                frame_range=frame_range(props, source))
+    settings = solver_settings(scene, props, skeleton, traj)
+    t0 = time.perf_counter()
+    result = yield from iter_simulate(skeleton, traj, settings)
+    seconds = time.perf_counter() - t0
+    out = actions.write_action(obj, skeleton, result.trajectories, f"{source.name}.sim",
+                               scene.humananim.output, source, stress_channels(obj, skeleton, result))
+    joints = np.unique(result.model.dof_joint[6:])
+    angle = rotations.angle_between(traj.rotations[:, joints], result.trajectories.rotations[:, joints])
+    return {"source_action": source.name, "action": out.name, "frames": traj.frame_count,
+            "fps": traj.fps, "simulated_seconds": traj.frame_count / traj.fps,
+            "seconds": round(seconds, 3), "real_time_factor": traj.frame_count / traj.fps / seconds,
+            "tracking_error_deg_rms": float(np.degrees(np.sqrt(np.mean(angle ** 2)))),
+            "peak_strength_usage": float(np.abs(result.usage).max()),
+            "peak_balance_assist_n": float(np.linalg.norm(result.root_wrench[:, 3:6], axis=1).max()),
+            "pushes": len(settings.pushes), "loads_kg": dict(settings.loads)}
+
+
+def add_push(obj, scene, bone_name, frame, direction=None, magnitude=300.0, duration=0.1):
+    """An arrow Empty 30 cm before the bone's middle at `frame`, pointing along `direction`
+    (default: into the character's front); registered as a push."""
+    saved = scene.frame_current
+    scene.frame_set(frame)
+    bone = obj.data.bones[bone_name]
+    middle = obj.matrix_world @ obj.pose.bones[bone_name].matrix @ Vector((0.0, bone.length / 2, 0.0))
+    scene.frame_set(saved)
+    axis = Vector(direction) if direction is not None else obj.matrix_world.to_3x3() @ Vector((0.0, 1.0, 0.0))
+    axis.normalize()
+    empty = bpy.data.objects.new(f"Push {bone_name}", None)
+    empty.empty_display_type = "SINGLE_ARROW"
+    empty.empty_display_size = 0.3
+    empty.location = middle - 0.3 * axis
+    empty.rotation_euler = Vector((0.0, 0.0, 1.0)).rotation_difference(axis).to_euler()
+    scene.collection.objects.link(empty)
+    props = scene.humananim_simulation
+    item = props.pushes.add()
+    item.empty, item.bone, item.frame = empty, bone_name, frame
+    item.magnitude, item.duration = magnitude, duration
+    props.push_index = len(props.pushes) - 1
+    return item

@@ -1,14 +1,8 @@
 """Closed-loop simulation: the body follows its action under gravity, loads and pushes."""
 
-import time
-
 import bpy
-import numpy as np
 
-from ..humananim_addon import actions, armature, simulation
-from ..solver import rotations
-from ..solver.dynamics.closed_loop import iter_simulate
-from ..solver.errors import MotionError
+from ..humananim_addon import simulation
 from .common import JobOperator, active_armature
 
 
@@ -23,32 +17,11 @@ class HUMANANIM_OT_simulate(JobOperator, bpy.types.Operator):
         return active_armature(context) is not None
 
     def job(self, context):
-        obj, scene = active_armature(context), context.scene
-        props = scene.humananim_simulation
-        source = props.action or (obj.animation_data.action if obj.animation_data else None)
-        if source is None:
-            raise MotionError(f"'{obj.name}' has no action to simulate: choose a source action")
-        skeleton = armature.skeleton_from_armature(obj, scene)
-        traj = yield from actions.iter_read_action(obj, scene, skeleton, source,
-                                                    frame_range=simulation.frame_range(props, source))
-        settings = simulation.solver_settings(scene, props, skeleton, traj)
-        t0 = time.perf_counter()
-        result = yield from iter_simulate(skeleton, traj, settings)
-        seconds = time.perf_counter() - t0
-        channels = simulation.stress_channels(obj, skeleton, result)
-        out = actions.write_action(obj, skeleton, result.trajectories, f"{source.name}.sim",
-                                   scene.humananim.output, source, channels)
-        error = tracking_error_deg(traj, result.trajectories, result.model.dof_joint[6:])
-        return (f"'{out.name}': {traj.frame_count} frames in {seconds:.1f} s "
-                f"({traj.frame_count / traj.fps / seconds:.2f}x real time), "
-                f"tracking error {error:.1f} deg RMS, peak strength use {np.abs(result.usage).max():.2f}")
-
-
-def tracking_error_deg(source, simulated, joints):
-    """RMS over frames and simulated joints of the rotation between input and result."""
-    joints = np.unique(joints)
-    angle = rotations.angle_between(source.rotations[:, joints], simulated.rotations[:, joints])
-    return float(np.degrees(np.sqrt(np.mean(angle ** 2))))
+        summary = yield from simulation.run(active_armature(context), context.scene)
+        return (f"'{summary['action']}': {summary['frames']} frames in {summary['seconds']:.1f} s "
+                f"({summary['real_time_factor']:.2f}x real time), tracking error "
+                f"{summary['tracking_error_deg_rms']:.1f} deg RMS, peak strength use "
+                f"{summary['peak_strength_usage']:.2f}")
 
 
 class HUMANANIM_OT_add_push(bpy.types.Operator):
@@ -65,26 +38,10 @@ class HUMANANIM_OT_add_push(bpy.types.Operator):
 
     def execute(self, context):
         obj, scene = active_armature(context), context.scene
-        bone = obj.data.bones.active
-        pose = obj.matrix_world @ obj.pose.bones[bone.name].matrix
-        middle = pose @ _vector((0.0, bone.length / 2, 0.0))
-        empty = bpy.data.objects.new(f"Push {bone.name}", None)
-        empty.empty_display_type = "SINGLE_ARROW"
-        empty.empty_display_size = 0.3
-        axis = (obj.matrix_world.to_3x3() @ _vector((0.0, 1.0, 0.0))).normalized()  # the rig faces -Y
-        empty.location = middle - 0.3 * axis
-        empty.rotation_euler = _vector((0.0, 0.0, 1.0)).rotation_difference(axis).to_euler()
-        scene.collection.objects.link(empty)
-        item = scene.humananim_simulation.pushes.add()
-        item.empty, item.bone, item.frame = empty, bone.name, scene.frame_current
-        scene.humananim_simulation.push_index = len(scene.humananim_simulation.pushes) - 1
-        self.report({"INFO"}, f"push on '{bone.name}' at frame {scene.frame_current}: move and turn the arrow")
+        bone = obj.data.bones.active.name
+        simulation.add_push(obj, scene, bone, scene.frame_current)
+        self.report({"INFO"}, f"push on '{bone}' at frame {scene.frame_current}: move and turn the arrow")
         return {"FINISHED"}
-
-
-def _vector(values):
-    from mathutils import Vector
-    return Vector(values)
 
 
 class HUMANANIM_OT_remove_push(bpy.types.Operator):
