@@ -4,6 +4,7 @@ Every command prints a short summary, or with --json one JSON object of what it 
 wrote and what it measured. A user mistake is one line on stderr and exit status 2."""
 
 import argparse
+import importlib
 import contextlib
 import json
 import logging
@@ -51,6 +52,9 @@ def build_parser():
     sim.add_argument("--output", choices=("ACTION", "NLA"), default="ACTION")
     sim.add_argument("--out", default=os.path.join("out", "simulate.blend"), help="the .blend to write")
     _common(sim)
+    for name in COMMAND_MODULES:  # each capability module adds its own commands
+        module = importlib.import_module(f".{name}", __package__)
+        COMMANDS.update(module.add_commands(sub, _common))
     return parser
 
 
@@ -251,6 +255,8 @@ def rig_summary(obj, scene, total_mass=None):
 
 
 def _text_summary(r):
+    if "summary" in r:  # a command that phrases its own summary
+        return r["summary"]
     if r["command"] == "simulate":
         return "\n".join([
             f"simulate: '{r['armature']}' followed '{r['source_action']}' for {r['frames']} frames "
@@ -276,3 +282,6 @@ def _text_summary(r):
 
 
 COMMANDS = {"info": cmd_info, "demo": cmd_demo, "simulate": cmd_simulate}
+# Modules of this package with `add_commands(subparsers, add_common_options) -> {name: run(args)}`;
+# `run` returns the summary dict (with "command" and "wrote") and raises HumanAnimError/UsageError.
+COMMAND_MODULES = ()
