@@ -44,10 +44,15 @@ def bone_arrays(obj, scale):
 
 
 def detect(obj):
+    """Body roles found from the bones' names, hierarchy and geometry (no overrides)."""
     names, parents, rest, lengths, _ = bone_arrays(obj, 1.0)
+    return _detect(obj, names, parents, rest, lengths)
+
+
+def _detect(obj, names, parents, rest, lengths):
     heads = rest[:, :3, 3]
-    tails = heads + rest[:, :3, 1] * lengths[:, None]
-    return detect_roles(names, parents, heads, tails)
+    deform = [obj.data.bones[n].use_deform for n in names]
+    return detect_roles(names, parents, heads, heads + rest[:, :3, 1] * lengths[:, None], deform)
 
 
 def joint_limits(obj, names):
@@ -71,8 +76,7 @@ def skeleton_from_armature(obj, scene, total_mass=None, require=True):
         raise RigError(f"'{obj.name}' has no bones")
     scale = unit_scale(obj, scene)
     names, parents, rest, lengths, connected = bone_arrays(obj, scale)
-    heads = rest[:, :3, 3]
-    detection = detect_roles(names, parents, heads, heads + rest[:, :3, 1] * lengths[:, None])
+    detection = _detect(obj, names, parents, rest, lengths)
     roles = detection.roles.with_overrides(role_overrides(obj.data.humananim))
     unknown = [b for bones in roles.bones.values() for b in bones if b not in obj.data.bones]
     if unknown:

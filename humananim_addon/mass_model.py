@@ -80,7 +80,7 @@ def _mesh_segments(mesh_obj, to_armature, skeleton, owner):
     tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
     mesh.loop_triangles.foreach_get("vertices", tris)
     tris = tris.reshape(-1, 3)
-    group_joint = {g.index: skeleton._index.get(g.name, -1) for g in mesh_obj.vertex_groups}
+    group_joint = {g.index: _or_minus_one(skeleton.find(g.name)) for g in mesh_obj.vertex_groups}
     dominant = np.full(len(mesh.vertices), -1)
     for v in mesh.vertices:
         best = max(((g.weight, group_joint.get(g.group, -1)) for g in v.groups
@@ -90,6 +90,10 @@ def _mesh_segments(mesh_obj, to_armature, skeleton, owner):
     # a triangle belongs to the segment of most of its corners (the first corner on a tie)
     segment = np.where(corner[:, 1] == corner[:, 2], corner[:, 1], corner[:, 0])
     return verts, tris, segment
+
+
+def _or_minus_one(index):
+    return -1 if index is None else index
 
 
 def _combine(props):
@@ -121,7 +125,7 @@ def read_stored(settings, skeleton):
     n = skeleton.joint_count
     mass, com, inertia = np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3, 3))
     for item in settings.segments:
-        j = skeleton._index.get(item.bone)
+        j = skeleton.find(item.bone)
         if j is None:
             log.warning("stored mass model names a missing bone '%s': recomputing", item.bone)
             return None

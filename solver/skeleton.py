@@ -52,6 +52,10 @@ class Skeleton:
         except KeyError:
             raise RigError(f"no bone named {name!r}") from None
 
+    def find(self, name):
+        """Index of a bone, or None."""
+        return self._index.get(name)
+
     def role_index(self, role):
         name = self.roles.bone(role)
         return None if name is None else self.index(name)
