@@ -3,7 +3,7 @@
 muscle strength, ground contact and Huang's closed-loop simulation. numpy and scipy only."""
 
 from .balance import convex_hull, minimum_moment_point, support_polygon, zmp
-from .closed_loop import Push, Result, Settings, SimulationError, desired_motion, iter_simulate, simulate
+from .closed_loop import Push, Result, Settings, SimulationError, desired_motion, iter_simulate, motion_floor, simulate
 from .figures import oshita_figure
 from .forward_dynamics import aba, forward_dynamics_dense, rk4_step
 from .ground_contact import ContactGeometry, GroundModel, default_contacts
@@ -17,7 +17,7 @@ from .strength import StrengthModel, default_strength, limit_torques
 
 __all__ = [
     "ContactGeometry", "Data", "GroundModel", "Model", "Push", "Result", "Settings", "SimulationError",
-    "iter_simulate",
+    "iter_simulate", "motion_floor",
     "StrengthModel", "aba", "bias_forces", "build_model", "center_of_mass", "com_jacobian",
     "convex_hull", "crba", "default_contacts", "default_strength", "desired_motion", "difference",
     "external_forces", "external_wrenches", "forward_dynamics_dense", "gravity_forces",

@@ -71,10 +71,18 @@ class Settings:
     # (solves with H; stable at millisecond steps); "aba" or "dense": explicit forward dynamics,
     # which light segments in stiff contact require much smaller steps (max_step ~ 1e-4 s) for
     forward: str = "implicit"
-    # kg m^2 of joint armature (rotor inertia) on every joint DOF, seen by the controller too:
-    # keeps modes of tiny segments (helper bones, fingers, a short root bone) slow enough for the
-    # millisecond step; 0 for exact rigid bodies
-    armature: float = 1e-3
+    # joint armature (rotor inertia) on every joint DOF, seen by the controller too: kg m^2, and as
+    # a share of each DOF's own inertia H_ii in the first frame (whichever is larger). The share
+    # regularises DOF pairs that turn the same mass about nearly the same axis (a massless Neck
+    # twisting with the Head: H is singular along their difference) at a cost of 2 % of the
+    # inertia, on any scale of rig; 0 and 0 for exact rigid bodies
+    armature: float = 0.0
+    armature_ratio: float = 0.02
+    # bones whose subtree weighs less than this share of the body (fingers: de Leva's fingers
+    # together are 0.18 % of the body, 30 % of the 0.61 % hand; a toe is 0.27 %) carry no dynamics:
+    # lumped into their parent in the first frame's pose, they follow the source exactly. Grams on
+    # millimetre levers have modes far above any affordable step and change nothing visible
+    kinematic_fraction: float = 0.0015
     # massless helper joints that the motion never turns (e.g. a BVH's LHipJoint) are welded:
     # a second free ball joint at the same point makes H nearly singular
     weld_static_helpers: bool = True
@@ -131,13 +139,16 @@ def iter_simulate(skeleton, trajectories, settings=None):
     if st.weld_static_helpers:
         skeleton = weld_static_helpers(skeleton, tr)
     model = build_model(skeleton, reference_basis=tr.basis()[0], loads=st.loads, gravity=st.gravity,
-                        armature=st.armature)
+                        armature=st.armature,
+                        kinematic_mass=st.kinematic_fraction * (skeleton.total_mass + sum(st.loads.values())))
     data = model.create_data()
+    qd, vd, ad, frame_dt = desired_motion(model, skeleton, tr)
+    if st.armature_ratio > 0.0:
+        model.set_armature(np.maximum(st.armature, st.armature_ratio * np.diag(crba(model, data, qd[0]))))
     contacts = st.contacts if st.contacts is not None else default_contacts(model)
     strength = default_strength(model) if st.strength is None else st.strength
     strength = replace(strength, scale=strength.scale * st.strength_scale)
     forward = forward_dynamics_dense if st.forward == "dense" else aba
-    qd, vd, ad, frame_dt = desired_motion(model, skeleton, tr)
     control_dt = st.control_step or frame_dt / np.ceil(frame_dt * 120.0 - 1e-9)
     substeps = max(1, int(np.ceil(control_dt / st.max_step - 1e-9)))
     dt = control_dt / substeps
@@ -175,23 +186,34 @@ def iter_simulate(skeleton, trajectories, settings=None):
             target_a = (1 - mid) * ad[f] + mid * ad[f + 1]
             w, x, force = st.ground.forces(model, data, q, v, contacts)
             err = kinematics.difference(model, q, target_q)
-            hdiag = np.diag(crba(model, data, q))
+            h_now = crba(model, data, q)
+            hdiag = np.diag(h_now)
             passive = st.joint_damping * hdiag  # scale-free: light segments are not overdamped
             passive[:6] = 0.0
             if st.controller == "pd":
                 gains = st.tracking * hdiag
                 gains[:6] *= st.root_support
                 servo = _Servo(kp * gains, kd * gains, target_q, target_v, strength, dof_j, dof_s)
-                control, _ = servo(model, q, v)
+                control, _, _ = servo(model, q, v, None)
                 command = target_a + kp * err + kd * (target_v - v)
                 required = control / np.maximum(st.tracking, 1e-12)
             else:
                 command = target_a + kp * err + kd * (target_v - v)
-                required = rnea(model, data, q, v, command, f_ext=w) + passive * v  # the servo knows it
+                # the contact forces are known to the controller (Huang) but change within a
+                # control step far faster than it (a toe on the penalty ground: ~1e3 rad/s), so
+                # their compensation is not held: the servo cancels its share of the current
+                # contact force at every step (implicitly, see step_implicit)
+                free = rnea(model, data, q, v, command) + passive * v  # the servo knows it
+                contact = _generalized_forces(model, data, q, w)
+                required = free - contact
                 angles = joint_angles(model, q)[dof_j, dof_s]
-                applied, _ = strength.clamp(st.tracking * required[6:], angles, v[6:])
-                control = np.concatenate((st.tracking * st.root_support * required[:6], applied))
-                servo = _Constant(control)
+                low, high = strength.limits(angles, v[6:])
+                share = np.full(model.nv, st.tracking)
+                share[:6] *= st.root_support
+                control, clamped = _clamp_consistently(share * required, share, low, high,
+                                                       lambda: h_now)
+                share[6:][clamped] = 0.0  # a clamped DOF feels the changes of the contact forces
+                servo = _InverseDynamics(control + share * contact, share, low, high)
             if k == 0:
                 angles = joint_angles(model, q)[dof_j, dof_s]
                 torques[f] = control[6:]
@@ -200,20 +222,47 @@ def iter_simulate(skeleton, trajectories, settings=None):
                 root_wrench[f] = control[:6]
                 contact_force[f] = force.sum(axis=0)
                 zmps[f], mmps[f] = _balance(model, data, q, v, command, x, st.ground.height)
-            for _ in range(substeps):
-                push = _push_wrench(model, data, q, pushes, t) if pushes else None
-                if st.forward == "implicit":
-                    q, v = step_implicit(model, data, q, v, servo, dt, st, contacts, push, passive)
-                else:
-                    q, v = step_explicit(model, data, q, v, servo, dt, st, contacts, push, passive, forward)
-                t += dt
-            if not np.all(np.isfinite(q)):
-                raise SimulationError(f"the simulation diverged at frame {tr.frames[f]:g}: "
-                                      "try a smaller step, more damping or a lower tracking gain")
+            try:
+                with np.errstate(over="raise", invalid="raise"):
+                    for _ in range(substeps):
+                        push = _push_wrench(model, data, q, pushes, t) if pushes else None
+                        if st.forward == "implicit":
+                            q, v = step_implicit(model, data, q, v, servo, dt, st, contacts, push, passive)
+                        else:
+                            q, v = step_explicit(model, data, q, v, servo, dt, st, contacts, push, passive,
+                                                 forward)
+                        t += dt
+            except (np.linalg.LinAlgError, FloatingPointError) as exc:
+                raise SimulationError(_diverged(model, tr, f, v, str(exc))) from None
+            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))) or np.abs(v).max() > MAX_SPEED:
+                raise SimulationError(_diverged(model, tr, f, v))
         yield (f + 1) / nf
     return Result(trajectories=_to_trajectories(model, skeleton, tr, out_q), torques=torques,
                   usage=usage, available=available, dof_names=model.dof_names[6:], root_wrench=root_wrench,
                   contact_force=contact_force, zmp=zmps, mmp=mmps, model=model)
+
+
+MAX_SPEED = 1e3  # rad/s or m/s: beyond this the simulation has blown up
+
+
+def _diverged(model, tr, f, v, detail=""):
+    """What to tell the animator when the simulation blew up at frame index f."""
+    speed = np.where(np.isfinite(v), np.abs(v), np.inf)
+    worst = model.dof_names[int(np.argmax(speed))]
+    return (f"the simulation diverged at frame {tr.frames[f]:g} (fastest: {worst}"
+            + (f"; {detail}" if detail else "") + "): try a smaller step (max_step), more joint "
+            "damping, a lower tracking gain or check the source motion there for jumps")
+
+
+def motion_floor(skeleton, trajectories, contacts=None):
+    """Height of the lowest point any contact sphere reaches in the motion: where its floor is.
+    Capture floors are rarely at exactly zero; a ground above the feet makes them chatter."""
+    model = build_model(skeleton, reference_basis=trajectories.basis()[0])
+    data = model.create_data()
+    contacts = contacts if contacts is not None else default_contacts(model)
+    qs = desired_motion(model, skeleton, trajectories)[0]
+    return float(min((kinematics.point_positions(model, data, q, contacts.joints, contacts.points)[:, 2]
+                      - contacts.radii).min() for q in qs))
 
 
 def weld_static_helpers(skeleton, trajectories, tolerance=1e-3):
@@ -232,42 +281,120 @@ def weld_static_helpers(skeleton, trajectories, tolerance=1e-3):
 def step_explicit(model, data, q, v, servo, dt, st, contacts, push, passive, forward=aba):
     """One semi-implicit Euler step (velocity first) with explicit forward dynamics."""
     w, _, _ = st.ground.forces(model, data, q, v, contacts)
-    if push is not None:
-        w = w + push
-    control, _ = servo(model, q, v)
-    tau = control + limit_torques(model, q, v, st.limit_stiffness, st.limit_damping)
+    contact = _generalized_forces(model, data, q, w)
+    control, _, share = servo(model, q, v, contact)
+    tau = control + (1.0 - np.asarray(share, float)) * contact + limit_torques(model, q, v, st.limit_stiffness, st.limit_damping)
     tau -= passive * v
-    v = v + dt * forward(model, data, q, v, tau, f_ext=w)
+    v = v + dt * forward(model, data, q, v, tau, f_ext=push if np.ndim(push) else None)
     return kinematics.integrate(model, q, v * dt), v
 
 
 def step_implicit(model, data, q, v, servo, dt, st, contacts, push, passive):
-    """One semi-implicit Euler step with linear damping taken at the new velocity:
-    (H + dt K) (v+ - v) = dt (tau - bias(q, v) - K v), K = Jc' D Jc + joint damping."""
-    w, jac, gain = st.ground.split_forces(model, data, q, v, contacts)
-    if push is not None:
-        w = w + push
+    """One semi-implicit Euler step with the linear stiffness and damping taken at the new state:
+
+        (H + dt D + dt^2 K) (v+ - v) = dt (tau - bias(q, v) - D v - dt K v)
+
+    D: contact damping (J' c J over the touching points and sticking friction), joint, limit and
+    servo damping; K: contact normal stiffness (J' k J) and joint-limit stiffness. Light segments
+    (toes, fingers: 1e-5 kg m^2) in a penalty contact of 4e4 N/m have modes far above 1/dt; taken
+    implicitly they are damped instead of exploding. The servo cancels a share s (per DOF) of the
+    contact forces (the inverse-dynamics controller's compensation); the body feels the rest,
+    (1 - s) J' f, the damping and stiffness of that part still implicit."""
+    w, rows, damping, stiffness = st.ground.linearised_forces(model, data, q, v, contacts)
+    elastic = _generalized_forces(model, data, q, w)
+    rate = rows @ v
+    contact = elastic - rows.T @ (damping * rate)
+    control, servo_damping, share = servo(model, q, v, contact)
+    keep = 1.0 - np.asarray(share, float)
     spring = limit_torques(model, q, np.zeros_like(v), st.limit_stiffness, 0.0)
-    damp = passive + st.limit_damping * (spring != 0.0)
-    control, servo_damping = servo(model, q, v)
+    at_limit = spring != 0.0
+    damp = passive + st.limit_damping * at_limit + servo_damping + dt * st.limit_stiffness * at_limit
     control = control + servo_damping * v  # the servo's damping, taken at the new velocity below
-    damp += servo_damping
     h = crba(model, data, q)
-    k = (jac.T * gain) @ jac
+    gains = damping + dt * stiffness
+    k = (rows.T * gains) @ rows
+    uniform = keep.ndim == 0 or np.all(keep == keep.flat[0])
+    k *= keep.flat[0] if uniform else keep[:, None]
     k.flat[::model.nv + 1] += damp
-    rhs = control + spring - bias_forces(model, data, q, v, f_ext=w) - k @ v
-    v = v + dt * cholesky_solve(h + dt * k, rhs)
+    rhs = control + spring + keep * elastic - bias_forces(model, data, q, v, f_ext=push if np.ndim(push) else None) - k @ v
+    a = h + dt * k
+    v = v + dt * (cholesky_solve(a, rhs) if uniform else np.linalg.solve(a, rhs))
     return kinematics.integrate(model, q, v * dt), v
 
 
+def _generalized_forces(model, data, q, wrenches):
+    """J' f (nv,): the generalised forces of world wrenches (nb, 6) on the bodies (each DOF feels
+    the wrenches on its body's subtree)."""
+    if np.ndim(wrenches) == 0:
+        return np.zeros(model.nv)
+    cols = kinematics.motion_subspace(model, data, q)
+    subtree = model.ancestors.T @ wrenches
+    return np.einsum("ij,ij->i", cols, subtree[model.dof_body])
+
+
 class _Constant:
-    """Torques held over a control step (Huang's inverse dynamics controller)."""
+    """Torques held over a control step."""
 
     def __init__(self, tau):
         self.tau = tau
 
-    def __call__(self, model, q, v):
-        return self.tau, 0.0
+    def __call__(self, model, q, v, contact=None):
+        return self.tau, 0.0, 0.0
+
+
+class _InverseDynamics:
+    """Huang's inverse-dynamics torques: `held` (nv,) is held over the control step, and the
+    servo also cancels the share `share` (nv,) of the current contact forces, so that the applied
+    torques are held - share * J'f(t) (see step_implicit), as far as the strength model's range
+    (low, high) on the joints allows: a joint DOF that would leave it applies its bound and
+    feels the contact forces (a toe that the source pushes into the floor gives way)."""
+
+    def __init__(self, held, share, low, high):
+        self.held, self.share, self.low, self.high = held, share, low, high
+
+    def __call__(self, model, q, v, contact):
+        wanted = self.held[6:] - self.share[6:] * contact[6:]
+        over = (wanted < self.low) | (wanted > self.high)
+        if not over.any():
+            return self.held, 0.0, self.share
+        tau, share = self.held.copy(), self.share.copy()
+        tau[6:] = np.where(over, np.clip(wanted, self.low, self.high), tau[6:])
+        share[6:][over] = 0.0
+        return tau, 0.0, share
+
+
+def _clamp_consistently(tau, share, low, high, inertia, iterations=4):
+    """Joint torques tau[6:] clamped to [low, high] so that the motion stays consistent (Oshita
+    2003, sec. 2.5.1, eq. 2.10): a DOF c whose torque exceeds its strength gets the acceleration
+    its bound allows, a_c + da_c, and every other DOF the torque change H[:, c] da_c that keeps its
+    own acceleration as commanded. Clamping one DOF alone instead would throw the whole deficit
+    into the motion of its neighbours: two DOFs that turn the same mass about nearly the same axis
+    (a massless neck's twist and the head's) make H nearly singular along their difference, and a
+    torque mismatch there spins them apart. The redistributed torques are scaled by `share` (the
+    root gets its root_support share); returns the torques and the clamped joint DOFs (nv-6,)."""
+    out = tau.copy()
+    clamped = np.zeros(len(low), bool)
+    h = None
+    for _ in range(iterations):
+        over = ((out[6:] < low - 1e-9) | (out[6:] > high + 1e-9)) & ~clamped
+        if not over.any():
+            break
+        clamped |= over
+        if h is None:
+            h = inertia()
+        c = np.flatnonzero(clamped) + 6
+        target = np.clip(out[c], low[c - 6], high[c - 6])
+        try:
+            da = np.linalg.solve(h[np.ix_(c, c)], target - out[c])
+        except np.linalg.LinAlgError:
+            da = (target - out[c]) / np.diag(h)[c]
+        out += share * (h[:, c] @ da)
+        out[c] = target
+    over = (out[6:] < low) | (out[6:] > high)
+    if over.any():  # what the redistribution pushed over in the last round: plain clamp
+        out[6:] = np.clip(out[6:], low, high)
+        clamped |= over
+    return out, clamped
 
 
 class _Servo:
@@ -278,14 +405,14 @@ class _Servo:
         self.kp, self.kd, self.target_q, self.target_v = kp, kd, target_q, target_v
         self.strength, self.dof_j, self.dof_s = strength, dof_j, dof_s
 
-    def __call__(self, model, q, v):
+    def __call__(self, model, q, v, contact=None):
         tau = self.kp * kinematics.difference(model, q, self.target_q) + self.kd * (self.target_v - v)
         angles = joint_angles(model, q)[self.dof_j, self.dof_s]
         clamped, _ = self.strength.clamp(tau[6:], angles, v[6:])
         free = np.ones(model.nv, bool)
         free[6:] = clamped == tau[6:]
         tau[6:] = clamped
-        return tau, np.where(free, self.kd, 0.0)
+        return tau, np.where(free, self.kd, 0.0), 0.0
 
 
 def _balance(model, data, q, v, command, contact_points, ground_height):

@@ -43,9 +43,18 @@ class ContactGeometry:
 
 
 def default_contacts(model, limb_radius=0.04, sole_offset=0.02):
-    """Spheres at both ends of every massive bone, and a sole of four small spheres under each foot
+    """Spheres at both ends of every massive bone, and a sole of four points under each foot
     (role foot.L/R): heel 5 cm behind the ankle, ball 5 cm ahead of the foot bone's tail, 9 cm wide,
-    `sole_offset` below the tail, flat in the rest pose (armature Z up). Toes get their tip."""
+    `sole_offset` below the tail, flat in the rest pose (armature Z up). A toe gets two points
+    under its tip, level with its foot's sole in the rest pose (a sphere at the tip would reach
+    below the sole and carry the body's weight on the lightest segment).
+
+    Limb spheres are no wider than half their bone's length, so that fingers (3 cm bones) get 1.5 cm
+    spheres rather than the forearm's 4 cm and the hand rests on its palm, not on a cloud of
+    finger spheres.
+
+    Massless bones riding on a segment (a face's nose and lips, helper bones) get one small
+    sphere at their tail, so that no bone the animator sees passes through the floor."""
     sk = model.skeleton
     joints, points, radii = [], [], []
     roles = {}
@@ -54,19 +63,42 @@ def default_contacts(model, limb_radius=0.04, sole_offset=0.02):
             roles[n] = role.split(".")[0]
     for j in np.flatnonzero(model.joint_body >= 0):
         if sk.mass[j] <= 0.0:
+            if sk.lengths[j] > 1e-3:
+                joints.append(j), points.append((0.0, sk.lengths[j], 0.0))
+                radii.append(min(0.02, 0.5 * sk.lengths[j]))
             continue
         role = roles.get(sk.names[j])
         if role == "foot":
             for p in _sole(sk.rest[j], sk.lengths[j], sole_offset):
                 joints.append(j), points.append(p), radii.append(0.0)
             continue
-        ends = [(0.0, 0.0, 0.0), (0.0, sk.lengths[j], 0.0)]
         if role == "toe":
-            ends = ends[1:]
-        r = _TRUNK.get(role, limb_radius)
+            for p in _toe_tip(sk, j, roles, sole_offset):
+                joints.append(j), points.append(p), radii.append(0.0)
+            continue
+        ends = [(0.0, 0.0, 0.0), (0.0, sk.lengths[j], 0.0)]
+        r = _TRUNK[role] if role in _TRUNK else min(limb_radius, 0.5 * sk.lengths[j])
         for p in ends:
             joints.append(j), points.append(p), radii.append(r)
     return ContactGeometry(joints, points, radii)
+
+
+def _toe_tip(sk, j, roles, sole_offset, half_width=0.03):
+    """Two points (toe frame) under the toe's tip, `half_width` apart sideways, at the height of
+    the sole of the foot above it (or `sole_offset` below the tip without a foot)."""
+    rest = sk.rest[j]
+    head = rest[:3, 3]
+    tip = rest[:3, :3] @ np.array([0.0, sk.lengths[j], 0.0]) + head
+    z = tip[2] - sole_offset
+    for a in sk.ancestors(j):
+        if roles.get(sk.names[a]) == "foot":
+            z = (sk.rest[a, :3, :3] @ np.array([0.0, sk.lengths[a], 0.0]) + sk.rest[a, :3, 3])[2] - sole_offset
+            break
+    forward = np.array([tip[0] - head[0], tip[1] - head[1], 0.0])
+    forward /= max(np.linalg.norm(forward), 1e-9)
+    side = np.cross(forward, [0.0, 0.0, 1.0])
+    return [rest[:3, :3].T @ (np.array([tip[0], tip[1], z]) + s * side - head)
+            for s in (-half_width, half_width)]
 
 
 def _sole(rest, length, sole_offset):
@@ -90,8 +122,10 @@ class GroundModel:
     viscous (gain `friction_damping`) below the cap, which regularises Coulomb's stick."""
 
     height: float = 0.0
-    stiffness: float = 4e4  # N/m per sphere
-    damping: float = 400.0  # N s/m per sphere
+    # stiff enough that a falling body sinks ~2 cm on impact (4e4 let it sink 7 cm); stable
+    # because the step takes contact stiffness and damping implicitly. 5e5 made a lying body jitter
+    stiffness: float = 2e5  # N/m per sphere
+    damping: float = 2000.0  # N s/m per sphere
     friction: float = 0.8
     friction_damping: float = 800.0  # N s/m
 
@@ -121,15 +155,23 @@ class GroundModel:
 
     def split_forces(self, model, data, q, v, contacts: ContactGeometry):
         """The contact forces split for a step with implicit damping: world wrenches (nb, 6) of the
-        elastic and saturated-friction parts, and for the damped parts the point Jacobians
-        (m, nv) and damping gains (m,) of force = -gain * (J v) along world axes.
+        elastic parts, and for the damped parts (normal damping, then friction along world x and
+        y of every active point: viscous below Coulomb's cap, at the cap a viscous gain that gives
+        mu N at the current slip) the point Jacobians (m, nv) and damping gains (m,) of
+        force = -gain * (J v) along world axes.
 
         Damping of light segments (a foot rolling on its sole) is far too stiff for an explicit
         step of a millisecond; taken implicitly it is unconditionally stable."""
+        return self.linearised_forces(model, data, q, v, contacts)[:3]
+
+    def linearised_forces(self, model, data, q, v, contacts: ContactGeometry):
+        """split_forces() and the normal stiffness of each row (m,) (0 on friction rows): the
+        elastic force changes by -stiffness * (J dx) when the points move by dx, which a step can
+        take implicitly too (the penalty spring on a toe or a finger is as stiff as its damping)."""
         bodies, x = contacts.world(model, data, q)
         depth = self.height - x[:, 2]
         touching = depth > 0.0
-        empty = np.zeros((0, model.nv)), np.zeros(0)
+        empty = np.zeros((0, model.nv)), np.zeros(0), np.zeros(0)
         if not touching.any():
             return (np.zeros((model.nb, 6)),) + empty
         bodies = bodies[touching]
@@ -142,13 +184,17 @@ class GroundModel:
         sliding = active & (self.friction * normal < self.friction_damping * speed)
         f = np.zeros_like(xt)
         f[:, 2] = np.where(active, self.stiffness * depth[touching], 0.0)
-        f[sliding, :2] = -self.friction * (normal[sliding] / speed[sliding])[:, None] * xd[sliding, :2]
         wrench = np.zeros((model.nb, 6))
         np.add.at(wrench, bodies, np.concatenate((spatial.cross(xt, f), f), axis=1))
-        sticking = active & ~sliding
-        rows = [jac[active, 2], jac[sticking, 0], jac[sticking, 1]]
-        gains = [np.full(active.sum(), self.damping), np.full(2 * sticking.sum(), self.friction_damping)]
-        return wrench, np.concatenate(rows), np.concatenate(gains)
+        # sliding friction as a viscous force whose gain mu N / |slip| (< friction_damping) gives
+        # Coulomb's force at the current slip: explicit, its direction would flip every step
+        # on a light segment (a toe sliding on the floor)
+        tangential = np.where(sliding, self.friction * normal / np.maximum(speed, 1e-12), self.friction_damping)
+        n_active = int(active.sum())
+        rows = [jac[active, 2], jac[active, 0], jac[active, 1]]
+        gains = [np.full(n_active, self.damping), tangential[active], tangential[active]]
+        stiffness = np.concatenate((np.full(n_active, self.stiffness), np.zeros(2 * n_active)))
+        return wrench, np.concatenate(rows), np.concatenate(gains), stiffness
 
 
 def point_jacobians(model, data, q, bodies, points):

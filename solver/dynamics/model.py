@@ -100,8 +100,7 @@ class Model:
         self.free_mask = np.zeros((nb, 6, 3))
         self.free_mask[:, :, :] = self.free[:, None, :]
         self.axis_pad = np.where(self.free, 0.0, 1.0)  # makes padded 3x3 joint blocks invertible
-        self.axis_pad[self.free] = self.armature
-        self.axis_pad[0] = 0.0
+        self.set_armature(self.armature_v)
         self.q_index = 3 + 4 * np.arange(nb)  # where each body's quaternion starts in q
         # gathers (v, 0, a, 0)[pair_index] -> (nb, 6, 2) per-body entries of v and a at once
         self.pair_index = np.stack((v_index, v_index + n + 1), axis=2)
@@ -114,6 +113,16 @@ class Model:
                 xm[r, c] = xm[3 + r, 3 + c] = xf[r, c] = xf[3 + r, 3 + c] = 3 * r + c
                 xm[3 + r, c] = xf[r, 3 + c] = 9 + 3 * r + c
         self.motion_gather, self.force_gather = xm.ravel(), xf.ravel()
+
+    def set_armature(self, values):
+        """Armature (rotor inertia, kg m^2) per DOF (nv,) or one value for every joint DOF; the
+        base's six entries stay zero."""
+        arm = np.broadcast_to(np.asarray(values, float), (self.nv,)).copy()
+        arm[:6] = 0.0
+        self.armature_v = arm
+        pad = self.axis_pad
+        body, slot = self.dof_body[6:], self.dof_slot[6:]
+        pad[body, slot] = arm[6:]
 
     def _build_levels(self, depth):
         """Contiguous slices per depth and 0/1 maps summing children into their parents' slice."""
@@ -222,7 +231,7 @@ def _segment_loads(skeleton, loads):
 
 
 def build_model(skeleton: Skeleton, reference_basis=None, loads=None, gravity=GRAVITY,
-                armature=0.0, min_inertia=1e-6):
+                armature=0.0, min_inertia=1e-6, kinematic_mass=MASSLESS):
     """The dynamic body of a skeleton.
 
     reference_basis (J, 4, 4): local pose of bones that cannot move on their own and the location
@@ -230,6 +239,10 @@ def build_model(skeleton: Skeleton, reference_basis=None, loads=None, gravity=GR
     constant); identity by default. loads: {bone: kg} point masses at the segment's centre of mass
     (loads carried in the hands). min_inertia (kg m^2): floor on every body's principal inertia so
     that zero-radius segments (point masses at a joint) keep invertible articulated inertias.
+    kinematic_mass (kg): bones whose subtree (loads included) weighs no more than this carry no
+    dynamics of their own; their mass is lumped into their parent's body in the reference pose and
+    they follow the desired motion (massless helpers by default; the closed loop also passes the
+    fingers this way, see closed_loop.Settings.kinematic_fraction).
     """
     sk = skeleton
     J = sk.joint_count
@@ -261,7 +274,7 @@ def build_model(skeleton: Skeleton, reference_basis=None, loads=None, gravity=GR
         p = sk.parents[j]
         if j == root:
             kinds[j] = "base"
-        elif sk.dof[j].any() and subtree[j] > MASSLESS:
+        elif sk.dof[j].any() and subtree[j] > max(kinematic_mass, MASSLESS):
             kinds[j] = "joint"
         else:
             kinds[j] = "kinematic" if sk.dof[j].any() else "welded"
