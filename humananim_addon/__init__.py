@@ -4,7 +4,7 @@ import logging
 
 import bpy
 
-from . import cli, preferences, properties, simulation
+from . import cli, preferences, properties, sequence, simulation
 
 log = logging.getLogger(preferences.PACKAGE)
 _cli_handle = None
@@ -16,6 +16,7 @@ def register():
     bpy.utils.register_class(preferences.HumanAnimPreferences)
     properties.register()
     simulation.register()
+    sequence.register()
     operators.register()
     panels.register()
     if hasattr(bpy.utils, "register_cli_command"):
@@ -33,6 +34,7 @@ def unregister():
         _cli_handle = None
     panels.unregister()
     operators.unregister()
+    sequence.unregister()
     simulation.unregister()
     properties.unregister()
     bpy.utils.unregister_class(preferences.HumanAnimPreferences)

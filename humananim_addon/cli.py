@@ -44,7 +44,8 @@ def build_parser():
     sim.add_argument("--balance-assist", type=float, default=1.0,
                      help="share of the pelvis force the feet can't give that is applied anyway (default 1)")
     sim.add_argument("--strength", type=float, default=1.0, help="muscle strength scale (default 1)")
-    sim.add_argument("--ground", type=float, default=0.0, help="ground height in metres")
+    sim.add_argument("--ground", type=float, help="ground height in metres (default: the lowest "
+                                                  "point the feet reach in the motion)")
     sim.add_argument("--load-left", type=float, default=0.0, help="kg carried in the left hand")
     sim.add_argument("--load-right", type=float, default=0.0, help="kg carried in the right hand")
     sim.add_argument("--push", action="append", default=[], metavar="FRAME:BONE:FX,FY,FZ[:SECONDS]",
@@ -169,7 +170,9 @@ def cmd_simulate(args):
         props.frame_start, props.frame_end = args.frames
     props.tracking, props.controller = args.tracking, args.controller.upper()
     props.balance_assist, props.strength_scale = args.balance_assist, args.strength
-    props.ground_height, props.load_left, props.load_right = args.ground, args.load_left, args.load_right
+    props.ground = "MOTION" if args.ground is None else "HEIGHT"
+    props.ground_height = args.ground or 0.0
+    props.load_left, props.load_right = args.load_left, args.load_right
     scene.humananim.output = args.output
     for text in args.push:
         frame, bone, force, seconds = _parse_push(text, obj)
@@ -195,7 +198,7 @@ def _parse_push(text, obj):
     if bone not in obj.data.bones:
         raise UsageError(f"--push {text!r}: no bone named '{bone}'")
     if force.shape != (3,) or not np.linalg.norm(force) > 0.0:
-        raise UsageError(f"--push {text!r}: the force needs three components, not all zero")
+        raise UsageError(f"--push {text!r}: the force needs three components FX,FY,FZ, not all zero")
     return frame, bone, force, seconds
 
 
@@ -284,4 +287,4 @@ def _text_summary(r):
 COMMANDS = {"info": cmd_info, "demo": cmd_demo, "simulate": cmd_simulate}
 # Modules of this package with `add_commands(subparsers, add_common_options) -> {name: run(args)}`;
 # `run` returns the summary dict (with "command" and "wrote") and raises HumanAnimError/UsageError.
-COMMAND_MODULES = ()
+COMMAND_MODULES = ("sequence_cli",)

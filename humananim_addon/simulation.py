@@ -10,7 +10,7 @@ from mathutils import Vector
 
 from ..solver import rotations
 from ..solver.body_roles import SIDES, sided
-from ..solver.dynamics.closed_loop import Push, Settings, iter_simulate
+from ..solver.dynamics.closed_loop import Push, Settings, iter_simulate, motion_floor
 from ..solver.dynamics.ground_contact import GroundModel
 from ..solver.errors import MotionError
 from . import actions
@@ -22,13 +22,12 @@ USAGE = "humananim_strength_usage"  # required / available torque, worst axis; >
 ASSIST = "humananim_balance_assist"  # N of residual force the pelvis needed
 
 
-def _is_empty(_self, obj):
-    return obj.type == "EMPTY"
-
-
 class HumanAnimPush(bpy.types.PropertyGroup):
-    empty: PointerProperty(name="Arrow", type=bpy.types.Object, poll=_is_empty,
-                           description="An Empty whose location is where the push hits and whose Z axis is its direction")
+    # no poll filter to Empties: a PointerProperty poll crashes the bpy 4.2 module at exit, and
+    # any object's location and Z axis define a push as well as an arrow Empty's
+    empty: PointerProperty(name="Arrow", type=bpy.types.Object,
+                           description="An object (an arrow Empty) whose location is where the push hits "
+                                       "and whose Z axis is its direction")
     bone: StringProperty(name="Bone", description="The bone that is pushed")
     frame: IntProperty(name="Frame", default=1)
     duration: FloatProperty(name="Duration", default=0.1, min=0.001, soft_max=2.0, unit="TIME_ABSOLUTE")
@@ -53,6 +52,10 @@ class HumanAnimSimulation(bpy.types.PropertyGroup):
                     "(0: fully physical, the body must balance on its feet)")
     strength_scale: FloatProperty(name="Strength", default=1.0, min=0.0, soft_max=3.0,
                                   description="Scale of the muscle strength model")
+    ground: EnumProperty(name="Ground", items=(
+        ("MOTION", "From Motion", "At the lowest point the feet (or any contact) reach in the source motion"),
+        ("HEIGHT", "Height", "A horizontal ground at the height below"),
+    ))
     ground_height: FloatProperty(name="Ground Height", default=0.0, unit="LENGTH")
     load_left: FloatProperty(name="Left Hand Load", default=0.0, min=0.0, soft_max=50.0, unit="MASS")
     load_right: FloatProperty(name="Right Hand Load", default=0.0, min=0.0, soft_max=50.0, unit="MASS")
@@ -89,27 +92,34 @@ def solver_settings(scene, props, skeleton, traj):
         hand = skeleton.roles.bone(sided("hand", side))
         if kg > 0.0 and hand:
             loads[hand] = kg
-    return Settings(gravity=gravity, ground=GroundModel(height=props.ground_height), loads=loads,
-                    pushes=tuple(pushes(props, skeleton, traj)), strength_scale=props.strength_scale,
+    height = motion_floor(skeleton, traj) if props.ground == "MOTION" else props.ground_height
+    return Settings(gravity=gravity, ground=GroundModel(height=height), loads=loads,
+                    pushes=tuple(pushes(props, skeleton, traj, scene)), strength_scale=props.strength_scale,
                     tracking=props.tracking, controller=props.controller.lower(),
                     root_support=props.balance_assist)
 
 
-def pushes(props, skeleton, traj):
-    """Each arrow Empty becomes a force at its location, along its Z axis, on its bone."""
+def pushes(props, skeleton, traj, scene):
+    """Each arrow becomes a force at its location, along its Z axis, on its bone, as the arrow
+    stands at the push's frame (it may be animated)."""
     world = None
-    for item in props.pushes:
-        if item.empty is None or item.bone not in skeleton.names or item.magnitude <= 0.0:
-            continue
-        if world is None:
-            world = traj.world_frames(skeleton)
-        f = int(np.clip(np.searchsorted(traj.frames, item.frame), 0, traj.frame_count - 1))
-        bone_world = world[f, skeleton.index(item.bone)]
-        m = np.array(item.empty.matrix_world)
-        point = np.linalg.solve(bone_world, np.append(m[:3, 3], 1.0))[:3]
-        direction = m[:3, 2] / np.linalg.norm(m[:3, 2])
-        yield Push(time=(traj.frames[f] - traj.frames[0]) / traj.fps, joint=item.bone, point=tuple(point),
-                   direction=tuple(direction), magnitude=item.magnitude, duration=item.duration)
+    saved = scene.frame_current, scene.frame_subframe
+    try:
+        for item in props.pushes:
+            if item.empty is None or item.bone not in skeleton.names or item.magnitude <= 0.0:
+                continue
+            if world is None:
+                world = traj.world_frames(skeleton)
+            f = int(np.clip(np.searchsorted(traj.frames, item.frame), 0, traj.frame_count - 1))
+            scene.frame_set(int(traj.frames[f]))  # evaluates the arrow: a new object's matrix is stale
+            m = np.array(item.empty.matrix_world)
+            m[:3, 3] *= scene.unit_settings.scale_length
+            point = np.linalg.solve(world[f, skeleton.index(item.bone)], np.append(m[:3, 3], 1.0))[:3]
+            direction = m[:3, 2] / np.linalg.norm(m[:3, 2])
+            yield Push(time=(traj.frames[f] - traj.frames[0]) / traj.fps, joint=item.bone, point=tuple(point),
+                       direction=tuple(direction), magnitude=item.magnitude, duration=item.duration)
+    finally:
+        scene.frame_set(saved[0], subframe=saved[1])
 
 
 def stress_channels(obj, skeleton, result):
@@ -155,7 +165,8 @@ def run(obj, scene):
             "tracking_error_deg_rms": float(np.degrees(np.sqrt(np.mean(angle ** 2)))),
             "peak_strength_usage": float(np.abs(result.usage).max()),
             "peak_balance_assist_n": float(np.linalg.norm(result.root_wrench[:, 3:6], axis=1).max()),
-            "pushes": len(settings.pushes), "loads_kg": dict(settings.loads)}
+            "pushes": len(settings.pushes), "loads_kg": dict(settings.loads),
+            "ground_height_m": settings.ground.height}
 
 
 def add_push(obj, scene, bone_name, frame, direction=None, magnitude=300.0, duration=0.1):

@@ -2,9 +2,9 @@
 
 import bpy
 
-from . import rig, simulate
+from . import rig, sequence, simulate
 
-CLASSES = rig.CLASSES + simulate.CLASSES
+CLASSES = rig.CLASSES + simulate.CLASSES + sequence.CLASSES
 
 
 def register():

@@ -28,7 +28,9 @@ class VIEW3D_PT_humananim_simulation(HumanAnimPanel, bpy.types.Panel):
         col.prop(props, "tracking")
         col.prop(props, "balance_assist")
         col.prop(props, "strength_scale")
-        col.prop(props, "ground_height")
+        col.prop(props, "ground")
+        if props.ground == "HEIGHT":
+            col.prop(props, "ground_height")
         col.prop(props, "load_left")
         col.prop(props, "load_right")
         col.prop(context.scene, "gravity")

@@ -74,3 +74,17 @@ def test_blender_command_front_door_runs_the_same_commands(capsys):
     if hasattr(bpy.utils, "register_cli_command"):
         import humananim.humananim_addon as addon
         assert addon._cli_handle is not None
+
+
+def test_simulate_command_writes_an_action_and_reports(tmp_path):
+    out = tmp_path / "sim.blend"
+    r = run("simulate", CMU_CLIPS[0], "--frames", "1", "60", "--push", "30:Chest:0,300,0", "--load-left", "5",
+            "--out", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads(r.stdout)
+    assert summary["action"] == "cmu_131_01.sim" and summary["frames"] == 60
+    assert abs(summary["ground_height_m"]) < 0.1  # the capture's own floor, near zero
+    assert summary["pushes"] == 1 and summary["loads_kg"] == {"LeftWrist": 5.0}
+    assert summary["real_time_factor"] > 0 and summary["wrote"] == [str(out)] and out.exists()
+    bad = run("simulate", CMU_CLIPS[0], "--push", "30:Chest:0,0")
+    assert bad.returncode == 2 and "FX,FY,FZ" in bad.stderr and "Traceback" not in bad.stderr
