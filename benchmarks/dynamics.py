@@ -28,7 +28,7 @@ from humananim.solver.dynamics import (GroundModel, Settings, aba, build_model, 
 from humananim.solver.dynamics.closed_loop import _Constant, step_implicit  # noqa: E402
 from humananim.solver.trajectories import Trajectories  # noqa: E402
 
-CMU = Path("/work/shared/data/mocap/cmu_131_01.bvh")
+CMU = Path(__file__).resolve().parent.parent / "humananim_addon" / "data" / "mocap" / "cmu_131_01.bvh"
 
 
 def per_call_us(fn, number=200, repeat=7):

@@ -7,7 +7,7 @@ import pytest
 
 from humananim.solver import bvh, rotations
 
-CMU = Path("/work/shared/data/mocap/cmu_131_01.bvh")
+CMU = Path(__file__).resolve().parents[2] / "humananim_addon" / "data" / "mocap" / "cmu_131_01.bvh"
 
 TINY = """HIERARCHY
 ROOT Hips

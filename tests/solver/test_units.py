@@ -1,8 +1,10 @@
+import os
+
 import pytest
 
 from humananim.solver.units import bvh_rest_extent, guess_length_scale
 
-CLIP = "/work/shared/data/mocap/cmu_131_01.bvh"
+CLIP = os.path.join(os.path.dirname(__file__), "..", "..", "humananim_addon", "data", "mocap", "cmu_131_01.bvh")
 
 
 @pytest.mark.parametrize("height,scale,unit", [(1.75, 1.0, "m"), (172.0, 0.01, "cm"),
