@@ -154,6 +154,28 @@ class Motion:
                 "tail_error_cm": tail.tail_cm, "tail_10cm_error_cm": tail.point_cm}
 
 
+def at_tail_error(motion, frames, orig, tol, target_cm, steps=7):
+    """Hermite reduction whose error 10 cm beyond the bone tails is at most `target_cm`: the
+    per-channel tolerance scaled down by bisection. Returns (keys, errors, scale)."""
+    def attempt(scale):
+        keys = key_reduction.reduce_channels(frames, orig, tol * scale)
+        return keys, motion.errors(key_reduction.evaluate_channels(keys, frames), orig)
+    keys, err = attempt(1.0)
+    if err["tail_10cm_error_cm"] <= target_cm:
+        return keys, err, 1.0
+    lo, hi, best = 0.0, 1.0, None
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        keys, err = attempt(mid)
+        if err["tail_10cm_error_cm"] <= target_cm:
+            lo, best = mid, (keys, err, mid)
+        else:
+            hi = mid
+    if best is None:  # not met within the steps: report the smallest scale tried, honestly
+        return keys, err, mid
+    return best
+
+
 def run_clip(path, repeat):
     obj = import_clip(path)
     ctx = graph_editor()
@@ -213,6 +235,12 @@ def run_clip(path, repeat):
             "pyramid_ms_per_1000f_60ch": 1e3 * pyr_s * per_unit,
         })
         rows[-1]["hermite_keys_vs_blender"] = rows[-1]["hermite_keys"] / blender_keys
+        # the same largest error at 10 cm beyond the bone tails, not only per channel
+        mkeys, merr, scale = at_tail_error(motion, frames, orig, tol, blender["tail_10cm_error_cm"])
+        rows[-1].update({"hermite_matched_tail_keys": sum(len(k) for k in mkeys),
+                         "hermite_matched_tail_tolerance_scale": scale,
+                         **{f"hermite_matched_tail_{k}": v for k, v in merr.items()}})
+        rows[-1]["hermite_matched_tail_keys_vs_blender"] = rows[-1]["hermite_matched_tail_keys"] / blender_keys
     return rows
 
 
@@ -230,6 +258,9 @@ def summary(rows):
         s[f"hermite_at_{name}_max_error_cm"] = max(r["hermite_max_error_cm"] for r in sel)
         s[f"blender_{name}_tail_10cm_error_cm"] = max(r["blender_tail_10cm_error_cm"] for r in sel)
         s[f"hermite_at_{name}_tail_10cm_error_cm"] = max(r["hermite_tail_10cm_error_cm"] for r in sel)
+        s[f"hermite_keys_at_{name}_tail_error"] = sum(r["hermite_matched_tail_keys"] for r in sel)
+        s[f"hermite_at_{name}_tail_error_keys_ratio"] = (s[f"hermite_keys_at_{name}_tail_error"]
+                                                        / s[f"blender_{name}_keys"])
     s["hermite_keys"] = s["hermite_keys_at_decimate_error"]
     s["blender_decimate_keys_ratio_hermite"] = s["hermite_keys"] / s["blender_decimate_keys"]
     s["hermite_max_error_deg"] = s["hermite_at_decimate_max_error_deg"]
@@ -270,6 +301,12 @@ def main():
               f"{r['hermite_max_error_cm']:6.3f} {r['hermite_tail_10cm_error_cm']:7.3f} "
               f"{r['hermite_keys_vs_blender']:5.2f} | {r['pyramid_keys']:7d} {r['pyramid_max_error_deg']:6.3f} "
               f"{r['pyramid_max_error_cm']:6.3f}")
+    print("\nat the same largest error 10 cm beyond the bone tails (Hermite tolerance scaled down):")
+    for r in rows:
+        print(f"{r['clip'][:15]:15} {r['blender_op'] + ' ' + str(r['blender_setting']):16} "
+              f"Blender {r['blender_keys']:6d} keys, {r['blender_tail_10cm_error_cm']:6.3f} cm | Hermite "
+              f"{r['hermite_matched_tail_keys']:6d} keys, {r['hermite_matched_tail_tail_10cm_error_cm']:6.3f} cm, "
+              f"{r['hermite_matched_tail_max_error_deg']:5.3f} deg  ratio {r['hermite_matched_tail_keys_vs_blender']:4.2f}")
     print(f"input keys per clip: {rows[0]['input_keys']} ({rows[0]['frames']} frames x {rows[0]['channels']} F-curves)")
     print("ms per 1000 frames x 60 channels: "
           f"Hermite {figures['hermite_ms_per_1000f_60ch']:.0f}, pyramid {figures['pyramid_ms_per_1000f_60ch']:.0f}, "
