@@ -84,7 +84,8 @@ def _fcurve_basis(obj, skeleton, action, frames):
     for j, name in enumerate(skeleton.names):
         pb = obj.pose.bones[name]
         mode = pb.rotation_mode
-        trans[:, j] = _sample(channels, name, "location", pb.location, frames)
+        if not skeleton.connected[j]:  # Blender ignores a connected bone's location
+            trans[:, j] = _sample(channels, name, "location", pb.location, frames)
         if mode == "QUATERNION":
             quats[:, j] = rotations.normalize(_sample(channels, name, "rotation_quaternion",
                                                       pb.rotation_quaternion, frames))

@@ -199,3 +199,19 @@ def test_escape_cancels_a_bake_and_leaves_nothing(cmu_rig, empty_scene):
     assert len(bpy.data.actions) == n_actions
     assert cmu_rig.animation_data.action == source and empty_scene.frame_current == 7
     assert reports[-1][0] == {"WARNING"} and "nothing written" in reports[-1][1]
+
+
+def test_location_keys_on_connected_bones_are_ignored_like_blender(metarig, empty_scene):
+    scene = bpy.context.scene
+    bpy.ops.object.mode_set(mode="POSE")
+    shin = metarig.pose.bones["shin.L"]
+    assert shin.bone.use_connect
+    for frame, z in ((1, 0.0), (10, 0.3)):
+        shin.location = (0.0, 0.0, z)
+        shin.keyframe_insert("location", frame=frame)
+        shin.rotation_quaternion = (1.0, 0.2 * z, 0.0, 0.0)
+        shin.keyframe_insert("rotation_quaternion", frame=frame)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    skeleton = skeleton_from_armature(metarig, scene, require=False)
+    traj = actions.read_action(metarig, scene, skeleton, exact=False)
+    assert_same_pose(traj.world_frames(skeleton), world_pose(metarig, scene, traj.frames))
