@@ -95,3 +95,27 @@ def test_euler_blend_moves_b_onto_a_branch():
     b[..., 2] = 2 * np.pi + 0.1  # the same as 0.1 rad
     out = mb.blend_euler(a, b, 50, orders="XYZ")
     assert np.abs(out[..., 2]).max() <= 0.1 + 1e-12
+
+
+def test_a_sequence_inside_another_blends_in_and_out_continuously():
+    """B (a 1 s hop) played inside A (a walk): A until B starts, B in its middle, A again after.
+    Measured with 4 levels: B's middle within a few degrees of B (A and B differ by 95 there),
+    A untouched beyond the bands' reach, no jump in or out."""
+    ta = packed("cmu_131_01.bvh", slice(0, 480))
+    tb = packed("cmu_131_03.bvh", slice(600, 720))
+    ref = channels.mean_quaternion(np.concatenate((ta.rotations, tb.rotations)))
+    a = np.degrees(channels.to_tangent(ta.rotations, ref)).reshape(480, -1)
+    b = np.degrees(channels.to_tangent(tb.rotations, ref)).reshape(120, -1)
+    steady = (np.abs(np.diff(a, axis=0)).max(0) < 30) & (np.abs(np.diff(b, axis=0)).max(0) < 30)
+    a, b = a[:, steady], b[:, steady]
+    levels, reach = 4, 3 * 2 ** 4
+    out = mb.multiresolution_blend(a, b, 200, levels=levels)
+    assert out.shape == a.shape
+    assert np.abs(a[260] - b[60]).max() > 50.0  # the two motions really differ there
+    assert np.abs(out[260] - b[60]).max() < 10.0  # B's middle plays B
+    assert np.abs(out[:200 - reach] - a[:200 - reach]).max() < 1e-9
+    assert np.abs(out[320 + reach:] - a[320 + reach:]).max() < 1e-9
+    step = lambda x: np.abs(np.diff(x, axis=0))
+    own = np.maximum(step(a).max(axis=0), step(b).max(axis=0))
+    jump = np.maximum(np.abs(a[200] - b[0]), np.abs(a[319] - b[-1]))
+    assert np.all(step(out[150:370]).max(axis=0) <= own + jump / 4 + 1e-9)  # in and out without a jump
