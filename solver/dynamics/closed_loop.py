@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .. import rotations
+from ..body_roles import REQUIRED_ROLES
 from ..errors import HumanAnimError
 from ..progress import run_to_end
 from ..trajectories import Trajectories
@@ -138,6 +139,7 @@ def iter_simulate(skeleton, trajectories, settings=None):
     tr = trajectories
     if st.weld_static_helpers:
         skeleton = weld_static_helpers(skeleton, tr)
+    _require_connected_body(skeleton)
     model = build_model(skeleton, reference_basis=tr.basis()[0], loads=st.loads, gravity=st.gravity,
                         armature=st.armature,
                         kinematic_mass=st.kinematic_fraction * (skeleton.total_mass + sum(st.loads.values())))
@@ -252,6 +254,21 @@ def _diverged(model, tr, f, v, detail=""):
     return (f"the simulation diverged at frame {tr.frames[f]:g} (fastest: {worst}"
             + (f"; {detail}" if detail else "") + "): try a smaller step (max_step), more joint "
             "damping, a lower tracking gain or check the source motion there for jumps")
+
+
+def _require_connected_body(skeleton):
+    """Every limb must hang below the pelvis in the bone hierarchy, or the simulation would
+    silently leave it out (a generated Rigify rig parents its deform legs to control bones)."""
+    pelvis = skeleton.root
+    below = set(skeleton.descendants(pelvis)) | {pelvis}
+    loose = [f"{role} ({bone})" for role in REQUIRED_ROLES + ("upper_arm.L", "upper_arm.R", "head")
+             for bone in skeleton.roles.chain(role) if skeleton.index(bone) not in below]
+    if loose:
+        raise SimulationError(
+            f"these body parts are not children of the pelvis '{skeleton.names[pelvis]}' in the bone "
+            f"hierarchy, so they can't be simulated: {', '.join(loose)}. A rig whose deform bones follow "
+            "control bones through constraints (e.g. a generated Rigify rig) isn't supported yet: "
+            "simulate its metarig or a plain FK copy")
 
 
 def motion_floor(skeleton, trajectories, contacts=None):

@@ -42,3 +42,13 @@ def test_constrained_pose_is_read_exactly(rig):
     deform = [j for j, n in enumerate(skeleton.names) if n.startswith("DEF-")]
     moved = np.linalg.norm(blender[11, deform, :3, 3] - blender[0, deform, :3, 3], axis=-1)
     assert (moved > 0.05).sum() >= 10
+
+
+def test_simulating_a_control_rig_is_refused_with_the_reason(rig):
+    """Its deform legs follow control bones through constraints: refused, nothing written."""
+    n_actions = len(bpy.data.actions)
+    settings = bpy.context.scene.humananim_simulation
+    settings.frame_start, settings.frame_end = 1, 12
+    with pytest.raises(RuntimeError, match="not children of the pelvis"):
+        bpy.ops.humananim.simulate()
+    assert len(bpy.data.actions) == n_actions

@@ -161,3 +161,16 @@ def test_divergence_is_reported_as_a_simulation_error():
                    ground=GroundModel(height=float(lowest_points(sk, tr).max()) + 0.3))
     with pytest.raises(SimulationError, match="diverged"):
         simulate(sk, tr, bad)
+
+
+def test_limbs_outside_the_pelvis_hierarchy_are_refused_not_dropped():
+    """A rig whose thigh hangs from a control bone (not below the pelvis) can't be simulated:
+    refused with the part named, rather than simulated without the leg."""
+    from dataclasses import replace
+    sk, tr = load("metarig_legs", frames=3)
+    thigh = sk.index(sk.roles.bone("thigh.L"))
+    parents = sk.parents.copy()
+    parents[thigh] = -1  # a second root, like DEF-thigh.L under ORG-spine
+    loose = replace(sk, parents=parents)
+    with pytest.raises(SimulationError, match=r"thigh\.L"):
+        simulate(loose, tr)
