@@ -4,6 +4,7 @@ import logging
 
 import numpy as np
 
+from ..solver import rotations
 from ..solver.errors import RigError
 from ..solver.role_detection import detect_roles, require_roles
 from ..solver.skeleton import Skeleton
@@ -37,6 +38,9 @@ def bone_arrays(obj, scale):
     rest = np.empty((len(bones), 16))
     obj.data.bones.foreach_get("matrix_local", rest.ravel())
     rest = rest.reshape(-1, 4, 4).transpose(0, 2, 1).copy()  # column-major per matrix
+    # Blender stores them in single precision, rigid to ~1e-7: make them exact rotations so
+    # forward and inverse kinematics agree to round-off
+    rest[:, :3, :3] = rotations.to_matrix(rotations.from_matrix(rest[:, :3, :3]))
     rest[:, :3, 3] *= scale
     lengths = np.array([b.length for b in bones]) * scale
     connected = np.array([b.use_connect for b in bones], dtype=bool)
