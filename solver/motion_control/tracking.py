@@ -1,0 +1,159 @@
+"""Oshita's tracking control (Oshita 2003, sec. 2.4.1): the output acceleration of every DOF from
+a Ferguson (cubic Hermite) curve that runs from the current state to a target point of the desired
+trajectory, so that a figure whose velocity was changed by a collision keeps approaching the input
+motion instead of snapping back to it.
+
+With the current state (theta, theta') and the target (theta_t, theta'_t) T seconds ahead, the
+curve's second derivative at its start is (eq. 2.4-2.6, with the T factors of the derivative terms
+that eq. 2.6 leaves implicit)
+
+    theta'' = (6 (theta_t - theta) - (2 theta'_t + 4 theta') T) / T^2.
+
+On the configuration manifold
+-----------------------------
+The DOF are the dynamics Model's velocity coordinates: the root's angular and linear velocity in
+its own axes, then each joint body's local angular velocity on its free axes. "theta_t - theta" is
+the log map kinematics.difference(q, q_t) (a rotation vector in the current bone axes; the root
+translation in the current root axes), and the target velocity is carried into the same axes.
+
+Extremum in 3-D: a DOF's target is the next *extremum* of its desired trajectory, i.e. the first
+frame after the current time where that component of the desired velocity changes sign (a local
+angular velocity component for a joint axis, a root-axes component for the root): for a 1-DOF
+joint that is exactly the next extremum of its angle, for a ball joint it is the extremum of the
+rotation-vector component about that bone axis, measured relative to the current pose. Its
+velocity there is about zero, which is what makes the Ferguson target a natural "turning point".
+
+Horizon: T = target time - current time is kept within [min_horizon, max_horizon]. Without a near
+extremum (a root moving steadily forward) the target is the desired state max_horizon ahead; when
+the extremum is closer than min_horizon, the target is the desired state min_horizon ahead (with
+its non-zero velocity), because the curve's gains 6/T^2 and 4/T grow without bound as T -> 0 and
+an Euler step of length dt is stable only for T > 2 dt (semi-implicit Euler; explicit Euler for
+T > 1.5 dt), hence the default of three frames.
+"""
+
+import numpy as np
+
+from ..dynamics import kinematics, spatial
+from ..dynamics.closed_loop import desired_motion
+
+
+class TrackingController:
+    """Tracking control of every DOF of `model` towards `trajectories` (sec. 2.4.1).
+
+    Times t are seconds from the motion's first frame. min_horizon / max_horizon in seconds;
+    min_horizon defaults to three frames (see the module notes on stability)."""
+
+    def __init__(self, model, skeleton, trajectories, min_horizon=None, max_horizon=0.5,
+                 feedforward=True):
+        self.model = model
+        self.feedforward = bool(feedforward)
+        self.q_d, self.v_d, self.a_d, self.dt = desired_motion(model, skeleton, trajectories)
+        self.min_horizon = 3.0 * self.dt if min_horizon is None else float(min_horizon)
+        self.max_horizon = float(max_horizon)
+        if not 0.0 < self.min_horizon <= self.max_horizon:
+            raise ValueError("need 0 < min_horizon <= max_horizon")
+        self.duration = (len(self.q_d) - 1) * self.dt
+        self.next_extremum = next_extremum_times(self.v_d, self.dt)
+        self._quats = self.q_d[:, 3:].reshape(len(self.q_d), model.nb, 4)
+
+    # ---- targets ----
+
+    def target_times(self, t):
+        """Per DOF (nv,) the time of its target point: the next extremum after t, kept within
+        [t + min_horizon, t + max_horizon]."""
+        f = int(np.clip(np.floor(t / self.dt + 1e-9), 0, len(self.q_d) - 1))
+        return np.clip(self.next_extremum[f], t + self.min_horizon, t + self.max_horizon)
+
+    def _sample(self, times):
+        """Desired state at per-DOF times: the body quaternion (nv, 4) and root position (nv, 3)
+        of each DOF's body, and its desired velocity (nv,) in the target's own axes; beyond the
+        end of the motion the last frame holds."""
+        m = self.model
+        x = np.clip(np.asarray(times) / self.dt, 0.0, len(self.q_d) - 1)
+        f0 = np.minimum(np.floor(x).astype(int), len(self.q_d) - 2) if len(self.q_d) > 1 else np.zeros(len(x), int)
+        f1 = np.minimum(f0 + 1, len(self.q_d) - 1)
+        w = (x - f0)[:, None]
+        body = m.dof_body
+        qa, qb = self._quats[f0, body], self._quats[f1, body]
+        # slerp on each DOF's body quaternion (the frames are close, the log is short)
+        step = spatial.quat_log(spatial.quat_multiply(spatial.quat_conjugate(qa), qb))
+        quat = spatial.quat_multiply(qa, spatial.quat_exp(w * step))
+        pos = (1.0 - w) * self.q_d[f0, :3] + w * self.q_d[f1, :3]
+        k = np.arange(m.nv)
+        vel = (1.0 - w[:, 0]) * self.v_d[f0, k] + w[:, 0] * self.v_d[f1, k]
+        return quat, pos, vel
+
+    # ---- control ----
+
+    def acceleration(self, t, q, v):
+        """Output acceleration (nv,) at time t for the current state (q, v) (eq. 2.6, plus the
+        feedforward correction when `feedforward` is on)."""
+        times = self.target_times(t)
+        horizon = times - t
+        target = self._sample(times)
+        out = self._ferguson(q, v, target, horizon)
+        if self.feedforward:
+            q_d, v_d, a_d = self.desired_state(t)
+            out += a_d - self._ferguson(q_d, v_d, target, horizon)
+        return out
+
+    def _ferguson(self, q, v, target, horizon):
+        """Second derivative at s = 0 of the Ferguson curve from (q, v) to the targets."""
+        quat, pos, vel_t = target
+        error, vel_t = self._error(q, quat, pos, vel_t)
+        return (6.0 * error - (2.0 * vel_t + 4.0 * np.asarray(v, float)) * horizon) / horizon ** 2
+
+    def desired_state(self, t):
+        """Desired q, v, a at time t (linear on the manifold between frames)."""
+        x = float(np.clip(t / self.dt, 0.0, len(self.q_d) - 1))
+        f0 = min(int(np.floor(x)), max(len(self.q_d) - 2, 0))
+        f1 = min(f0 + 1, len(self.q_d) - 1)
+        w = x - f0
+        q = kinematics.integrate(self.model, self.q_d[f0], kinematics.difference(self.model, self.q_d[f0], self.q_d[f1]) * w)
+        return q, (1 - w) * self.v_d[f0] + w * self.v_d[f1], (1 - w) * self.a_d[f0] + w * self.a_d[f1]
+
+    def _error(self, q, quat, pos, vel_t):
+        """Per DOF "theta_t - theta" (nv,) and the target velocity carried into current axes."""
+        m = self.model
+        k = np.arange(m.nv)
+        slot = m.dof_slot
+        cur = q[3:].reshape(m.nb, 4)[m.dof_body]
+        rel = spatial.quat_multiply(spatial.quat_conjugate(cur), quat)  # target in current axes
+        rot_err = spatial.quat_log(rel)
+        error = rot_err[k, np.minimum(slot, 2)]
+        # target angular velocity (own axes) seen in the current axes: rotate by rel
+        rot = spatial.quat_to_matrix(rel)
+        lin = slot >= 3
+        carried = np.zeros((m.nv, 3))
+        carried[k, np.where(lin, slot - 3, slot)] = vel_t
+        carried = np.einsum("kij,kj->ki", rot, carried)
+        vel = carried[k, np.where(lin, slot - 3, slot)]
+        if lin.any():
+            # root translation: world offset in the current root axes
+            r0 = spatial.quat_to_matrix(q[3:7])
+            offset = (pos[lin] - q[:3]) @ r0  # rows: r0.T @ (p_t - p)
+            error[lin] = offset[np.arange(lin.sum()), slot[lin] - 3]
+        return error, vel
+
+
+def next_extremum_times(v_d, dt):
+    """(F, nv) time of the first extremum strictly after each frame, per DOF (inf if none).
+
+    An extremum is the frame where a component of the desired velocity changes sign (the one of
+    the pair with the smaller speed); a component that stays at zero has none (it needs no
+    turning point: the max_horizon target keeps it still)."""
+    nf, nv = v_d.shape
+    out = np.full((nf, nv), np.inf)
+    if nf < 2:
+        return out
+    a, b = v_d[:-1], v_d[1:]
+    change = (a * b < 0.0) | ((b == 0.0) & (a != 0.0))
+    at = np.arange(nf - 1)[:, None] + (np.abs(b) <= np.abs(a))  # frame of the turning point
+    rows, cols = np.nonzero(change)
+    events = np.full((nf, nv), np.inf)
+    events[at[rows, cols], cols] = at[rows, cols]
+    best = np.full(nv, np.inf)  # reverse running minimum: the first extremum frame > f
+    for f in range(nf - 1, -1, -1):
+        out[f] = best
+        best = np.minimum(best, events[f])
+    return out * dt
