@@ -1,0 +1,221 @@
+"""Balance control (Oshita 2003, sec. 2.5.1 eq. 2.11-2.14, sec. 2.5.3) and the falling criterion
+(sec. 2.3.3), on a horizontal ground at z = ground_height (Blender's Z up).
+
+The zero moment point (ZMP) of the commanded accelerations is compared with the support polygon
+(convex hull of the sole points of the feet in contact); when it lies outside, the acceleration
+of the arms, then the back, then the pelvis (legs, through J_p) is changed to move it to the
+minimum moment point (MMP), the polygon's point closest to it.
+
+The relation between a joint's acceleration and the ZMP is the augmented body's (fig. 2.5): the
+composite rigid body below the joint. A unit acceleration about the joint's axis changes the
+ground wrench the motion needs by the augmented body's rate of momentum (mass M, centre p,
+acceleration a of eq. 2.13-2.14, plus its rotational inertia). The ZMP is a ratio of that wrench's
+components, but "the ZMP is at the MMP" is linear: the horizontal moment of the ground wrench about
+the MMP vanishes. Solving that linear condition by pseudo-inverse puts the ZMP on the MMP exactly.
+
+When the legs cannot bring the ZMP inside (more than Settings.max_pelvis_acceleration), the figure
+falls: it turns about the MMP with the torque the ground cannot supply over the whole body's moment
+of inertia about that axis (sec. 2.3.3).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..dynamics.balance import convex_hull, inside, minimum_moment_point
+from ..dynamics.inertia_matrix import composite_inertias
+from ..dynamics.kinematics import body_com, motion_subspace, update_frames
+from .comfort_control import ControlLog, bounded, control_sequence, part_matrix, required_torques
+
+
+# ---- support polygon, ZMP, MMP ---------------------------------------------------------------
+
+def support_polygon(state):
+    """Counter-clockwise convex hull (m, 2) of the sole points of the feet in contact."""
+    soles = state.sole_world()
+    pts = [soles[s][:, :2] for s in np.flatnonzero(state.feet)]
+    return convex_hull(np.concatenate(pts)) if pts else np.zeros((0, 2))
+
+
+def zmp_of(wrench, ground_height=0.0):
+    """ZMP (2,) of a ground wrench (world, about the origin: torque, force)."""
+    n, f, h = wrench[:3], wrench[3:], ground_height
+    return np.array([(h * f[0] - n[1]) / f[2], (n[0] + h * f[1]) / f[2]])
+
+
+def moment_about(wrench, point):
+    """The wrench's torque (3,) about a world point."""
+    return wrench[:3] - np.cross(point, wrench[3:])
+
+
+def balance_error(state, wrench, polygon=None):
+    """(zmp, mmp, distance) of a ground wrench on the current support polygon; mmp is None when
+    nothing supports the body (no foot down) or nothing pushes on the ground."""
+    polygon = support_polygon(state) if polygon is None else polygon
+    if len(polygon) == 0 or wrench[5] <= 1e-9:
+        return None, None, 0.0
+    p = zmp_of(wrench, state.ground_height)
+    if len(polygon) >= 3 and inside(polygon, p):
+        return p, p.copy(), 0.0
+    mmp = minimum_moment_point(polygon, p)
+    return p, mmp, float(np.linalg.norm(mmp - p))
+
+
+# ---- the augmented body (fig. 2.5, eq. 2.13-2.14) ---------------------------------------------
+
+@dataclass
+class AugmentedBody:
+    """The composite bodies below DOFs: mass (k,), centre of mass (k, 3), the acceleration (k, 3)
+    of that centre per unit joint acceleration (a of fig. 2.5), and the rate of the whole body's
+    spatial momentum (6, k) (world, about the origin: torque, force) per unit joint acceleration."""
+
+    mass: np.ndarray
+    com: np.ndarray
+    acceleration: np.ndarray
+    momentum_rate: np.ndarray
+
+
+def augmented_body(state, dofs=None):
+    """The augmented bodies of DOFs (all by default) at rest (velocity terms excluded)."""
+    m, d, q = state.model, state.data, state.q
+    dofs = np.arange(m.nv) if dofs is None else np.asarray(dofs, int)
+    rate = state.cached("momentum_rate", lambda: _momentum_rate(m, d, q))[:, dofs]
+    mass_c = state.cached("subtree_mc", lambda: _subtree_mc(m, d, q))
+    b = m.dof_body[dofs]
+    mass, com = mass_c[0][b], mass_c[1][b]
+    return AugmentedBody(mass, com, rate[3:].T / mass[:, None], rate)
+
+
+def _momentum_rate(model, data, q):
+    s = motion_subspace(model, data, q)
+    ic = composite_inertias(model, data, q)
+    return np.einsum("kij,kj->ik", ic[model.dof_body], s)
+
+
+def _subtree_mc(model, data, q):
+    mass = model.ancestors.T @ model.mass
+    return mass, (model.ancestors.T @ (model.mass[:, None] * body_com(model, data, q))) / mass[:, None]
+
+
+def zmp_jacobian(state, wrench, dofs=None):
+    """Eq. 2.13-2.14 (Z up): d ZMP / d theta'' (2, k) at the ZMP of `wrench`."""
+    rate = augmented_body(state, dofs).momentum_rate
+    p = np.r_[zmp_of(wrench, state.ground_height), state.ground_height]
+    dn = rate[:3] - np.cross(p, rate[3:].T).T  # moment change about the ZMP
+    return np.vstack((-dn[1], dn[0])) / wrench[5]
+
+
+def moment_rows(rate, point):
+    """(2, k): horizontal moment about a ground point of the momentum rate columns (6, k)."""
+    return (rate[:3] - np.cross(point, rate[3:].T).T)[:2]
+
+
+# ---- balance control of one part --------------------------------------------------------------
+
+def balance_candidates(state, part, a):
+    """The part's acceleration of least norm that moves the ZMP of `a` to its MMP (eq. 2.13-2.14
+    as the linear condition 'no horizontal moment about the MMP'); the legs' is limited to
+    Settings.max_pelvis_acceleration, the arms' and back's to Settings.max_part_acceleration (what is
+    left goes to the next part). Empty when balanced."""
+    wrench = required_torques(state, a)[1]
+    p, mmp, dist = balance_error(state, wrench)
+    if mmp is None or dist <= state.settings.zmp_tolerance:
+        return []
+    point = np.r_[mmp, state.ground_height]
+    rate = state.cached("momentum_rate", lambda: _momentum_rate(state.model, state.data, state.q))
+    matrix = part_matrix(state, part)
+    if part == "legs":  # horizontally: unloading the feet is no way to balance
+        matrix = matrix * np.array([1.0, 1.0, 0.0])
+    rows = moment_rows(rate @ matrix, point)
+    if np.abs(rows).max() < 1e-9:
+        return []
+    x = np.linalg.pinv(rows, rcond=state.settings.rcond) @ -moment_about(wrench, point)[:2]
+    return [bounded(state, part, x)]
+
+
+def balance_criterion(state, part, active, current):
+    """Balance is judged on the current acceleration (passive change included)."""
+    return balance_candidates(state, part, current)
+
+
+# ---- falling (sec. 2.3.3) ---------------------------------------------------------------------
+
+@dataclass
+class Falling:
+    """A figure whose ZMP stays outside its support turns about the MMP."""
+
+    mmp: np.ndarray  # (2,) the axis passes through (mmp, ground_height)
+    segment: int  # the supporting segment: the foot in contact nearest the MMP (bone index)
+    angular_acceleration: np.ndarray  # (3,) world, horizontal
+    base_acceleration: np.ndarray  # (nv,) that rotation as base DOFs (add to the output)
+
+
+def falling(state, wrench, mmp):
+    """Rotation about the MMP: the ground's missing horizontal moment about it, over the whole
+    body's moment of inertia about that axis; None when the moment vanishes."""
+    point = np.r_[mmp, state.ground_height]
+    torque = moment_about(wrench, point)
+    torque[2] = 0.0
+    size = np.linalg.norm(torque)
+    if size < 1e-9:
+        return None
+    axis = torque / size
+    alpha = -torque / float(axis @ whole_body_inertia(state, point) @ axis)
+    m, d = state.model, state.data
+    base = np.zeros(m.nv)
+    base[:6] = np.linalg.solve(d.motion[0], np.r_[alpha, np.cross(point, alpha)])
+    return Falling(np.asarray(mmp, float), _supporting_foot(state, mmp), alpha, base)
+
+
+def whole_body_inertia(state, point):
+    """Rotational inertia (3, 3) of the whole body about a world point, world axes."""
+    m, d = state.model, state.data
+    update_frames(m, d, state.q)
+    rot = d.frames[:, :3, :3]
+    r = body_com(m, d, state.q) - point
+    own = np.einsum("bij,bjk,blk->il", rot, m.inertia, rot)
+    return own + np.einsum("b,bij->ij", m.mass, np.einsum("bk,bk->b", r, r)[:, None, None] * np.eye(3)
+                           - r[:, :, None] * r[:, None, :])
+
+
+def _supporting_foot(state, mmp):
+    soles = state.sole_world()
+    sides = np.flatnonzero(state.feet)
+    dist = [np.linalg.norm(soles[s][:, :2].mean(axis=0) - mmp) for s in sides]
+    return int(state.parts.feet[sides[int(np.argmin(dist))]])
+
+
+# ---- balance control alone ----------------------------------------------------------------------
+
+@dataclass
+class BalanceResult:
+    delta: np.ndarray  # (nv,) change of acceleration
+    zmp_before: np.ndarray  # (2,) or None
+    zmp: np.ndarray  # (2,) at the output, or None
+    mmp: np.ndarray  # (2,) at the output, or None
+    polygon: np.ndarray  # (m, 2)
+    falling: Falling  # or None
+    log: ControlLog
+
+
+def balance_control(state, a):
+    """Balance control alone (no comfort control): arms, back, then legs move the ZMP to the MMP;
+    exactly zero change when the ZMP is inside the support polygon. Passive control of the upper
+    body stays on: it is what limits the arms and back to their strength (sec. 2.5.3), leaving the
+    rest to the legs."""
+    a = np.asarray(a, float)
+    polygon = support_polygon(state)
+    p0, mmp, dist = balance_error(state, required_torques(state, a)[1], polygon)
+    log = ControlLog(state.model.nv)
+    if mmp is None or dist <= state.settings.zmp_tolerance:
+        return BalanceResult(np.zeros_like(a), p0, p0, mmp, polygon, None, log)
+    out, log = control_sequence(state, a, {"balance": balance_criterion}, log=log)
+    return finish_balance(state, a, out, p0, polygon, log)
+
+
+def finish_balance(state, a, out, p0, polygon, log):
+    """The output's ZMP and MMP, and the fall when the ZMP stayed outside."""
+    wrench = required_torques(state, out)[1]
+    p, mmp, dist = balance_error(state, wrench, polygon)
+    fall = falling(state, wrench, mmp) if mmp is not None and dist > state.settings.zmp_tolerance else None
+    return BalanceResult(out - a, p0, p, mmp, polygon, fall, log)

@@ -1,0 +1,396 @@
+"""Comfort control (Oshita 2003, sec. 2.5.1 and 2.5.3): the joint torques a commanded acceleration
+needs (eq. 2.8), the stress of every joint against its muscle strength (eq. 2.9), and the change
+of acceleration that relieves it through the moment of inertia (eq. 2.10):
+
+  1. passive control of the upper body (eq. 2.17-2.18): a stressed joint gives way, its
+     acceleration follows from its torque limit;
+  2. active control of the arms (two swing axes of each upper arm, 4 DOF), then of the back (the
+     lowest spine bone, 3 DOF), through submatrices H' of H and pseudo-inverses (eq. 2.19-2.21);
+     the passive change is then recomputed;
+  3. the legs, through the spatial acceleration of the pelvis p'' mapped to every joint of the
+     legs that stand on the ground by J_p (eq. 2.16, 2.22), feet held in place.
+
+Coordinates are the dynamics model's (q, v, a); Z up. The base's acceleration (the pelvis) is held
+while the upper body is controlled, as in the thesis where H relates joint torques to joint
+accelerations of a figure whose pelvis is prescribed. The ground reaction is shared between the
+feet in contact at the zero moment point ("an approximation [19][21] is used to determine the
+forces applied from the upper body to each leg"), so that leg torques carry the body's weight.
+bpy-free: numpy only.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..dynamics import spatial
+from ..dynamics.ground_contact import default_contacts
+from ..dynamics.inertia_matrix import external_forces, inertia_block
+from ..dynamics.inverse_dynamics import rnea
+from ..dynamics.kinematics import point_positions, segment_jacobian, update_frames
+from ..dynamics.strength import joint_angles
+
+SIDES = ("L", "R")
+
+
+@dataclass
+class Settings:
+    passive_rounds: int = 6  # rounds after eq. 2.17-2.18: passive joints held at their limits
+    rcond: float = 1e-6  # pseudo-inverses (eq. 2.21)
+    leg_rcond: float = 0.05  # legs' inverse kinematics in J_p: a straight knee is singular
+    pelvis_step: float = 0.1  # m/s^2: finite difference of leg torques in p''
+    max_pelvis_acceleration: float = 4.9  # m/s^2: beyond this the legs cannot recover balance
+    max_part_acceleration: float = 20.0  # rad/s^2: most the arms or back turn for balance
+    zmp_tolerance: float = 1e-4  # m: a ZMP this close to the support polygon is balanced
+    torque_tolerance: float = 1e-6  # N m: stress below this is none
+
+
+# ---- the body's parts -------------------------------------------------------------------------
+
+@dataclass
+class BodyParts:
+    """DOF indices of the controlled parts of a model (Oshita fig. 2.6)."""
+
+    arms: np.ndarray  # two swing axes (local x, z) of each upper arm
+    back: np.ndarray  # the three axes of the lowest spine bone
+    upper: np.ndarray  # every joint DOF outside the legs (passive control)
+    lower: np.ndarray  # every joint DOF of the legs
+    legs: tuple  # per side: joint DOFs from the pelvis down to the foot (J_p's rows)
+    feet: tuple  # foot bone per side
+    sole_joints: tuple  # per side: bones of the sole points (foot and toes)
+    sole_points: tuple  # per side: sole points in those bones' frames
+
+
+def body_parts(model, contacts=None):
+    """The parts of a model's body from its skeleton's roles."""
+    sk = model.skeleton
+    joint_dofs = np.arange(6, model.nv)
+    arms = [d for s in SIDES for d in _bone_dofs(model, sk.role_index(f"upper_arm.{s}"), (0, 2))]
+    spine = [sk.index(n) for n in sk.roles.chain("spine")]
+    back = next((_bone_dofs(model, j) for j in spine if len(_bone_dofs(model, j))), [])
+    lower, legs, feet = [], [], []
+    for s in SIDES:
+        foot = sk.role_index(f"foot.{s}")
+        fb = model.joint_body[foot]
+        top = _top_below_base(model, model.joint_body[sk.role_index(f"thigh.{s}")])
+        lower += [d for d in joint_dofs if model.ancestors[model.dof_body[d], top] > 0]
+        legs.append(np.array([d for d in joint_dofs if model.ancestors[fb, model.dof_body[d]] > 0]))
+        feet.append(foot)
+    lower = np.array(sorted(set(lower)), int)
+    upper = np.setdiff1d(joint_dofs, lower)
+    sj, sp = _soles(model, feet, contacts or default_contacts(model))
+    return BodyParts(np.array(arms, int), np.array(back, int), upper, lower, tuple(legs),
+                     tuple(feet), sj, sp)
+
+
+def _bone_dofs(model, joint, slots=(0, 1, 2)):
+    if joint is None or model.joint_kind[joint] not in ("joint",):
+        return []
+    b = model.joint_body[joint]
+    return [int(model.v_index[b, s]) for s in slots if model.v_index[b, s] < model.nv]
+
+
+def _top_below_base(model, body):
+    while model.parent[body] > 0:
+        body = model.parent[body]
+    return body
+
+
+def _soles(model, feet, contacts):
+    """Sole points of each foot: the contact points on the foot bone and the bones below it."""
+    sk = model.skeleton
+    joints, points = [], []
+    for foot in feet:
+        below = {foot, *sk.descendants(foot)}
+        keep = np.array([j in below and r == 0.0 for j, r in zip(contacts.joints, contacts.radii)])
+        joints.append(contacts.joints[keep])
+        points.append(contacts.points[keep])
+    return tuple(joints), tuple(points)
+
+
+# ---- the state of one control step ------------------------------------------------------------
+
+@dataclass(eq=False)
+class ControlState:
+    """Everything a control step needs about the figure at (q, v): lazily computed and cached."""
+
+    model: object
+    data: object
+    q: np.ndarray
+    v: np.ndarray
+    feet: np.ndarray  # (2,) bool: left, right foot on the ground
+    parts: BodyParts
+    strength: object  # StrengthModel of the skeleton's bones (J, 3)
+    f_ext: np.ndarray = None  # (nb, 6) world wrenches (pushes, hands on things)
+    ground_height: float = 0.0
+    settings: Settings = field(default_factory=Settings)
+
+    def __post_init__(self):
+        self.q = np.asarray(self.q, float)
+        self.v = np.asarray(self.v, float)
+        self.feet = np.asarray(self.feet, bool)
+        self._cache = {}
+
+    def cached(self, key, make):
+        if key not in self._cache:
+            self._cache[key] = make()
+        return self._cache[key]
+
+    @property
+    def limits(self):
+        """(tau_min, tau_max) (nv,) of every DOF (eq. 2.2); the base is unbounded."""
+        return self.cached("limits", self._limits)
+
+    def _limits(self):
+        m = self.model
+        j, s = m.dof_joint[6:], m.dof_slot[6:]
+        low, high = np.full(m.nv, -np.inf), np.full(m.nv, np.inf)
+        low[6:], high[6:] = self.strength.select(j, s).limits(joint_angles(m, self.q)[j, s], self.v[6:])
+        return low, high
+
+    def sole_world(self):
+        """World sole points of each foot (list of (k, 3))."""
+        return self.cached("soles", lambda: [
+            point_positions(self.model, self.data, self.q, j, p)
+            for j, p in zip(self.parts.sole_joints, self.parts.sole_points)])
+
+    def inertia(self, rows, cols):
+        """H[rows][:, cols] (eq. 2.10), from the composite inertias."""
+        return inertia_block(self.model, self.data, self.q, rows, cols)
+
+    def pelvis_jacobian(self):
+        """J_p (nv, 3): the joint accelerations a unit world acceleration of the pelvis gives."""
+        return self.cached("jp", lambda: pelvis_jacobian(self))
+
+
+# ---- eq. 2.8-2.9: required torques and stress --------------------------------------------------
+
+def required_torques(state, a):
+    """Joint torques (nv,) for the acceleration a (eq. 2.8), and the ground wrench the motion
+    needs (6,) (world, about the origin: torque, force). The ground wrench is shared between the
+    feet in contact, so tau[:6] is ~0 when a foot is down."""
+    m, d = state.model, state.data
+    tau, total = rnea(m, d, state.q, state.v, a, f_ext=state.f_ext, return_wrenches=True)
+    ground = ground_reaction(state, total[0])
+    if ground is not None:
+        tau = tau + external_forces(m, d, state.q, ground)
+    return tau, total[0]
+
+
+def ground_reaction(state, wrench):
+    """World wrenches (nb, 6) on the feet in contact that sum to `wrench`: the force at the ZMP,
+    split between the feet by where the ZMP lies between their sole centres."""
+    if not state.feet.any() or wrench[5] <= 1e-9:
+        return None
+    h = state.ground_height
+    n, f = wrench[:3], wrench[3:]
+    p = np.array([(h * f[0] - n[1]) / f[2], (n[0] + h * f[1]) / f[2], h])
+    sides = np.flatnonzero(state.feet)
+    centres = state.cached("sole_centres", lambda: np.array(
+        [np.r_[state.sole_world()[s][:, :2].mean(axis=0), h] for s in sides]))
+    w = np.ones(1) if len(sides) == 1 else _split(centres[:, :2], p[:2])
+    x = centres + (p - w @ centres)  # application points, weighted mean at the ZMP
+    moment = n - spatial.cross(p, f)  # about the ZMP: vertical only
+    out = np.zeros((state.model.nb, 6))
+    bodies = state.model.joint_body[np.asarray(state.parts.feet)[sides]]
+    out[bodies, :3] = spatial.cross(x, w[:, None] * f) + w[:, None] * moment
+    out[bodies, 3:] = w[:, None] * f
+    return out
+
+
+def _split(centres, p):
+    """Weights (2,) of two sole centres whose combination is the projection of p on their line."""
+    d = centres[1] - centres[0]
+    t = np.clip(np.dot(p - centres[0], d) / max(np.dot(d, d), 1e-12), 0.0, 1.0)
+    return np.array([1.0 - t, t])
+
+
+def joint_stress(tau, limits, tolerance=0.0):
+    """Eq. 2.9: tau - tau_max above the range, tau - tau_min below it, zero inside (nv,)."""
+    low, high = limits
+    s = tau - np.clip(tau, low, high)
+    s[np.abs(s) <= tolerance] = 0.0
+    return s
+
+
+# ---- eq. 2.17-2.18: passive control -------------------------------------------------------------
+
+def passive_control(state, a, dofs=None):
+    """Change of acceleration (nv,) of the stressed joints among `dofs` (the upper body by
+    default) that brings each one's torque to its limit: eq. 2.17 (own inertia H_ii), eq. 2.18
+    (the others' changes through H_ij), then rounds that hold every passive joint at its limit
+    exactly (the fixed point of eq. 2.18) and add the joints the changes pushed over."""
+    dofs = state.parts.upper if dofs is None else np.asarray(dofs, int)
+    delta = np.zeros(state.model.nv)
+    tol = state.settings.torque_tolerance
+    stress = joint_stress(required_torques(state, a)[0], state.limits, tol)[dofs]
+    k = dofs[stress != 0.0]
+    if not len(k):
+        return delta
+    h = state.inertia(k, k)
+    first = -stress[stress != 0.0] / np.diag(h)  # eq. 2.17
+    delta[k] = first - (h @ first - np.diag(h) * first) / np.diag(h)  # eq. 2.18
+    passive = np.zeros(state.model.nv, bool)
+    passive[k] = True
+    target = np.clip(required_torques(state, a)[0], *state.limits)
+    for _ in range(state.settings.passive_rounds):
+        tau = required_torques(state, a + delta)[0]
+        stress = joint_stress(tau, state.limits, tol)
+        new = np.zeros_like(passive)
+        new[dofs] = stress[dofs] != 0.0
+        target[new & ~passive] = (tau - stress)[new & ~passive]
+        passive |= new
+        c = np.flatnonzero(passive)
+        gap = target[c] - tau[c]
+        if np.abs(gap).max() <= tol:
+            break
+        delta[c] += np.linalg.lstsq(state.inertia(c, c), gap, rcond=None)[0]
+    return delta
+
+
+# ---- eq. 2.16, 2.19-2.22: active control of one part -------------------------------------------
+
+def pelvis_jacobian(state):
+    """J_p (nv, 3) of eq. 2.16: a world acceleration of the pelvis (no rotation) with every foot
+    on the ground held still, by the legs' inverse kinematics (pseudo-inverse of each leg's
+    Jacobian from the pelvis to the foot, singular values below leg_rcond of the largest cut:
+    a straight knee cannot lengthen the leg); legs in the air ride along."""
+    m, d, q = state.model, state.data, state.q
+    update_frames(m, d, q)
+    jp = np.zeros((m.nv, 3))
+    jp[3:6] = d.frames[0, :3, :3].T  # root axes
+    for side in np.flatnonzero(state.feet):
+        cols = state.parts.legs[side]
+        jf = segment_jacobian(m, d, q, state.parts.feet[side])
+        jp[cols] = -np.linalg.pinv(jf[:, cols], rcond=state.settings.leg_rcond) @ (jf[:, 3:6] @ jp[3:6])
+    return jp
+
+
+def part_matrix(state, part):
+    """(nv, k) map from a part's control acceleration to the change of all joint accelerations:
+    the selection matrices S_a, S_b of eq. 2.16, or J_p for the legs."""
+    if part == "legs":
+        return state.pelvis_jacobian()
+    cols = getattr(state.parts, part)
+    s = np.zeros((state.model.nv, len(cols)))
+    s[cols, np.arange(len(cols))] = 1.0
+    return s
+
+
+def torque_sensitivity(state, part, rows, a):
+    """d tau[rows] / d (part's control acceleration): H' (eq. 2.19) for the arms and back, H' J_p
+    (eq. 2.22) for the legs, where the ground reaction's share between the feet also changes
+    (evaluated by differences of the required torques, which are affine in a but for the share)."""
+    if part != "legs":
+        return state.inertia(rows, getattr(state.parts, part))
+    jp, step = state.pelvis_jacobian(), state.settings.pelvis_step
+    base = required_torques(state, a)[0][rows]
+    return np.column_stack([(required_torques(state, a + step * jp[:, i])[0][rows] - base) / step
+                            for i in range(3)])
+
+
+def comfort_candidates(state, part, a):
+    """Eq. 2.19-2.21: the part's acceleration of least norm that removes the stress of the
+    stressed composite joints (bones) it can reach, all at once (least squares when they cannot
+    all be relieved); an empty list when none is stressed."""
+    domain = state.parts.lower if part == "legs" else state.parts.upper
+    stress = joint_stress(required_torques(state, a)[0], state.limits, state.settings.torque_tolerance)
+    rows = domain[stress[domain] != 0.0]
+    if not len(rows):
+        return []
+    sens = torque_sensitivity(state, part, rows, a)
+    reach = np.abs(sens).max(axis=1) > 1e-9
+    if not reach.any():
+        return []
+    return [bounded(state, part, np.linalg.pinv(sens[reach], rcond=state.settings.rcond)
+                    @ -stress[rows[reach]])]
+
+
+def bounded(state, part, x):
+    """A part's control acceleration scaled down to Settings.max_part_acceleration (rad/s^2, arms
+    and back) or max_pelvis_acceleration (m/s^2, legs): the rest is left to the next part."""
+    top = state.settings.max_pelvis_acceleration if part == "legs" else state.settings.max_part_acceleration
+    return x * min(1.0, top / max(np.linalg.norm(x), 1e-12))
+
+
+# ---- the heuristic order ------------------------------------------------------------------------
+
+@dataclass
+class ControlLog:
+    """What acted in one step: per DOF masks and the sequence of actions."""
+
+    nv: int
+    passive: np.ndarray = None
+    comfort: np.ndarray = None
+    balance: np.ndarray = None
+    actions: list = field(default_factory=list)  # (part, "passive" | "comfort" | "balance")
+
+    def __post_init__(self):
+        self.passive = np.zeros(self.nv, bool)
+        self.comfort = np.zeros(self.nv, bool)
+        self.balance = np.zeros(self.nv, bool)
+
+    def record(self, part, kind, delta):
+        moved = np.abs(delta) > 0.0
+        if moved.any():
+            getattr(self, kind)[moved] = True
+            self.actions.append((part, kind))
+
+
+def control_sequence(state, a0, criteria, passive=True, log=None):
+    """Oshita's steps 3-5: passive control of the upper body, active control of the arms then the
+    back, recomputed passive control, then the legs through the pelvis. `criteria` maps a kind
+    ("comfort", "balance") to f(state, part, a_active, a_current) -> list of candidate part
+    accelerations. Returns the output acceleration."""
+    log = log or ControlLog(state.model.nv)
+    active = np.array(a0, float)
+    stress = passive_control(state, active) if passive else np.zeros_like(active)
+    log.record("upper", "passive", stress)
+    for part in ("arms", "back", "legs"):
+        if part == "legs" and passive:  # step 4's recomputation of the passive change
+            stress = passive_control(state, active)
+            log.record("upper", "passive", stress)
+        best = largest_with_kind(state, part, criteria, active, active + stress)
+        if best is None:
+            continue
+        kind, x = best
+        delta = part_matrix(state, part) @ x
+        active = active + delta
+        log.record(part, kind, delta)
+    return active + stress, log
+
+
+def largest_with_kind(state, part, criteria, active, current):
+    if not len(getattr(state.parts, part, ())) and part != "legs":
+        return None
+    found = [(kind, c) for kind, f in criteria.items() for c in f(state, part, active, current)]
+    found = [(k, c) for k, c in found if c is not None and np.any(c)]
+    return max(found, key=lambda kc: np.linalg.norm(kc[1])) if found else None
+
+
+def comfort_criterion(state, part, active, current):
+    """Stress of the upper body is judged as the tracking would need it (the active acceleration,
+    passive change excluded); the legs' on the current acceleration (passive included)."""
+    return comfort_candidates(state, part, current if part == "legs" else active)
+
+
+@dataclass
+class ComfortResult:
+    delta: np.ndarray  # (nv,) change of acceleration
+    stress: np.ndarray  # (nv,) eq. 2.9 at the tracking acceleration
+    stress_after: np.ndarray  # (nv,) at the output acceleration
+    tau: np.ndarray  # (nv,) required torques at the output
+    log: ControlLog
+
+
+def comfort_control(state, a_tracking):
+    """Comfort control alone: Δθ'' relieving joint stress in the thesis's order (exactly zero when
+    nothing is stressed)."""
+    a0 = np.asarray(a_tracking, float)
+    tol = state.settings.torque_tolerance
+    stress = joint_stress(required_torques(state, a0)[0], state.limits, tol)
+    log = ControlLog(state.model.nv)
+    if not stress.any():
+        return ComfortResult(np.zeros_like(a0), stress, stress, None, log)
+    out, log = control_sequence(state, a0, {"comfort": comfort_criterion}, log=log)
+    tau = required_torques(state, out)[0]
+    return ComfortResult(out - a0, stress, joint_stress(tau, state.limits, tol), tau, log)
