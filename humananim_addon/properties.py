@@ -71,6 +71,21 @@ class HumanAnimSceneSettings(bpy.types.PropertyGroup):
     ), default="AUTO")
 
 
+def settings_registration(classes, owner, attribute, group):
+    """register/unregister for property groups whose settings live at `owner.attribute`."""
+    register_classes, unregister_classes = bpy.utils.register_classes_factory(classes)
+
+    def register():
+        register_classes()
+        setattr(owner, attribute, PointerProperty(type=group))
+
+    def unregister():
+        delattr(owner, attribute)
+        unregister_classes()
+
+    return register, unregister
+
+
 def role_overrides(settings):
     """The animator's role choices: {role: bone names}. (A plain function: a Python property
     on a PropertyGroup class crashes bpy 4.2 at exit.)"""

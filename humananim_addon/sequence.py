@@ -38,6 +38,7 @@ from ..solver.sequence import (channels as seq_channels, equalizer, error_measur
                                multiresolution_blend, pyramid, pyramid_compression, time_warp)
 from . import action_api
 from .actions import scene_fps
+from .properties import settings_registration
 
 log = logging.getLogger(__name__)
 
@@ -830,13 +831,4 @@ def store_bands(props, label, labels, energies, units):
     props.analysed, props.units = label, units
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-    bpy.types.Scene.humananim_sequence = PointerProperty(type=HumanAnimSequence)
-
-
-def unregister():
-    del bpy.types.Scene.humananim_sequence
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = settings_registration(CLASSES, bpy.types.Scene, "humananim_sequence", HumanAnimSequence)

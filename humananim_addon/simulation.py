@@ -1,11 +1,10 @@
 """Closed-loop simulation in Blender: its settings, pushes from Empties, stress curves back out."""
 
+import time
+
 import bpy
 import numpy as np
 from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
-
-import time
-
 from mathutils import Vector
 
 from ..solver import rotations
@@ -16,6 +15,7 @@ from ..solver.errors import MotionError
 from . import actions
 from .actions import bone_path
 from .armature import skeleton_from_armature
+from .properties import settings_registration
 
 TORQUE = "humananim_torque"  # N m, magnitude over the joint's axes
 USAGE = "humananim_strength_usage"  # required / available torque, worst axis; > 1: too weak
@@ -66,16 +66,7 @@ class HumanAnimSimulation(bpy.types.PropertyGroup):
 CLASSES = (HumanAnimPush, HumanAnimSimulation)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-    bpy.types.Scene.humananim_simulation = PointerProperty(type=HumanAnimSimulation)
-
-
-def unregister():
-    del bpy.types.Scene.humananim_simulation
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = settings_registration(CLASSES, bpy.types.Scene, "humananim_simulation", HumanAnimSimulation)
 
 
 def frame_range(props, action):
