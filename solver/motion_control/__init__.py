@@ -12,3 +12,6 @@ from .tracking import TrackingController, next_extremum_times
 __all__ = ["Contact", "LimbIK", "TrackingController", "balance_control", "comfort_control", "control_state",
            "dynamic_control", "next_extremum_times", "remove_short_runs", "runs", "stress_by_bone",
            "support_intervals", "support_phases"]
+from .controller import Collider, ControlResult, ControlSettings, Impulse, Load, control, iter_control
+
+__all__ += ["Collider", "ControlResult", "ControlSettings", "Impulse", "Load", "control", "iter_control"]

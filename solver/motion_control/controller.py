@@ -1,0 +1,674 @@
+"""Oshita's dynamic motion control loop (2003, ch. 2, in 3-D): per step the tracking acceleration
+(sec. 2.4.1), the constrained legs (sec. 2.4.2), comfort and balance control (sec. 2.5), Euler
+integration and the falling criterion (sec. 2.3.3); loads, impulses, pushes and colliders are the
+environmental input.
+
+One step (dt = frame time / substeps):
+
+  1. tracking acceleration of every DOF towards the input (TrackingController);
+  2. constrained legs: a foot that supports the body (support_intervals of the input, with the
+     animator's overrides) is planted where it was when it landed and follows the input foot's own
+     motion from there (a heel that rises in the input rises). The supported leg's joint
+     accelerations are the tracking ones corrected by the least change that gives the foot its
+     target acceleration for the pelvis's acceleration (the acceleration form of the limb's
+     inverse kinematics); after the Euler step the leg's positions and velocities are re-solved
+     (two Gauss-Newton iterations of the leg's IK on its own DOFs, then the velocity projection),
+     so the foot cannot drift however balance control moves the pelvis;
+  3. dynamic control (dynamic_control: passive, comfort then balance of arms, back and legs),
+     unless tracking_only; external forces (Impulse with a duration, collider contact forces of
+     the previous step) enter its inverse dynamics as known wrenches;
+  4. Euler on the manifold with the second-order position term (v' = v + a dt, q' = q (+) (v + v')
+     dt / 2, which follows a motion sampled by central differences exactly; semi-implicit Euler
+     q' = q (+) v' dt for the fallen body); instant impulses change the velocities through the
+     inertia matrix, dv = H^-1 J' p, before the legs' projection;
+  5. colliders: the body's contact spheres (default_contacts) against the collider spheres of
+     that instant; an approaching pair gets the impulse that leaves it separating at restitution
+     times its approach speed (all pairs at once, projected Gauss-Seidel on J H^-1 J'), friction
+     included; the collider is kinematic (infinite mass) unless Collider.mass is finite.
+
+Falling (choice: contact impulses, not a hand-over to closed_loop.iter_simulate): when balance
+control has reported for `fall_time` (0.1 s) that the ZMP cannot be brought inside the support
+polygon (one glitch of a captured motion does not fell the figure), that step's output
+turns the body about the MMP (Falling.base_acceleration, sec. 2.3.3) and the figure is released:
+from the next step it is a ragdoll (no joint torques but damping, the joint limits as stiff
+springs, both implicit: (H + dt D + dt^2 K) dv = dt (tau - bias)) at `fall_substeps` steps per
+frame, kept on the ground by inelastic contact impulses on every contact sphere with speculative
+contacts (a sphere may not pass below the ground within the step, and one below it is pushed
+out at `fall_correction` of its depth per step), with Coulomb friction. Falling is final for the
+rest of the clip. Reasons: the impulse ground holds a lying body within millimetres where the
+penalty ground sinks ~2 cm on impact, and the same impulse solver serves the colliders.
+
+tracking_only: the tracking acceleration with the constrained legs, nothing else (no comfort,
+balance or falling); stress, ZMP and balance error are still reported.
+"""
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+
+from ..body_roles import SIDES
+from ..progress import run_to_end
+from ..trajectories import Trajectories
+from ..dynamics import kinematics, spatial
+from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories, motion_floor,
+                                    weld_static_helpers)
+from ..dynamics.ground_contact import default_contacts, point_jacobians
+from ..dynamics.inertia_matrix import bias_forces, crba
+from ..dynamics.model import build_model
+from ..dynamics.strength import default_strength, limit_torques
+from .balance_control import balance_error, support_polygon
+from .comfort_control import Settings as CriteriaSettings
+from .comfort_control import body_parts, joint_stress, required_torques
+from .contacts import support_intervals
+from .dynamic_control import control_state, dynamic_control, stress_by_bone
+from .tracking import TrackingController
+
+NONE, PASSIVE, COMFORT, BALANCE = 0, 1, 2, 3
+
+
+@dataclass
+class Load:
+    """`mass` kg carried at the tail of bone `bone` from `start_time` (seconds from the clip's
+    start)."""
+
+    bone: str
+    mass: float
+    start_time: float = 0.0
+
+
+@dataclass
+class Impulse:
+    """At `time` (s from the clip's start), on `bone` at `point` (bone frame, metres) along the
+    world unit vector `direction`: `magnitude` N s at once when duration == 0 (changes the
+    velocities), else `magnitude` newtons for `duration` seconds (an external force in inverse
+    dynamics)."""
+
+    time: float
+    bone: str
+    point: tuple
+    direction: tuple
+    magnitude: float
+    duration: float = 0.0
+
+
+@dataclass
+class Collider:
+    """Moving spheres (another character's bones, a fist): world centres (F, k, 3) per frame of
+    the clip, radii (k,), velocities (F, k, 3); kinematic unless `mass` (kg) is finite."""
+
+    positions: np.ndarray
+    radii: np.ndarray
+    velocities: np.ndarray
+    mass: float = np.inf
+
+
+@dataclass
+class ControlSettings:
+    gravity: tuple = (0.0, 0.0, -9.81)
+    ground_height: float = None  # None: motion_floor of the input
+    loads: tuple = ()  # Load
+    impulses: tuple = ()  # Impulse
+    colliders: tuple = ()  # Collider
+    strength_scale: float = 1.0
+    substeps: int = 1  # Euler steps per frame
+    tracking_only: bool = False  # no comfort, balance or falling
+    support_overrides: tuple = ()  # contacts.Contact
+    # --- beyond the interface (documented defaults) ---
+    restitution: float = 0.2  # colliders
+    friction: float = 0.8  # Coulomb, colliders and the fallen body on the ground
+    fall_time: float = 0.1  # s the falling criterion must hold before the figure falls
+    fall_substeps: int = 4  # steps per frame once falling (at least `substeps`)
+    fall_damping: float = 2.0  # 1/s, ragdoll joint damping as a rate on each DOF's H_ii
+    fall_correction: float = 0.2  # share of a sphere's depth below the ground removed per step
+    limit_stiffness: float = 300.0  # N m/rad, ragdoll joint limits
+    limit_damping: float = 10.0
+    contact_iterations: int = 30  # projected Gauss-Seidel sweeps
+    foot_iterations: int = 2  # Gauss-Newton iterations of the planted legs' position re-solve
+    foot_damping: float = 1e-3  # damped least squares of the legs' IK (a straight knee is singular)
+    kinematic_fraction: float = 0.0015  # as closed_loop.Settings: fingers follow the input
+    # joint armature as a share of each DOF's own inertia H_ii in the first frame (closed_loop's
+    # armature_ratio): regularises DOF pairs that turn the same mass about nearly the same axis
+    # (CMU's massless lower neck twisting with the neck: passive control asked 1e4 rad/s^2 of them)
+    armature_ratio: float = 0.02
+    # rad/s^2 (m/s^2 on the root): the largest change dynamic control may make to any DOF in a
+    # step (the whole change is scaled down). Passive control makes a stressed joint give way at
+    # (excess torque) / H_ii, which a glitch of a captured motion (CMU 131_01's first frames ask
+    # 2.4 kN of the ground) turns into 1e4 rad/s^2 of a light neck
+    max_dynamic_acceleration: float = 200.0
+    weld_static_helpers: bool = True
+    min_horizon: float = None  # tracking (TrackingController)
+    max_horizon: float = 0.5
+    criteria: CriteriaSettings = field(default_factory=CriteriaSettings)  # comfort/balance tolerances
+
+
+@dataclass
+class ControlResult:
+    trajectories: Trajectories  # at the input's frames
+    stress: np.ndarray  # (F, J, 3) N m per bone axis at the output acceleration
+    balance_error: np.ndarray  # (F,) m, ZMP to the support polygon (0 inside or without support)
+    zmp: np.ndarray  # (F, 2) NaN without support
+    mmp: np.ndarray  # (F, 2) NaN without support
+    support: np.ndarray  # (F, 2) bool (left, right) feet planted
+    polygon: list  # per frame (k, 2) support polygon
+    control: np.ndarray  # (F, J) int8: 0 none, 1 passive, 2 comfort, 3 balance
+    falling: np.ndarray  # (F,) bool
+    foot_slide: np.ndarray  # (F, 2) m, horizontal travel of each planted sole's centre since landing
+    model: object = None
+
+
+def control(skeleton, trajectories, settings=None):
+    """Dynamic motion control of a skeleton following `trajectories` (see the module notes)."""
+    return run_to_end(iter_control(skeleton, trajectories, settings))
+
+
+def iter_control(skeleton, trajectories, settings=None):
+    """control() as steps: yields the fraction of frames done, returns the ControlResult."""
+    loop = _Loop(skeleton, trajectories, settings or ControlSettings())
+    nf = loop.tr.frame_count
+    for f in range(nf):
+        loop.frame(f)
+        yield (f + 1) / nf
+    return loop.result()
+
+
+# ---- the loop ---------------------------------------------------------------------------------
+
+class _Body:
+    """A model (one set of active loads) and what the steps need of it."""
+
+    def __init__(self, model, strength):
+        self.model = model
+        self.data = model.create_data()
+        self.contacts = default_contacts(model)
+        self.parts = body_parts(model, self.contacts)
+        self.strength = strength
+        self.spheres = self.contacts.on(model)  # bodies (k,), body-frame centres (k, 3)
+
+
+class _Loop:
+    def __init__(self, skeleton, trajectories, st):
+        tr = trajectories
+        self.st, self.tr = st, tr
+        sk = weld_static_helpers(skeleton, tr) if st.weld_static_helpers else skeleton
+        _require_connected_body(sk)
+        self.sk = sk
+        self.basis0 = tr.basis()[0]
+        total = sk.total_mass + sum(float(l.mass) for l in st.loads)
+        self.kinematic_mass = st.kinematic_fraction * total
+        self._bodies = {}
+        self.body = self._body(self._active_loads(0.0))
+        m = self.body.model
+        self.tracking = TrackingController(m, sk, tr, min_horizon=st.min_horizon, max_horizon=st.max_horizon)
+        self.dt_frame = self.tracking.dt
+        self.desired_data = m.create_data()
+        self.ground = float(motion_floor(sk, tr) if st.ground_height is None else st.ground_height)
+        sup = support_intervals(sk, tr, st.support_overrides, floor=self.ground)
+        self.support_in = np.stack([sup.get(s, np.zeros(tr.frame_count, bool)) for s in SIDES], axis=1)
+        self.impulses = [self._impulse(i) for i in st.impulses]
+        self.q = self.tracking.q_d[0].copy()
+        self.v = self.tracking.v_d[0].copy()
+        self.t = 0.0
+        self.planted = [None, None]  # per side: (world offset (3,), sole centre at landing (2,))
+        self.fallen = False
+        self._targets_cache = None
+        self.unbalanced = 0.0  # s the ZMP has stayed outside what balance control can reach
+        self.collider_wrench = None  # (nb, 6) contact forces of the last step's collisions
+        nf, J = tr.frame_count, sk.joint_count
+        self.out_q = np.zeros((nf, m.nq))
+        self.stress = np.zeros((nf, J, 3))
+        self.err = np.zeros(nf)
+        self.zmp = np.full((nf, 2), np.nan)
+        self.mmp = np.full((nf, 2), np.nan)
+        self.support = np.zeros((nf, 2), bool)
+        self.polygon = [np.zeros((0, 2))] * nf
+        self.control = np.zeros((nf, J), np.int8)
+        self.falling = np.zeros(nf, bool)
+        self.slide = np.zeros((nf, 2))
+
+    # ---- setup helpers ----
+
+    def _active_loads(self, t):
+        return tuple(t >= l.start_time - 1e-9 for l in self.st.loads)
+
+    def _body(self, active):
+        if active not in self._bodies:
+            loads = {}
+            for l, on in zip(self.st.loads, active):
+                if on:
+                    loads[l.bone] = loads.get(l.bone, 0.0) + float(l.mass)
+            m = build_model(self.sk, reference_basis=self.basis0, loads=loads, gravity=self.st.gravity,
+                            kinematic_mass=self.kinematic_mass)
+            if self._bodies:
+                ref = next(iter(self._bodies.values())).model
+                if m.nv != ref.nv or not np.array_equal(m.body_joint, ref.body_joint):
+                    raise SimulationError("a load changes which bones carry dynamics: put loads on bones "
+                                          "with mass (hands, forearms, trunk)")
+            if self.st.armature_ratio > 0.0:
+                m.set_armature(self.st.armature_ratio * np.diag(crba(m, m.create_data(), self._q0(m))))
+            strength = default_strength(m)
+            strength = replace(strength, scale=strength.scale * self.st.strength_scale)
+            self._bodies[active] = _Body(m, strength)
+        return self._bodies[active]
+
+    def _q0(self, m):
+        pos, ori = self.tr.root_pose(self.sk)
+        return m.configuration(pos[0], ori[0], self.tr.rotations[0])
+
+    def _impulse(self, imp):
+        d = np.asarray(imp.direction, float)
+        d = d / max(np.linalg.norm(d), 1e-12)
+        return (float(imp.time), float(imp.duration), self.sk.index(imp.bone), np.asarray(imp.point, float),
+                float(imp.magnitude) * d)
+
+    # ---- one frame ----
+
+    def frame(self, f):
+        """Record frame f's state and diagnostics, then step to the next frame (none after the last)."""
+        last = f == self.tr.frame_count - 1
+        self.out_q[f] = self.q
+        n = max(self.st.substeps, self.st.fall_substeps) if self.fallen else max(1, self.st.substeps)
+        for k in range(1 if last else n):
+            self.step(f, self.dt_frame / n, record=k == 0, integrate=not last)
+
+    def step(self, f, dt, record, integrate):
+        st = self.st
+        body = self._body(self._active_loads(self.t))
+        self.body = body
+        m, d = body.model, body.data
+        q, v, t = self.q, self.v, self.t
+        f_ext = self._forces(body, t)
+        feet = np.zeros(2, bool)
+        if not self.fallen:
+            fi = min(int(np.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+            feet = self.support_in[fi].copy()
+            self._update_plants(body, feet, t)
+        a_track = self.tracking.acceleration(t, q, v)
+        targets = self._foot_targets(body, feet, t) if feet.any() else None
+        if targets is not None:
+            a_track = self._constrain_legs(body, q, v, a_track, feet, targets)
+        fall = None
+        if self.fallen:
+            a = None
+        else:
+            cs = control_state(m, d, q, v, feet, body.strength, f_ext=f_ext, ground_height=self.ground,
+                               parts=body.parts, settings=st.criteria)
+            if st.tracking_only:
+                a = a_track
+                if record:
+                    self._record_diagnostics(f, cs, a, feet)
+            else:
+                res = dynamic_control(cs, a_track)
+                a = a_track + _bounded(res.delta, st.max_dynamic_acceleration)
+                fall = res.falling
+                if record:
+                    self._record_result(f, cs, res, feet)
+                self.unbalanced = self.unbalanced + dt if fall is not None else 0.0
+                if fall is not None and self.unbalanced >= st.fall_time - 1e-9:
+                    a = a + fall.base_acceleration
+                else:
+                    fall = None
+        if record:
+            self.falling[f] = self.fallen or fall is not None
+            self.support[f] = feet
+            for s in range(2):
+                if feet[s] and self.planted[s] is not None:
+                    centre = self._sole_centre(body, q, s)
+                    self.slide[f, s] = np.linalg.norm(centre[:2] - self.planted[s][1])
+        if not integrate:
+            return
+        try:
+            with np.errstate(over="raise", invalid="raise"):
+                v0 = v
+                if self.fallen:
+                    v = self._ragdoll_velocity(body, q, v, dt, f_ext)
+                else:
+                    v = v + dt * a
+                v = self._apply_impulses(body, q, v, t, dt)
+                v = self._collide(body, q, v, t, dt, ground=self.fallen)
+                if fall is not None:
+                    self.fallen = True
+                    self.planted = [None, None]
+                    feet[:] = False
+                if feet.any():
+                    v = self._project_velocity(body, q, v, feet, targets)
+                # positions with the step's mean velocity (q (+) (v + a dt / 2) dt without impulses:
+                # follows a motion sampled by central differences exactly, see test_motion_control_
+                # tracking); the fallen body with the new velocity (semi-implicit, contact-safe)
+                q = kinematics.integrate(m, q, (v if self.fallen else 0.5 * (v0 + v)) * dt)
+                self.t = t + dt
+                if feet.any():
+                    targets = self._foot_targets(body, feet, self.t)
+                    q = self._project_position(body, q, feet, targets)
+        except (np.linalg.LinAlgError, FloatingPointError) as exc:
+            raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}: {exc}") from None
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}")
+        self.q, self.v = q, v
+
+    # ---- diagnostics ----
+
+    def _record_result(self, f, cs, res, feet):
+        m = cs.model
+        self.stress[f] = stress_by_bone(m, res.stress_after)
+        self.polygon[f] = res.polygon
+        if res.zmp is not None:
+            self.zmp[f] = res.zmp
+            self.mmp[f] = res.mmp
+            self.err[f] = float(np.linalg.norm(res.zmp - res.mmp))
+        code = np.zeros(m.nv, np.int8)
+        code[res.log.passive] = PASSIVE
+        code[res.log.comfort] = np.maximum(code[res.log.comfort], COMFORT)
+        code[res.log.balance] = BALANCE
+        per_bone = np.zeros(m.skeleton.joint_count, np.int8)
+        np.maximum.at(per_bone, m.dof_joint[6:], code[6:])
+        self.control[f] = per_bone
+
+    def _record_diagnostics(self, f, cs, a, feet):
+        tau, wrench = required_torques(cs, a)
+        self.stress[f] = stress_by_bone(cs.model, joint_stress(tau, cs.limits, cs.settings.torque_tolerance))
+        poly = support_polygon(cs)
+        self.polygon[f] = poly
+        p, mmp, dist = balance_error(cs, wrench, poly)
+        if p is not None:
+            self.zmp[f], self.mmp[f], self.err[f] = p, mmp, dist
+
+    def result(self):
+        m = self.body.model
+        traj = _to_trajectories(m, self.sk, self.tr, self.out_q)
+        return ControlResult(trajectories=traj, stress=self.stress, balance_error=self.err, zmp=self.zmp,
+                             mmp=self.mmp, support=self.support, polygon=self.polygon, control=self.control,
+                             falling=self.falling, foot_slide=self.slide, model=m)
+
+    # ---- external input ----
+
+    def _forces(self, body, t):
+        """World wrenches (nb, 6) of the pushes active at t and the last step's collider forces."""
+        m, d = body.model, body.data
+        out = None
+        for t0, dur, j, point, force in self.impulses:
+            if dur > 0.0 and t0 <= t < t0 + dur:
+                x = kinematics.point_positions(m, d, self.q, [j], [point])[0]
+                w = np.zeros((m.nb, 6))
+                w[m.joint_body[j]] = np.r_[_cross(x, force), force]
+                out = w if out is None else out + w
+        if self.collider_wrench is not None:
+            out = self.collider_wrench if out is None else out + self.collider_wrench
+        return out
+
+    def _apply_impulses(self, body, q, v, t, dt):
+        """Instant impulses falling in [t, t + dt): dv = H^-1 J' p."""
+        m, d = body.model, body.data
+        for t0, dur, j, point, p in self.impulses:
+            if dur == 0.0 and t - 1e-9 <= t0 < t + dt - 1e-9:
+                jac = kinematics.point_jacobian(m, d, q, j, point)
+                v = v + cho_solve(cho_factor(_inertia(m, d, q)), jac.T @ p)
+        return v
+
+    # ---- planted feet (sec. 2.4.2) ----
+
+    def _update_plants(self, body, feet, t):
+        m = body.model
+        for s in range(2):
+            if not feet[s]:
+                self.planted[s] = None
+            elif self.planted[s] is None:
+                foot = body.parts.feet[s]
+                now = kinematics.point_positions(m, body.data, self.q, [foot], [np.zeros(3)])[0]
+                qd = self.tracking.desired_state(t)[0]
+                want = kinematics.point_positions(m, self.desired_data, qd, [foot], [np.zeros(3)])[0]
+                self.planted[s] = (now - want, self._sole_centre(body, self.q, s)[:2])
+
+    def _sole_centre(self, body, q, s):
+        p = body.parts
+        return kinematics.point_positions(body.model, body.data, q, p.sole_joints[s], p.sole_points[s]).mean(axis=0)
+
+    def _foot_targets(self, body, feet, t):
+        key = (t, tuple(feet), tuple(None if p is None else p[0].tobytes() for p in self.planted), id(body))
+        if self._targets_cache is not None and self._targets_cache[0] == key:
+            return self._targets_cache[1]
+        out = self._foot_targets_at(body, feet, t)
+        self._targets_cache = (key, out)
+        return out
+
+    def _foot_targets_at(self, body, feet, t):
+        """Per planted side: the input foot's world rotation (3, 3), head position (3,), 6-D velocity
+        and 6-D acceleration (angular; head point), moved by the landing offset."""
+        m, dd = body.model, self.desired_data
+        qd, vd, ad = self.tracking.desired_state(t)
+        vel, acc = kinematics.body_accelerations(m, dd, qd, vd, ad)
+        out = [None, None]
+        for s in np.flatnonzero(feet):
+            foot = body.parts.feet[s]
+            b = m.joint_body[foot]
+            frame = dd.frames[b] @ m.joint_offset[foot]
+            x = frame[:3, 3]
+            w, vo = vel[b, :3], vel[b, 3:]
+            al, ao = acc[b, :3], acc[b, 3:]
+            xd = vo + _cross(w, x)
+            xdd = ao + _cross(al, x) + _cross(w, xd)
+            out[s] = (frame[:3, :3], x + self.planted[s][0], np.r_[w, xd], np.r_[al, xdd])
+        return out
+
+    def _foot_jacobian(self, body, q, s):
+        """(6, k) Jacobian of the foot's angular velocity and head velocity on the leg's DOFs, the
+        foot's world frame, and the leg's DOFs."""
+        m, d = body.model, body.data
+        foot, cols = body.parts.feet[s], body.parts.legs[s]
+        kinematics.update_frames(m, d, q)
+        b = m.joint_body[foot]
+        frame = d.frames[b] @ m.joint_offset[foot]
+        sub = kinematics.motion_subspace(m, d, q)[cols]  # (k, 6) world (omega, v at origin)
+        x = frame[:3, 3]
+        jac = np.vstack((sub[:, :3].T, (sub[:, 3:] - _cross(x, sub[:, :3])).T))
+        return jac, frame, cols
+
+    def _dls(self, jac, r):
+        lam = self.st.foot_damping
+        return jac.T @ np.linalg.solve(jac @ jac.T + lam * lam * np.eye(len(jac)), r)
+
+    def _constrain_legs(self, body, q, v, a, feet, targets):
+        """Leg accelerations that give each planted foot its target acceleration: the tracking
+        ones plus the least change (the acceleration form of the leg's IK for the pelvis's
+        acceleration)."""
+        m, d = body.model, body.data
+        vel, acc = kinematics.body_accelerations(m, d, q, v, a)
+        a = a.copy()
+        for s in np.flatnonzero(feet):
+            jac, frame, cols = self._foot_jacobian(body, q, s)
+            b = m.joint_body[body.parts.feet[s]]
+            x = frame[:3, 3]
+            w, vo, al, ao = vel[b, :3], vel[b, 3:], acc[b, :3], acc[b, 3:]
+            xd = vo + _cross(w, x)
+            now = np.r_[al, ao + _cross(al, x) + _cross(w, xd)]
+            a[cols] += self._dls(jac, targets[s][3] - now)
+        return a
+
+    def _project_velocity(self, body, q, v, feet, targets):
+        v = v.copy()
+        m, d = body.model, body.data
+        vel = kinematics.body_velocities(m, d, q, v)
+        for s in np.flatnonzero(feet):
+            jac, frame, cols = self._foot_jacobian(body, q, s)
+            b = m.joint_body[body.parts.feet[s]]
+            x = frame[:3, 3]
+            now = np.r_[vel[b, :3], vel[b, 3:] + _cross(vel[b, :3], x)]
+            v[cols] += self._dls(jac, targets[s][2] - now)
+        return v
+
+    def _project_position(self, body, q, feet, targets):
+        m = body.model
+        for _ in range(self.st.foot_iterations):
+            step = np.zeros(m.nv)
+            for s in np.flatnonzero(feet):
+                jac, frame, cols = self._foot_jacobian(body, q, s)
+                rot, pos = targets[s][0], targets[s][1]
+                turn = spatial.quat_log(_quat(rot @ frame[:3, :3].T))
+                step[cols] = self._dls(jac, np.r_[turn, pos - frame[:3, 3]])
+            q = kinematics.integrate(m, q, step)
+        return q
+
+    # ---- the fallen body ----
+
+    def _ragdoll_velocity(self, body, q, v, dt, f_ext):
+        st, m, d = self.st, body.model, body.data
+        h = crba(m, d, q)
+        hd = np.diag(h).copy()
+        spring = limit_torques(m, q, np.zeros_like(v), st.limit_stiffness, 0.0)
+        at_limit = spring != 0.0
+        damp = st.fall_damping * hd + at_limit * (st.limit_damping + dt * st.limit_stiffness)
+        damp[:6] = 0.0
+        rhs = spring - bias_forces(m, d, q, v, f_ext=f_ext) - damp * v
+        mat = h.copy()
+        mat.flat[::m.nv + 1] += dt * damp
+        return v + dt * cho_solve(cho_factor(mat), rhs)
+
+    # ---- contact impulses: colliders and the fallen body on the ground ----
+
+    def _collide(self, body, q, v, t, dt, ground):
+        """Impulses of the ground (when `ground`) and of the colliders on the velocities v (after the
+        step's acceleration, before its position update); remembers the collider forces."""
+        m, d = body.model, body.data
+        kinematics.update_frames(m, d, q)
+        bodies, local = body.spheres
+        radii = body.contacts.radii
+        fr = d.frames[bodies]
+        centres = np.einsum("kij,kj->ki", fr[:, :3, :3], local) + fr[:, :3, 3]
+        rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
+        self.collider_wrench = None
+        if ground:
+            gap = centres[:, 2] - radii - self.ground
+            # speculative: every sphere that could reach the ground within the step
+            vel = kinematics.body_velocities(m, d, q, v)[bodies]
+            vz = vel[:, 5] + (vel[:, 0] * centres[:, 1] - vel[:, 1] * centres[:, 0])
+            near = gap < np.maximum(-vz, 0.0) * dt + 0.01
+            for k in np.flatnonzero(near):
+                g = gap[k]
+                target = -g / dt if g > 0 else -self.st.fall_correction * g / dt
+                point = centres[k] - np.array([0.0, 0.0, radii[k]])
+                rows.append((k, point, np.array([0.0, 0.0, 1.0]), target, np.zeros(3), None))
+        for ci, col in enumerate(self.st.colliders):
+            pos, vel_c = self._collider_at(col, t)
+            rc = np.asarray(col.radii, float)
+            delta = centres[:, None, :] - pos[None, :, :]  # (k, c, 3) from collider to body sphere
+            dist = np.linalg.norm(delta, axis=-1)
+            overlap = dist < radii[:, None] + rc[None, :]
+            for k, c in zip(*np.nonzero(overlap)):
+                n = delta[k, c] / max(dist[k, c], 1e-9)
+                point = centres[k] - radii[k] * n
+                rows.append((k, point, n, None, vel_c[c], col.mass))
+        if not rows:
+            return v
+        ks = np.array([r[0] for r in rows])
+        points = np.array([r[1] for r in rows])
+        jac = point_jacobians(m, d, q, bodies[ks], points)  # (c, 3, nv)
+        normals = np.array([r[2] for r in rows])
+        t1 = _cross(normals, [1.0, 0.0, 0.0])
+        t1[np.linalg.norm(t1, axis=1) < 1e-6] = _cross(normals, [0.0, 1.0, 0.0])[np.linalg.norm(t1, axis=1) < 1e-6]
+        t1 /= np.linalg.norm(t1, axis=1)[:, None]
+        t2 = _cross(normals, t1)
+        basis = np.stack((normals, t1, t2), axis=1)  # (c, 3, 3) rows n, t1, t2
+        jr = np.einsum("cij,cjn->cin", basis, jac).reshape(-1, m.nv)  # (3c, nv)
+        other = np.array([r[4] for r in rows])
+        rel0 = jr @ v - np.einsum("cij,cj->ci", basis, other).ravel()
+        targets = np.empty(len(rows))
+        for i, r in enumerate(rows):
+            if r[3] is not None:
+                targets[i] = r[3]
+            else:  # a collider: bounce at restitution when approaching
+                vn = rel0[3 * i]
+                targets[i] = -self.st.restitution * vn if vn < 0 else -np.inf
+        active = targets > -np.inf
+        if not active.any():
+            return v
+        sel = np.flatnonzero(np.repeat(active, 3))
+        jr, rel0 = jr[sel], rel0[sel]
+        targets = targets[active]
+        inv_mass = np.array([0.0 if r[5] is None or not np.isfinite(r[5]) else 1.0 / r[5]
+                             for r, a in zip(rows, active) if a])
+        chol = cho_factor(_inertia(m, d, q))
+        hij = cho_solve(chol, jr.T)  # (nv, 3c)
+        w = jr @ hij
+        w[np.diag_indices_from(w)] += np.repeat(inv_mass, 3)
+        p = _pgs(w, rel0, targets, self.st.friction, self.st.contact_iterations)
+        v = v + hij @ p
+        # collider contact forces for the next step's inverse dynamics
+        pc = [i for i, r in enumerate(r for r, a in zip(rows, active) if a) if r[3] is None]
+        if pc:
+            act_rows = [r for r, a in zip(rows, active) if a]
+            wrench = np.zeros((m.nb, 6))
+            for i in pc:
+                force = basis[np.flatnonzero(active)[i]].T @ p[3 * i:3 * i + 3] / dt
+                x = act_rows[i][1]
+                wrench[bodies[act_rows[i][0]]] += np.r_[_cross(x, force), force]
+            self.collider_wrench = wrench
+        return v
+
+    def _collider_at(self, col, t):
+        pos = np.asarray(col.positions, float)
+        vel = np.asarray(col.velocities, float)
+        x = np.clip(t / self.dt_frame, 0.0, len(pos) - 1)
+        f0 = min(int(np.floor(x)), len(pos) - 1)
+        f1 = min(f0 + 1, len(pos) - 1)
+        w = x - f0
+        return (1 - w) * pos[f0] + w * pos[f1], (1 - w) * vel[f0] + w * vel[f1]
+
+
+def _cross(a, b):
+    """Cross products of 3-vectors or (k, 3) stacks (np.cross costs ~20 us per call)."""
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    a, b = np.broadcast_arrays(a, b)
+    out = np.empty(a.shape)
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def _bounded(delta, top):
+    size = np.abs(delta).max() if len(delta) else 0.0
+    return delta * (top / size) if size > top else delta
+
+
+def _inertia(model, data, q):
+    """H (the model's armature included, ControlSettings.armature_ratio)."""
+    h = crba(model, data, q)
+    h.flat[::model.nv + 1] += 1e-12
+    return h
+
+
+def _pgs(w, rel, targets, mu, iterations):
+    """Projected Gauss-Seidel on contacts of three rows (normal, two tangents): normal impulses
+    >= 0 that bring each normal speed up to its target (complementary), friction impulses within
+    mu times the normal one that stop the sliding."""
+    n = len(targets)
+    p = np.zeros(3 * n)
+    u = rel.copy()
+    diag = np.diag(w).copy()
+    for _ in range(iterations):
+        change = 0.0
+        for c in range(n):
+            i = 3 * c
+            new = max(0.0, p[i] + (targets[c] - u[i]) / diag[i])
+            dp = new - p[i]
+            if dp:
+                p[i] = new
+                u += w[:, i] * dp
+                change = max(change, abs(dp))
+            cap = mu * p[i]
+            for j in (i + 1, i + 2):
+                new = min(max(p[j] - u[j] / diag[j], -cap), cap)
+                dp = new - p[j]
+                if dp:
+                    p[j] = new
+                    u += w[:, j] * dp
+                    change = max(change, abs(dp))
+        if change < 1e-7:
+            break
+    return p
+
+
+def _quat(rot):
+    from .. import rotations
+    return rotations.from_matrix(rot)
