@@ -4,7 +4,7 @@ import logging
 
 import bpy
 
-from . import cli, preferences, properties, sequence, simulation
+from . import cli, motion_control, overlay, preferences, properties, sequence, simulation
 
 log = logging.getLogger(preferences.PACKAGE)
 _cli_handle = None
@@ -16,9 +16,11 @@ def register():
     bpy.utils.register_class(preferences.HumanAnimPreferences)
     properties.register()
     simulation.register()
+    motion_control.register()
     sequence.register()
     operators.register()
     panels.register()
+    overlay.register()
     if hasattr(bpy.utils, "register_cli_command"):
         _cli_handle = bpy.utils.register_cli_command("humananim", cli.blender_command)
     prefs = preferences.get()
@@ -32,9 +34,11 @@ def unregister():
     if _cli_handle is not None:
         bpy.utils.unregister_cli_command(_cli_handle)
         _cli_handle = None
+    overlay.unregister()
     panels.unregister()
     operators.unregister()
     sequence.unregister()
+    motion_control.unregister()
     simulation.unregister()
     properties.unregister()
     bpy.utils.unregister_class(preferences.HumanAnimPreferences)

@@ -144,13 +144,34 @@ def cmd_demo(args):
     scene = bpy.context.scene
     skeleton = skeleton_from_armature(obj, scene, args.mass)
     mass_model.store(obj.data.humananim, skeleton, skeleton.mass, skeleton.com, skeleton.inertia)
+    result = rig_summary(obj, scene, args.mass)  # of the source motion, before control adds an action
     out = os.path.abspath(args.out)
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=out)
-    result = rig_summary(obj, scene, args.mass)
+    control = demo_control(obj, scene, skeleton, out)
     result.update(command="demo", input=os.path.abspath(args.bvh), bvh_unit=unit, wrote=[out],
-                  seconds=round(time.perf_counter() - t0, 3))
+                  picture=control["wrote"][1], control=control, seconds=round(time.perf_counter() - t0, 3))
+    from .control_cli import text_summary
+    result["summary"] = "\n".join([_text_summary(result)] + ["  " + line for line in
+                                                              text_summary(control).splitlines()[:-1]])
     return result
+
+
+DEMO_FRAMES = (1, 240)  # two seconds of the walk
+DEMO_LOAD_KG = 8.0  # in each hand
+DEMO_PUSH = (120, 25.0)  # frame, N s backwards on the chest
+
+
+def demo_control(obj, scene, skeleton, out):
+    """Dynamic control of the demo clip with a load in both hands and a push on the chest; saves
+    the .blend at `out` and a picture beside it."""
+    from mathutils import Vector
+    from .control_cli import add_impulse_from_vector, control_and_save
+    props = scene.humananim_control
+    props.frame_start, props.frame_end = DEMO_FRAMES
+    props.load_left = props.load_right = DEMO_LOAD_KG
+    frame, magnitude = DEMO_PUSH
+    backwards = obj.matrix_world.to_3x3() @ Vector((0.0, 1.0, 0.0))  # into the front of the chest
+    add_impulse_from_vector(obj, scene, skeleton.roles.bone("chest"), frame, magnitude * backwards.normalized())
+    return control_and_save(obj, scene, out, os.path.splitext(out)[0] + ".png")
 
 
 def cmd_simulate(args):
@@ -287,4 +308,4 @@ def _text_summary(r):
 COMMANDS = {"info": cmd_info, "demo": cmd_demo, "simulate": cmd_simulate}
 # Modules of this package with `add_commands(subparsers, add_common_options) -> {name: run(args)}`;
 # `run` returns the summary dict (with "command" and "wrote") and raises HumanAnimError/UsageError.
-COMMAND_MODULES = ("sequence_cli",)
+COMMAND_MODULES = ("sequence_cli", "control_cli")

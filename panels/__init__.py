@@ -2,8 +2,8 @@
 
 import bpy
 
-from . import rig, sequence, simulate
+from . import motion_control, rig, sequence, simulate
 
-CLASSES = rig.CLASSES + simulate.CLASSES + sequence.CLASSES
+CLASSES = rig.CLASSES + simulate.CLASSES + motion_control.CLASSES + sequence.CLASSES
 
 register, unregister = bpy.utils.register_classes_factory(CLASSES)

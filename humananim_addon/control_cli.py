@@ -1,0 +1,154 @@
+"""Batch dynamic motion control: `python -m humananim control clip.bvh --load-left 8 ...`.
+
+Runs the same bridge code as the Dynamic Control panel, saves a .blend (--out), optionally a
+picture of the result (--picture), and prints a summary (--json: one object)."""
+
+import os
+import time
+
+import numpy as np
+
+from .cli import UsageError
+
+
+def add_commands(sub, add_common_options):
+    c = sub.add_parser("control", help="dynamic motion control: the motion is kept and reacts to loads, "
+                                       "impulses and collisions; writes a new action with stress curves")
+    c.add_argument("file", help="a .blend or .bvh file")
+    c.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
+    c.add_argument("--action", help="source action (default: the armature's active action)")
+    c.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
+    c.add_argument("--load-left", type=float, default=0.0, help="kg carried in the left hand")
+    c.add_argument("--load-right", type=float, default=0.0, help="kg carried in the right hand")
+    c.add_argument("--load-frame", type=int, default=0, help="frame the loads are picked up at (default: start)")
+    c.add_argument("--impulse", action="append", default=[], metavar="FRAME:BONE:FX,FY,FZ[:SECONDS]",
+                   help="an impulse (N s, world axes) on a bone, or with SECONDS a force (N) over that "
+                        "time; repeatable")
+    c.add_argument("--collide", metavar="OBJECT", help="an armature or mesh object in the .blend to collide with")
+    c.add_argument("--collide-radius", type=float, default=0.06,
+                   help="sphere radius along a colliding armature's bones (m, default 0.06)")
+    c.add_argument("--collide-spheres", type=int, default=1, help="spheres covering a colliding mesh (default 1)")
+    c.add_argument("--strength", type=float, default=1.0, help="muscle strength scale (default 1)")
+    c.add_argument("--substeps", type=int, default=1, help="control steps per frame (default 1)")
+    c.add_argument("--tracking-only", action="store_true", help="no comfort or balance control (to compare)")
+    c.add_argument("--ground", type=float, help="ground height in metres (default: the motion's floor)")
+    c.add_argument("--output", choices=("ACTION", "NLA"), default="ACTION")
+    c.add_argument("--out", default=os.path.join("out", "control.blend"), help="the .blend to write")
+    c.add_argument("--picture", metavar="PNG", help="also render a picture of the result")
+    add_common_options(c)
+    return {"control": cmd_control}
+
+
+def cmd_control(args):
+    import bpy
+    from .cli import _load
+    t0 = time.perf_counter()
+    obj, scene, unit = _load(args.file, args.armature, args.scale)
+    if args.mass:
+        obj.data.humananim.total_mass = args.mass
+    props = scene.humananim_control
+    if args.action:
+        props.action = bpy.data.actions.get(args.action)
+        if props.action is None:
+            raise UsageError(f"no action named '{args.action}'")
+    if args.frames:
+        props.frame_start, props.frame_end = args.frames
+    if args.substeps < 1:
+        raise UsageError("--substeps must be at least 1")
+    if args.collide:
+        other = bpy.data.objects.get(args.collide)
+        if other is None:
+            raise UsageError(f"--collide: no object named '{args.collide}'")
+        props.collider = other
+    props.collider_radius, props.collider_spheres = args.collide_radius, max(1, args.collide_spheres)
+    props.load_left, props.load_right, props.load_frame = args.load_left, args.load_right, args.load_frame
+    props.strength_scale, props.substeps, props.tracking_only = args.strength, args.substeps, args.tracking_only
+    props.ground = "MOTION" if args.ground is None else "HEIGHT"
+    props.ground_height = args.ground or 0.0
+    scene.humananim.output = args.output
+    for text in args.impulse:
+        frame, bone, vector, seconds = parse_impulse(text, obj)
+        add_impulse_from_vector(obj, scene, bone, frame, vector, seconds)
+    summary = control_and_save(obj, scene, args.out, args.picture)
+    summary.update(command="control", file=os.path.abspath(args.file), armature=obj.name,
+                   seconds=round(time.perf_counter() - t0, 3))
+    if unit:
+        summary["bvh_unit"] = unit
+    summary["summary"] = text_summary(summary)
+    return summary
+
+
+def add_impulse_from_vector(obj, scene, bone, frame, vector, seconds=0.0):
+    """An impulse (N s) along `vector`, or a force (N) over `seconds`: its length is the magnitude."""
+    from . import motion_control
+    vector = np.asarray(vector, float)
+    return motion_control.add_impulse(obj, scene, bone, frame, vector, float(np.linalg.norm(vector)), seconds)
+
+
+def control_and_save(obj, scene, out, picture=None, title=None):
+    """Run the job, save the .blend, render the picture; the summary with `wrote`."""
+    import bpy
+    from ..solver.progress import run_to_end
+    from . import motion_control, overlay
+    summary = run_to_end(motion_control.run(obj, scene))
+    summary["armature"] = obj.name
+    out = os.path.abspath(out)
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=out)
+    wrote = [out]
+    if picture:
+        picture = os.path.abspath(picture)
+        os.makedirs(os.path.dirname(picture), exist_ok=True)
+        data = motion_control.CACHE[(obj.name, summary["action"])]
+        summary["picture_frames"] = overlay.render_picture(data, picture, title=title or _title(summary))
+        wrote.append(picture)
+    summary["wrote"] = wrote
+    return summary
+
+
+def _title(s):
+    loads = " + ".join(f"{kg:g} kg" for kg in s["loads_kg"].values())
+    parts = [f"'{s['source_action']}' under dynamic control"]
+    if loads:
+        parts.append(f"carrying {loads}")
+    if s["impulses"]:
+        parts.append(f"{s['impulses']} push{'es' if s['impulses'] > 1 else ''}")
+    if s["colliders"]:
+        parts.append(f"colliding with {', '.join(s['colliders'])}")
+    return ", ".join(parts) + f" (frames {s['frame_range'][0]:g}-{s['frame_range'][1]:g})"
+
+
+def parse_impulse(text, obj):
+    parts = text.split(":")
+    try:
+        frame, bone, vector = int(parts[0]), parts[1], np.array([float(v) for v in parts[2].split(",")])
+        seconds = float(parts[3]) if len(parts) > 3 else 0.0
+        if len(parts) > 4:
+            raise ValueError
+    except (IndexError, ValueError):
+        raise UsageError(f"--impulse {text!r}: expected FRAME:BONE:FX,FY,FZ[:SECONDS]") from None
+    if bone not in obj.data.bones:
+        raise UsageError(f"--impulse {text!r}: no bone named '{bone}'")
+    if vector.shape != (3,) or not np.isfinite(vector).all() or not np.linalg.norm(vector) > 0.0:
+        raise UsageError(f"--impulse {text!r}: the vector needs three finite components FX,FY,FZ, not all zero")
+    if seconds < 0.0:
+        raise UsageError(f"--impulse {text!r}: SECONDS can't be negative")
+    return frame, bone, vector, seconds
+
+
+def text_summary(s):
+    lines = [f"control: '{s['armature']}' kept '{s['source_action']}' for {s['frames']} frames "
+             f"({s['simulated_seconds']:.2f} s) in {s['control_seconds']:.2f} s, {s['real_time_factor']:.2f}x real time"]
+    if s["loads_kg"] or s["impulses"] or s["colliders"]:
+        lines.append("  loads " + (", ".join(f"{b} {kg:g} kg" for b, kg in s["loads_kg"].items()) or "none")
+                     + f"; {s['impulses']} impulses; colliders: {', '.join(s['colliders']) or 'none'}")
+    lines.append(f"  peak stress {s['peak_stress_nm']:.1f} N m ({s['peak_stress_bone']}, frame "
+                 f"{s['peak_stress_frame']:g}), balance error up to {100 * s['max_balance_error_m']:.1f} cm, "
+                 f"{s['frames_falling']} frames falling, foot slide up to {s['max_foot_slide_mm']:.1f} mm")
+    controlled = s["frames_controlled"]
+    lines.append("  frames with control: " + ", ".join(f"{k} {v}" for k, v in controlled.items()))
+    lines.append(f"  wrote action '{s['action']}'")
+    for path in s["wrote"]:
+        lines.append(f"  wrote {path}")
+    lines.append(f"  took {s['seconds']:.2f} s")
+    return "\n".join(lines)

@@ -1,0 +1,85 @@
+"""Dynamic motion control: the character keeps its motion and reacts to loads, impulses and collisions."""
+
+import bpy
+
+from ..humananim_addon import motion_control, overlay
+from .common import JobOperator, active_armature
+
+
+class HUMANANIM_OT_dynamic_control(JobOperator, bpy.types.Operator):
+    """Keep the character's motion under loads, impulses and collisions (comfort and balance control), and bake the result"""
+
+    bl_idname = "humananim.dynamic_control"
+    bl_label = "Dynamic Control"
+
+    @classmethod
+    def poll(cls, context):
+        return active_armature(context) is not None
+
+    def job(self, context):
+        summary = yield from motion_control.run(active_armature(context), context.scene)
+        return (f"'{summary['action']}': {summary['frames']} frames in {summary['seconds']:.1f} s "
+                f"({summary['real_time_factor']:.2f}x real time), peak stress "
+                f"{summary['peak_stress_nm']:.0f} N m ({summary['peak_stress_bone']}), balance error "
+                f"{100 * summary['max_balance_error_m']:.1f} cm, {summary['frames_falling']} frames falling")
+
+
+class HUMANANIM_OT_add_impulse(bpy.types.Operator):
+    """Add an impulse on the active bone: an arrow Empty in front of it, pointing into the body"""
+
+    bl_idname = "humananim.add_impulse"
+    bl_label = "Add Impulse"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        obj = active_armature(context)
+        return obj is not None and obj.data.bones.active is not None
+
+    def execute(self, context):
+        obj, scene = active_armature(context), context.scene
+        bone = obj.data.bones.active.name
+        motion_control.add_impulse(obj, scene, bone, scene.frame_current)
+        self.report({"INFO"}, f"impulse on '{bone}' at frame {scene.frame_current}: move and turn the arrow")
+        return {"FINISHED"}
+
+
+class HUMANANIM_OT_remove_impulse(bpy.types.Operator):
+    """Remove the selected impulse (its arrow Empty stays in the scene)"""
+
+    bl_idname = "humananim.remove_impulse"
+    bl_label = "Remove Impulse"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        props = context.scene.humananim_control
+        return 0 <= props.impulse_index < len(props.impulses)
+
+    def execute(self, context):
+        props = context.scene.humananim_control
+        props.impulses.remove(props.impulse_index)
+        props.impulse_index = min(props.impulse_index, len(props.impulses) - 1)
+        return {"FINISHED"}
+
+
+class HUMANANIM_OT_toggle_overlay(bpy.types.Operator):
+    """Show or hide the dynamic control overlay: the input motion as a ghost, bones coloured by control
+    (red stressed, blue comfort, green balance, yellow passive), ZMP and support polygon"""
+
+    bl_idname = "humananim.toggle_overlay"
+    bl_label = "Control Overlay"
+
+    def execute(self, context):
+        if overlay.is_enabled():
+            overlay.disable()
+        else:
+            overlay.enable()
+        for area in getattr(context.screen, "areas", ()):
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+        return {"FINISHED"}
+
+
+CLASSES = (HUMANANIM_OT_dynamic_control, HUMANANIM_OT_add_impulse, HUMANANIM_OT_remove_impulse,
+           HUMANANIM_OT_toggle_overlay)
