@@ -31,10 +31,30 @@ from .comfort_control import ControlLog, bounded, control_sequence, part_matrix,
 # ---- support polygon, ZMP, MMP ---------------------------------------------------------------
 
 def support_polygon(state):
-    """Counter-clockwise convex hull (m, 2) of the sole points of the feet in contact."""
+    """Counter-clockwise convex hull (m, 2) of the sole points of the feet in contact.
+
+    The hull's vertex indices are remembered per body parts and contact set: while the feet stay
+    (every sole point within _HULL_REUSE of where the hull was built; planted feet do not move)
+    the polygon is those points at their current positions, without a new hull."""
     soles = state.sole_world()
     pts = [soles[s][:, :2] for s in np.flatnonzero(state.feet)]
-    return convex_hull(np.concatenate(pts)) if pts else np.zeros((0, 2))
+    if not pts:
+        return np.zeros((0, 2))
+    pts = np.concatenate(pts)
+    key = (id(state.parts), tuple(state.feet))
+    cached = _hull_cache.get(key)
+    if cached is not None and cached[0].shape == pts.shape and np.abs(cached[0] - pts).max() < _HULL_REUSE:
+        return pts[cached[1]]
+    hull = convex_hull(pts)
+    idx = np.array([int(np.flatnonzero((pts == v).all(axis=1))[0]) for v in hull], int)
+    if len(_hull_cache) > 16:
+        _hull_cache.clear()
+    _hull_cache[key] = (pts, idx)
+    return pts[idx]
+
+
+_HULL_REUSE = 1e-4  # m
+_hull_cache = {}
 
 
 def zmp_of(wrench, ground_height=0.0):

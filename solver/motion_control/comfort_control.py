@@ -26,7 +26,7 @@ from ..dynamics import spatial
 from ..dynamics.ground_contact import default_contacts
 from ..dynamics.inertia_matrix import external_forces, inertia_block
 from ..dynamics.inverse_dynamics import rnea
-from ..dynamics.kinematics import point_positions, segment_jacobian, update_frames
+from ..dynamics.kinematics import motion_subspace, point_positions, segment_jacobian, update_frames
 from ..dynamics.strength import joint_angles
 
 SIDES = ("L", "R")
@@ -172,8 +172,17 @@ def required_torques(state, a):
     tau, total = rnea(m, d, state.q, state.v, a, f_ext=state.f_ext, return_wrenches=True)
     ground = ground_reaction(state, total[0])
     if ground is not None:
-        tau = tau + external_forces(m, d, state.q, ground)
+        tau = tau + _wrench_forces(m, d, state.q, ground)
     return tau, total[0]
+
+
+def _wrench_forces(model, data, q, wrenches):
+    """-J' f of world wrenches (nb, 6) without a second inverse-dynamics pass (same as
+    inertia_matrix.external_forces): each DOF's motion subspace column against the sum of the
+    wrenches on its body's subtree (the frames of the rnea pass are reused)."""
+    sub = motion_subspace(model, data, q)
+    below = model.ancestors.T @ wrenches
+    return -np.einsum("ki,ki->k", sub, below[model.dof_body])
 
 
 def ground_reaction(state, wrench):

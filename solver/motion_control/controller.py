@@ -212,6 +212,7 @@ class _Loop:
         self.planted = [None, None]  # per side: (world offset (3,), sole centre at landing (2,))
         self.fallen = False
         self._targets_cache = None
+        self._legs_cache = None
         self.unbalanced = 0.0  # s the ZMP has stayed outside what balance control can reach
         self.collider_wrench = None  # (nb, 6) contact forces of the last step's collisions
         nf, J = tr.frame_count, sk.joint_count
@@ -450,18 +451,38 @@ class _Loop:
             out[s] = (frame[:3, :3], x + self.planted[s][0], np.r_[w, xd], np.r_[al, xdd])
         return out
 
+    def _leg_jacobians(self, body, q, feet):
+        """Per planted side: the (6, nv) Jacobian of the foot's angular velocity and head velocity
+        (zero outside the foot's ancestors), the foot's world frame, and the leg's DOFs; one
+        forward-kinematics pass for both legs (cached for the same q: the legs' acceleration and
+        velocity projections share it)."""
+        key = (q.tobytes(), tuple(feet), id(body))
+        if self._legs_cache is not None and self._legs_cache[0] == key:
+            return self._legs_cache[1]
+        m, d = body.model, body.data
+        kinematics.update_frames(m, d, q)
+        sub = kinematics.motion_subspace(m, d, q)  # (nv, 6) world (omega, v at origin)
+        out = [None, None]
+        for s in np.flatnonzero(feet):
+            foot = body.parts.feet[s]
+            b = m.joint_body[foot]
+            frame = d.frames[b] @ m.joint_offset[foot]
+            x = frame[:3, 3]
+            mask = m.ancestors[b][m.dof_body] != 0
+            jac = np.zeros((6, m.nv))
+            jac[:3, mask] = sub[mask, :3].T
+            jac[3:, mask] = (sub[mask, 3:] - _cross(x, sub[mask, :3])).T
+            out[s] = (jac, frame, np.asarray(body.parts.legs[s]))
+        self._legs_cache = (key, out)
+        return out
+
     def _foot_jacobian(self, body, q, s):
         """(6, k) Jacobian of the foot's angular velocity and head velocity on the leg's DOFs, the
         foot's world frame, and the leg's DOFs."""
-        m, d = body.model, body.data
-        foot, cols = body.parts.feet[s], body.parts.legs[s]
-        kinematics.update_frames(m, d, q)
-        b = m.joint_body[foot]
-        frame = d.frames[b] @ m.joint_offset[foot]
-        sub = kinematics.motion_subspace(m, d, q)[cols]  # (k, 6) world (omega, v at origin)
-        x = frame[:3, 3]
-        jac = np.vstack((sub[:, :3].T, (sub[:, 3:] - _cross(x, sub[:, :3])).T))
-        return jac, frame, cols
+        feet = np.zeros(2, bool)
+        feet[s] = True
+        jac, frame, cols = self._leg_jacobians(body, q, feet)[s]
+        return jac[:, cols], frame, cols
 
     def _dls(self, jac, r):
         lam = self.st.foot_damping
@@ -474,37 +495,36 @@ class _Loop:
         m, d = body.model, body.data
         vel, acc = kinematics.body_accelerations(m, d, q, v, a)
         a = a.copy()
-        for s in np.flatnonzero(feet):
-            jac, frame, cols = self._foot_jacobian(body, q, s)
+        for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
+            if leg is None:
+                continue
+            jac, frame, cols = leg
             b = m.joint_body[body.parts.feet[s]]
             x = frame[:3, 3]
             w, vo, al, ao = vel[b, :3], vel[b, 3:], acc[b, :3], acc[b, 3:]
             xd = vo + _cross(w, x)
             now = np.r_[al, ao + _cross(al, x) + _cross(w, xd)]
-            a[cols] += self._dls(jac, targets[s][3] - now)
+            a[cols] += self._dls(jac[:, cols], targets[s][3] - now)
         return a
 
     def _project_velocity(self, body, q, v, feet, targets):
         v = v.copy()
-        m, d = body.model, body.data
-        vel = kinematics.body_velocities(m, d, q, v)
-        for s in np.flatnonzero(feet):
-            jac, frame, cols = self._foot_jacobian(body, q, s)
-            b = m.joint_body[body.parts.feet[s]]
-            x = frame[:3, 3]
-            now = np.r_[vel[b, :3], vel[b, 3:] + _cross(vel[b, :3], x)]
-            v[cols] += self._dls(jac, targets[s][2] - now)
+        for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
+            if leg is not None:  # the foot's velocity is linear in v: J v
+                jac, frame, cols = leg
+                v[cols] += self._dls(jac[:, cols], targets[s][2] - jac @ v)
         return v
 
     def _project_position(self, body, q, feet, targets):
         m = body.model
         for _ in range(self.st.foot_iterations):
             step = np.zeros(m.nv)
-            for s in np.flatnonzero(feet):
-                jac, frame, cols = self._foot_jacobian(body, q, s)
+            for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
+                if leg is None:
+                    continue
+                jac, frame, cols = leg
                 rot, pos = targets[s][0], targets[s][1]
-                turn = spatial.quat_log(_quat(rot @ frame[:3, :3].T))
-                step[cols] = self._dls(jac, np.r_[turn, pos - frame[:3, 3]])
+                step[cols] = self._dls(jac[:, cols], np.r_[_rotation_log(rot @ frame[:3, :3].T), pos - frame[:3, 3]])
             q = kinematics.integrate(m, q, step)
         return q
 
@@ -672,3 +692,12 @@ def _pgs(w, rel, targets, mu, iterations):
 def _quat(rot):
     from .. import rotations
     return rotations.from_matrix(rot)
+
+
+def _rotation_log(rot):
+    """Rotation vector (3,) of a rotation matrix (angle below pi; the legs' small corrections)."""
+    w = 0.5 * np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
+    sin = float(np.sqrt(w @ w))
+    if sin < 1e-12:
+        return w
+    return w * (np.arctan2(sin, 0.5 * (rot[0, 0] + rot[1, 1] + rot[2, 2] - 1.0)) / sin)

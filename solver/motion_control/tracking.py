@@ -28,7 +28,12 @@ extremum (a root moving steadily forward) the target is the desired state max_ho
 the extremum is closer than min_horizon, the target is the desired state min_horizon ahead (with
 its non-zero velocity), because the curve's gains 6/T^2 and 4/T grow without bound as T -> 0 and
 an Euler step of length dt is stable only for T > 2 dt (semi-implicit Euler; explicit Euler for
-T > 1.5 dt), hence the default of three frames.
+T > 1.5 dt), hence at least three frames. MIN_HORIZON can raise that floor: at a high frame rate
+(CMU's 120 fps) three frames are 25 ms, and the near targets of a captured motion's many small
+extrema make the per-step corrections jerky: with tracking only, the CMU clip tracked at 1.28 deg
+RMS with three frames, 0.51 deg with a 1/15 s floor (0.69 with 0.1 s, 0.60 with 0.05 s). It is 0
+for now because with full control the 1/15 s floor made dynamic control act on most CMU frames
+(the demo fell for 7 frames and ran 3x slower); to be resolved with the control loop's tuning.
 """
 
 import numpy as np
@@ -36,25 +41,28 @@ import numpy as np
 from ..dynamics import kinematics, spatial
 from ..dynamics.closed_loop import desired_motion
 
+MIN_HORIZON = 0.0  # s, a floor for the default min_horizon (module notes)
+
 
 class TrackingController:
     """Tracking control of every DOF of `model` towards `trajectories` (sec. 2.4.1).
 
     Times t are seconds from the motion's first frame. min_horizon / max_horizon in seconds;
-    min_horizon defaults to three frames (see the module notes on stability)."""
+    min_horizon defaults to three frames, at least MIN_HORIZON (see the module notes)."""
 
     def __init__(self, model, skeleton, trajectories, min_horizon=None, max_horizon=0.5,
                  feedforward=True):
         self.model = model
         self.feedforward = bool(feedforward)
         self.q_d, self.v_d, self.a_d, self.dt = desired_motion(model, skeleton, trajectories)
-        self.min_horizon = 3.0 * self.dt if min_horizon is None else float(min_horizon)
+        self.min_horizon = max(3.0 * self.dt, MIN_HORIZON) if min_horizon is None else float(min_horizon)
         self.max_horizon = float(max_horizon)
         if not 0.0 < self.min_horizon <= self.max_horizon:
             raise ValueError("need 0 < min_horizon <= max_horizon")
         self.duration = (len(self.q_d) - 1) * self.dt
         self.next_extremum = next_extremum_times(self.v_d, self.dt)
         self._quats = self.q_d[:, 3:].reshape(len(self.q_d), model.nb, 4)
+        self._precompute_frames()
 
     # ---- targets ----
 
@@ -65,14 +73,14 @@ class TrackingController:
         return np.clip(self.next_extremum[f], t + self.min_horizon, t + self.max_horizon)
 
     def _sample(self, times):
-        """Desired state at per-DOF times: the body quaternion (nv, 4) and root position (nv, 3)
-        of each DOF's body, and its desired velocity (nv,) in the target's own axes; beyond the
-        end of the motion the last frame holds."""
+        """Desired state at per-DOF times (..., nv): the body quaternion (..., nv, 4) and root
+        position (..., nv, 3) of each DOF's body, and its desired velocity (..., nv) in the
+        target's own axes; beyond the end of the motion the last frame holds."""
         m = self.model
         x = np.clip(np.asarray(times) / self.dt, 0.0, len(self.q_d) - 1)
-        f0 = np.minimum(np.floor(x).astype(int), len(self.q_d) - 2) if len(self.q_d) > 1 else np.zeros(len(x), int)
+        f0 = np.minimum(np.floor(x).astype(int), len(self.q_d) - 2) if len(self.q_d) > 1 else np.zeros(x.shape, int)
         f1 = np.minimum(f0 + 1, len(self.q_d) - 1)
-        w = (x - f0)[:, None]
+        w = (x - f0)[..., None]
         body = m.dof_body
         qa, qb = self._quats[f0, body], self._quats[f1, body]
         # slerp on each DOF's body quaternion (the frames are close, the log is short)
@@ -80,14 +88,37 @@ class TrackingController:
         quat = spatial.quat_multiply(qa, spatial.quat_exp(w * step))
         pos = (1.0 - w) * self.q_d[f0, :3] + w * self.q_d[f1, :3]
         k = np.arange(m.nv)
-        vel = (1.0 - w[:, 0]) * self.v_d[f0, k] + w[:, 0] * self.v_d[f1, k]
+        vel = (1.0 - w[..., 0]) * self.v_d[f0, k] + w[..., 0] * self.v_d[f1, k]
         return quat, pos, vel
+
+    def _on_frame(self, t):
+        """The frame index when t is on the input's frame grid (within 1e-7 frames), else None."""
+        x = t / self.dt
+        f = int(round(x))
+        return f if abs(x - f) < 1e-7 and 0 <= f < len(self.q_d) else None
+
+    def _precompute_frames(self):
+        """Per input frame: the targets, horizons and feedforward term of acceleration(), which
+        depend on the input alone (one batched pass instead of two per control step)."""
+        nf = len(self.q_d)
+        t = np.arange(nf) * self.dt
+        times = np.clip(self.next_extremum, t[:, None] + self.min_horizon, t[:, None] + self.max_horizon)
+        horizon = times - t[:, None]
+        target = self._sample(times)
+        ff = self.a_d - self._ferguson(self.q_d, self.v_d, target, horizon) if self.feedforward else None
+        self._frame_data = (target, horizon, ff)
 
     # ---- control ----
 
     def acceleration(self, t, q, v):
         """Output acceleration (nv,) at time t for the current state (q, v) (eq. 2.6, plus the
         feedforward correction when `feedforward` is on)."""
+        f = self._on_frame(t)
+        if f is not None:  # on the frame grid (every step without substeps): precomputed
+            target, horizon, ff = self._frame_data
+            target = tuple(x[f] for x in target)
+            out = self._ferguson(q, v, target, horizon[f])
+            return out + ff[f] if self.feedforward else out
         times = self.target_times(t)
         horizon = times - t
         target = self._sample(times)
@@ -105,6 +136,9 @@ class TrackingController:
 
     def desired_state(self, t):
         """Desired q, v, a at time t (linear on the manifold between frames)."""
+        f = self._on_frame(t)
+        if f is not None:
+            return self.q_d[f].copy(), self.v_d[f].copy(), self.a_d[f].copy()
         x = float(np.clip(t / self.dt, 0.0, len(self.q_d) - 1))
         f0 = min(int(np.floor(x)), max(len(self.q_d) - 2, 0))
         f1 = min(f0 + 1, len(self.q_d) - 1)
@@ -113,26 +147,29 @@ class TrackingController:
         return q, (1 - w) * self.v_d[f0] + w * self.v_d[f1], (1 - w) * self.a_d[f0] + w * self.a_d[f1]
 
     def _error(self, q, quat, pos, vel_t):
-        """Per DOF "theta_t - theta" (nv,) and the target velocity carried into current axes."""
+        """Per DOF "theta_t - theta" (..., nv) and the target velocity carried into current axes
+        (q may be a stack (..., nq) with targets (..., nv, 4), (..., nv, 3), (..., nv))."""
         m = self.model
+        q = np.asarray(q, float)
         k = np.arange(m.nv)
         slot = m.dof_slot
-        cur = q[3:].reshape(m.nb, 4)[m.dof_body]
+        cur = q[..., 3:].reshape(q.shape[:-1] + (m.nb, 4))[..., m.dof_body, :]
         rel = spatial.quat_multiply(spatial.quat_conjugate(cur), quat)  # target in current axes
         rot_err = spatial.quat_log(rel)
-        error = rot_err[k, np.minimum(slot, 2)]
+        error = rot_err[..., k, np.minimum(slot, 2)]
         # target angular velocity (own axes) seen in the current axes: rotate by rel
         rot = spatial.quat_to_matrix(rel)
         lin = slot >= 3
-        carried = np.zeros((m.nv, 3))
-        carried[k, np.where(lin, slot - 3, slot)] = vel_t
-        carried = np.einsum("kij,kj->ki", rot, carried)
-        vel = carried[k, np.where(lin, slot - 3, slot)]
+        axis = np.where(lin, slot - 3, slot)
+        carried = np.zeros(rel.shape[:-1] + (3,))
+        carried[..., k, axis] = vel_t
+        carried = np.einsum("...kij,...kj->...ki", rot, carried)
+        vel = carried[..., k, axis]
         if lin.any():
             # root translation: world offset in the current root axes
-            r0 = spatial.quat_to_matrix(q[3:7])
-            offset = (pos[lin] - q[:3]) @ r0  # rows: r0.T @ (p_t - p)
-            error[lin] = offset[np.arange(lin.sum()), slot[lin] - 3]
+            r0 = spatial.quat_to_matrix(q[..., 3:7])
+            offset = np.einsum("...li,...ij->...lj", pos[..., lin, :] - q[..., None, :3], r0)  # r0.T @ (p_t - p)
+            error[..., lin] = offset[..., np.arange(lin.sum()), slot[lin] - 3]
         return error, vel
 
 
