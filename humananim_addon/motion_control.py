@@ -11,13 +11,13 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, \
     StringProperty
-from mathutils import Vector
 
 from ..solver.body_roles import SIDES, sided
 from ..solver.errors import MotionError, RigError
 from . import actions
 from .actions import bone_path
 from .armature import skeleton_from_armature
+from .arrows import arrow_forces, place_arrow
 from .properties import settings_registration
 
 STRESS = "humananim_stress"  # N m: torque beyond the muscles' strength, magnitude over the axes
@@ -147,32 +147,11 @@ def loads(props, skeleton, traj):
 
 
 def impulses(props, skeleton, traj, scene):
-    """Each arrow becomes an impulse at its location, along its Z axis, on its bone, as the arrow
-    stands at the impulse's frame (it may be animated)."""
+    """Each arrow becomes an impulse (or a force over its duration) on its bone (see arrows)."""
     from ..solver.motion_control.controller import Impulse
-    world = None
-    saved = scene.frame_current, scene.frame_subframe
-    out = []
-    try:
-        for item in props.impulses:
-            if item.empty is None or item.magnitude <= 0.0:
-                continue
-            if item.bone not in skeleton.names:
-                raise RigError(f"the impulse at frame {item.frame} names no bone of the armature: "
-                               f"'{item.bone}'")
-            if world is None:
-                world = traj.world_frames(skeleton)
-            f = int(np.clip(np.searchsorted(traj.frames, item.frame), 0, traj.frame_count - 1))
-            scene.frame_set(int(traj.frames[f]))  # evaluates the arrow: a new object's matrix is stale
-            m = np.array(item.empty.matrix_world)
-            m[:3, 3] *= scene.unit_settings.scale_length
-            point = np.linalg.solve(world[f, skeleton.index(item.bone)], np.append(m[:3, 3], 1.0))[:3]
-            direction = m[:3, 2] / np.linalg.norm(m[:3, 2])
-            out.append(Impulse(time=_time(traj, traj.frames[f]), bone=item.bone, point=tuple(point),
-                               direction=tuple(direction), magnitude=item.magnitude, duration=item.duration))
-    finally:
-        scene.frame_set(saved[0], subframe=saved[1])
-    return out
+    return [Impulse(time=seconds, bone=item.bone, point=point, direction=direction, magnitude=item.magnitude,
+                    duration=item.duration)
+            for item, seconds, point, direction in arrow_forces(props.impulses, skeleton, traj, scene)]
 
 
 def colliders(props, obj, traj, scene):
@@ -377,30 +356,11 @@ def run(obj, scene):
             else settings.ground_height}
 
 
-def place_arrow(obj, scene, bone_name, frame, direction=None, name="Impulse"):
-    """An arrow Empty 30 cm before the bone's middle at `frame`, pointing along `direction`
-    (default: into the character's front), its tip at the bone."""
-    saved = scene.frame_current
-    scene.frame_set(frame)
-    bone = obj.data.bones[bone_name]
-    middle = obj.matrix_world @ obj.pose.bones[bone_name].matrix @ Vector((0.0, bone.length / 2, 0.0))
-    scene.frame_set(saved)
-    axis = Vector(direction) if direction is not None else obj.matrix_world.to_3x3() @ Vector((0.0, 1.0, 0.0))
-    axis.normalize()
-    empty = bpy.data.objects.new(f"{name} {bone_name}", None)
-    empty.empty_display_type = "SINGLE_ARROW"
-    empty.empty_display_size = 0.3
-    empty.location = middle - 0.3 * axis
-    empty.rotation_euler = Vector((0.0, 0.0, 1.0)).rotation_difference(axis).to_euler()
-    scene.collection.objects.link(empty)
-    return empty
-
-
 def add_impulse(obj, scene, bone_name, frame, direction=None, magnitude=30.0, duration=0.0):
-    """An arrow Empty in front of the bone (see place_arrow), registered as an impulse."""
+    """An arrow Empty in front of the bone (see arrows.place_arrow), registered as an impulse."""
     if bone_name not in obj.data.bones:
         raise RigError(f"'{obj.name}' has no bone named '{bone_name}'")
-    empty = place_arrow(obj, scene, bone_name, frame, direction)
+    empty = place_arrow(obj, scene, bone_name, frame, direction, name="Impulse")
     props = scene.humananim_control
     item = props.impulses.add()
     item.empty, item.bone, item.frame = empty, bone_name, frame

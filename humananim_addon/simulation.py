@@ -5,7 +5,6 @@ import time
 import bpy
 import numpy as np
 from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
-from mathutils import Vector
 
 from ..solver import rotations
 from ..solver.body_roles import SIDES, sided
@@ -15,6 +14,7 @@ from ..solver.errors import MotionError
 from . import actions
 from .actions import bone_path
 from .armature import skeleton_from_armature
+from .arrows import arrow_forces, place_arrow
 from .properties import settings_registration
 
 TORQUE = "humananim_torque"  # N m, magnitude over the joint's axes
@@ -91,26 +91,10 @@ def solver_settings(scene, props, skeleton, traj):
 
 
 def pushes(props, skeleton, traj, scene):
-    """Each arrow becomes a force at its location, along its Z axis, on its bone, as the arrow
-    stands at the push's frame (it may be animated)."""
-    world = None
-    saved = scene.frame_current, scene.frame_subframe
-    try:
-        for item in props.pushes:
-            if item.empty is None or item.bone not in skeleton.names or item.magnitude <= 0.0:
-                continue
-            if world is None:
-                world = traj.world_frames(skeleton)
-            f = int(np.clip(np.searchsorted(traj.frames, item.frame), 0, traj.frame_count - 1))
-            scene.frame_set(int(traj.frames[f]))  # evaluates the arrow: a new object's matrix is stale
-            m = np.array(item.empty.matrix_world)
-            m[:3, 3] *= scene.unit_settings.scale_length
-            point = np.linalg.solve(world[f, skeleton.index(item.bone)], np.append(m[:3, 3], 1.0))[:3]
-            direction = m[:3, 2] / np.linalg.norm(m[:3, 2])
-            yield Push(time=(traj.frames[f] - traj.frames[0]) / traj.fps, joint=item.bone, point=tuple(point),
-                       direction=tuple(direction), magnitude=item.magnitude, duration=item.duration)
-    finally:
-        scene.frame_set(saved[0], subframe=saved[1])
+    """Each arrow becomes a force on its bone (see arrows.arrow_forces)."""
+    return [Push(time=seconds, joint=item.bone, point=point, direction=direction, magnitude=item.magnitude,
+                 duration=item.duration)
+            for item, seconds, point, direction in arrow_forces(props.pushes, skeleton, traj, scene)]
 
 
 def stress_channels(obj, skeleton, result):
@@ -161,21 +145,8 @@ def run(obj, scene):
 
 
 def add_push(obj, scene, bone_name, frame, direction=None, magnitude=300.0, duration=0.1):
-    """An arrow Empty 30 cm before the bone's middle at `frame`, pointing along `direction`
-    (default: into the character's front); registered as a push."""
-    saved = scene.frame_current
-    scene.frame_set(frame)
-    bone = obj.data.bones[bone_name]
-    middle = obj.matrix_world @ obj.pose.bones[bone_name].matrix @ Vector((0.0, bone.length / 2, 0.0))
-    scene.frame_set(saved)
-    axis = Vector(direction) if direction is not None else obj.matrix_world.to_3x3() @ Vector((0.0, 1.0, 0.0))
-    axis.normalize()
-    empty = bpy.data.objects.new(f"Push {bone_name}", None)
-    empty.empty_display_type = "SINGLE_ARROW"
-    empty.empty_display_size = 0.3
-    empty.location = middle - 0.3 * axis
-    empty.rotation_euler = Vector((0.0, 0.0, 1.0)).rotation_difference(axis).to_euler()
-    scene.collection.objects.link(empty)
+    """An arrow Empty in front of the bone (see arrows.place_arrow), registered as a push."""
+    empty = place_arrow(obj, scene, bone_name, frame, direction, name="Push")
     props = scene.humananim_simulation
     item = props.pushes.add()
     item.empty, item.bone, item.frame = empty, bone_name, frame
