@@ -154,26 +154,13 @@ class Motion:
                 "tail_error_cm": tail.tail_cm, "tail_10cm_error_cm": tail.point_cm}
 
 
-def at_tail_error(motion, frames, orig, tol, target_cm, steps=7):
-    """Hermite reduction whose error 10 cm beyond the bone tails is at most `target_cm`: the
-    per-channel tolerance scaled down by bisection. Returns (keys, errors, scale)."""
-    def attempt(scale):
-        keys = key_reduction.reduce_channels(frames, orig, tol * scale)
-        return keys, motion.errors(key_reduction.evaluate_channels(keys, frames), orig)
-    keys, err = attempt(1.0)
-    if err["tail_10cm_error_cm"] <= target_cm:
-        return keys, err, 1.0
-    lo, hi, best = 0.0, 1.0, None
-    for _ in range(steps):
-        mid = 0.5 * (lo + hi)
-        keys, err = attempt(mid)
-        if err["tail_10cm_error_cm"] <= target_cm:
-            lo, best = mid, (keys, err, mid)
-        else:
-            hi = mid
-    if best is None:  # not met within the steps: report the smallest scale tried, honestly
-        return keys, err, mid
-    return best
+def at_tail_error(motion, frames, orig, tol, target_cm):
+    """Hermite reduction whose error 10 cm beyond the bone tails is at most `target_cm`."""
+    def measure(keys):
+        return motion.errors(key_reduction.evaluate_channels(keys, frames), orig)["tail_10cm_error_cm"]
+    keys, scale, _ = key_reduction.fit_to_error(
+        lambda scale: key_reduction.reduce_channels(frames, orig, tol * scale), measure, target_cm)
+    return keys, motion.errors(key_reduction.evaluate_channels(keys, frames), orig), scale
 
 
 def run_clip(path, repeat):

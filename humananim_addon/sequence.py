@@ -34,6 +34,7 @@ from bpy.props import CollectionProperty, FloatProperty, IntProperty, PointerPro
 from ..solver import rotations
 from ..solver.errors import MotionError
 from ..solver.progress import run_to_end
+from ..solver.trajectories import Trajectories
 from ..solver.sequence import (channels as seq_channels, equalizer, error_measures, key_reduction,
                                multiresolution_blend, pyramid, pyramid_compression, time_warp)
 from . import action_api
@@ -447,6 +448,33 @@ def group_errors(groups, a, b):
     return out
 
 
+def _tail_measure(obj, scene, source, groups, frames):
+    """keys per group -> largest error (cm) at any bone's tail and 10 cm beyond, against the
+    source, evaluated in numpy (no action is written)."""
+    from .actions import read_action
+    from .armature import skeleton_from_armature
+    skeleton = skeleton_from_armature(obj, scene, require=False)
+    base = read_action(obj, scene, skeleton, source, (frames[0], frames[-1]), exact=False)
+
+    def measure(results):
+        rot, trans = base.rotations.copy(), base.translations.copy()
+        for g, keys in zip(groups, results):
+            j = skeleton.find(g.bone) if g.bone else None
+            if j is None:
+                continue
+            x = key_reduction.evaluate_channels(keys, frames)
+            if g.kind == "location" and not skeleton.connected[j]:
+                trans[:, j] = x * g.scale
+            elif g.kind == "euler":
+                rot[:, j] = rotations.from_euler(x, g.order)
+            elif g.kind in ("quaternion", "axis_angle"):
+                rot[:, j] = as_quaternions(g, x)
+        played = Trajectories(base.frames, base.fps, rot, trans, base.armature_to_world)
+        error = error_measures.tail_error(skeleton, base, played)
+        return max(error.tail_cm, error.point_cm)
+    return measure
+
+
 def tail_errors(obj, scene, source, result, frames, beyond=0.10):
     """The largest tail and tail+`beyond` errors (cm) of every bone between two actions, as their
     F-curves evaluate (None when obj is no armature)."""
@@ -641,22 +669,33 @@ def component_tolerances(group, degrees, centimetres, value_tolerance):
 
 
 def iter_compress(obj, scene, source, sel, degrees=0.5, centimetres=0.5, value_tolerance=1e-3,
-                  method="HERMITE", replace=False):
+                  method="HERMITE", replace=False, tail_cm=0.0):
     """Fewer keys within the tolerances on every frame (Hermite key reduction, or pyramid levels),
-    as steps yielding progress; returns the summary with keys before/after and the largest errors."""
+    as steps yielding progress; returns the summary with keys before/after and the largest errors.
+    `tail_cm` > 0 also bounds the largest error at any bone's tail and 10 cm beyond it: the
+    channel tolerances are scaled down until it holds."""
     t0 = time.perf_counter()
     frames = action_frames(source)
     keys_before = sum(len(fc.keyframe_points) for fc in sel.fcurves)
     samples = unrolled(sel.groups, [sample_group(g, frames) for g in sel.groups])
-    results = []
-    for n, (g, x) in enumerate(zip(sel.groups, samples)):
-        tol = component_tolerances(g, degrees, centimetres, value_tolerance)
-        if method == "PYRAMID":
-            keys, _ = pyramid_compression.pyramid_keys(frames, x, tol)
-        else:
-            keys = key_reduction.reduce_channels(frames, x, tol)
-        results.append(keys)
-        yield 0.9 * (n + 1) / len(sel.groups)
+    tols = [component_tolerances(g, degrees, centimetres, value_tolerance) for g in sel.groups]
+
+    def reduce(scale):
+        out = []
+        for g, x, tol in zip(sel.groups, samples, tols):
+            if method == "PYRAMID":
+                out.append(pyramid_compression.pyramid_keys(frames, x, tol * scale)[0])
+            else:
+                out.append(key_reduction.reduce_channels(frames, x, tol * scale))
+        return out
+
+    results = reduce(1.0)
+    yield 0.5
+    if tail_cm > 0.0 and obj.type == "ARMATURE":
+        measure = _tail_measure(obj, scene, source, sel.groups, frames)
+        results, _, _ = key_reduction.fit_to_error(lambda scale: results if scale == 1.0 else reduce(scale),
+                                                   measure, tail_cm)
+    yield 0.9
     out = Output(obj, source, f"{source.name}.compressed", replace)
     for g, keys in zip(sel.groups, results):
         for i, k in enumerate(keys):
@@ -671,7 +710,7 @@ def iter_compress(obj, scene, source, sel, degrees=0.5, centimetres=0.5, value_t
     errors = group_errors(sel.groups, samples, played)
     summary = _base_summary(obj, source, sel, out)
     summary.update(command="compress", method=method.lower(), frames=len(frames),
-                   tolerance_deg=degrees, tolerance_cm=centimetres, keys_before=keys_before, keys_after=keys_after,
+                   tolerance_deg=degrees, tolerance_cm=centimetres, tolerance_tail_cm=tail_cm, keys_before=keys_before, keys_after=keys_after,
                    ratio=round(keys_before / max(keys_after, 1), 2),
                    max_error_deg=round(errors["deg"][0], 4), max_error_deg_at=errors["deg"][1],
                    max_error_cm=round(errors["cm"][0], 4), max_error_cm_at=errors["cm"][1],

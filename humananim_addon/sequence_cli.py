@@ -41,6 +41,8 @@ def add_commands(sub, add_common_options):
     c.add_argument("--degrees", type=float, default=0.5, help="largest rotation error (default 0.5)")
     c.add_argument("--cm", type=float, default=0.5, help="largest location error in cm (default 0.5)")
     c.add_argument("--value", type=float, default=1e-3, help="largest error of other curves (default 0.001)")
+    c.add_argument("--tail-cm", type=float, default=0.0,
+                   help="also keep bone tails and points 10 cm beyond them within this many cm (default: off)")
     c.add_argument("--method", choices=("hermite", "pyramid"), default="hermite")
     add_common_options(c)
     w = sub.add_parser("warp", help="time warp through OLD:NEW frame pairs (or the file's warp markers)")
@@ -189,7 +191,7 @@ def cmd_compress(args):
     if args.degrees <= 0 or args.cm <= 0:
         raise UsageError("--degrees and --cm must be positive")
     summary = sequence.compress(obj, scene, action, sel, args.degrees, args.cm, args.value, args.method.upper(),
-                                args.replace)
+                                args.replace, args.tail_cm)
     return _save(args, summary, t0, unit)
 
 

@@ -179,6 +179,9 @@ class HUMANANIM_OT_compress_keys(SequenceOperator, JobOperator, bpy.types.Operat
                                description="Largest location error on any frame, in centimetres")
     value_tolerance: FloatProperty(name="Other Curves", default=0.001, min=0.0, precision=4,
                                    description="Largest error of curves that are no rotation or location, in their units")
+    tail_cm: FloatProperty(name="Bone Tails", default=0.0, min=0.0, soft_max=10.0,
+                           description="Also keep every bone's tail, and a point 10 cm beyond it, within this "
+                                       "many centimetres on every frame (0: off)")
     method: EnumProperty(name="Method", items=(
         ("HERMITE", "Hermite Keys", "Key reduction by cubic Hermite segments (Huang 5.8): fewest keys"),
         ("PYRAMID", "Pyramid Levels", "Keys on the coarsest pyramid level within the tolerance (Huang 5.5)")),
@@ -188,7 +191,7 @@ class HUMANANIM_OT_compress_keys(SequenceOperator, JobOperator, bpy.types.Operat
         obj, action = context.active_object, self.source(context)
         sel = self.selection(context, action)
         s = yield from sequence.iter_compress(obj, context.scene, action, sel, self.degrees, self.centimetres,
-                                              self.value_tolerance, self.method, self.replace)
+                                              self.value_tolerance, self.method, self.replace, self.tail_cm)
         text = (f"'{s['action']}': {s['keys_before']} -> {s['keys_after']} keys ({s['ratio']:g}x), largest error "
                 f"{s['max_error_deg']:.3f} deg, {s['max_error_cm']:.3f} cm")
         if "tail_error_cm" in s:
@@ -198,7 +201,7 @@ class HUMANANIM_OT_compress_keys(SequenceOperator, JobOperator, bpy.types.Operat
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
-        for name in ("method", "degrees", "centimetres", "value_tolerance"):
+        for name in ("method", "degrees", "centimetres", "tail_cm", "value_tolerance"):
             layout.prop(self, name)
         self.draw_common(layout)
 

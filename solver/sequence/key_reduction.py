@@ -360,3 +360,24 @@ def evaluate_hermite(keys: Keys, t):
     out = hermite(t, kt[seg], kt[seg + 1], kv[seg], kv[seg + 1], m0, m1)
     out = np.where(t <= kt[0], kv[0], out)
     return np.where(t >= kt[-1], kv[-1], out)
+
+
+def fit_to_error(reduce, measure, target, steps=7):
+    """Keys from `reduce(scale)` (a per-channel tolerance scaled by `scale` in (0, 1]) whose
+    `measure(keys)` is at most `target`, found by bisection on the scale: for errors such as a
+    bone tail's that channel tolerances do not bound directly. Returns (keys, scale, error); when
+    no scale tried meets the target, the smallest one's result."""
+    keys = reduce(1.0)
+    error = measure(keys)
+    if error <= target:
+        return keys, 1.0, error
+    lo, hi, best = 0.0, 1.0, None
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        keys = reduce(mid)
+        error = measure(keys)
+        if error <= target:
+            lo, best = mid, (keys, mid, error)
+        else:
+            hi = mid
+    return best if best is not None else (keys, mid, error)

@@ -180,6 +180,22 @@ def test_compression_meets_its_tolerance_on_every_frame_and_bone(cmu_rig):
     assert cmu_rig.animation_data.action != source
 
 
+def test_compression_to_a_bone_tail_tolerance(cmu_rig):
+    """Tolerance also as the largest error at any bone's tail and 10 cm beyond, on every frame,
+    measured as Blender plays the result."""
+    scene = bpy.context.scene
+    source = cmu_rig.animation_data.action
+    sel = sequence.select_channels(cmu_rig, scene, source)
+    loose = sequence.compress(cmu_rig, scene, source, sel, degrees=1.0, centimetres=1.0)
+    assert loose["tail_10cm_error_cm"] > 1.0  # channel tolerances alone don't bound the tails
+    activate(cmu_rig, source)
+    s = sequence.compress(cmu_rig, scene, source, sel, degrees=1.0, centimetres=1.0, tail_cm=1.0)
+    assert s["tolerance_tail_cm"] == 1.0
+    assert s["tail_error_cm"] <= 1.0 + 1e-3 and s["tail_10cm_error_cm"] <= 1.0 + 1e-3  # Blender's playback
+    tight = sequence.compress(cmu_rig, scene, source, sel, degrees=0.1, centimetres=0.1)
+    assert loose["keys_after"] < s["keys_after"] < tight["keys_after"]
+
+
 def test_compression_on_quaternion_bones_of_the_metarig(metarig):
     scene = bpy.context.scene
     keyed_metarig(metarig)

@@ -114,3 +114,14 @@ def test_compressed_skeleton_motion_meets_its_tolerance_on_every_bone():
     bound = centimetres / 100 + len(skeleton.names) * np.radians(degrees) * (reach + 0.1)
     assert 0.0 < err.tail <= err.point <= bound
     assert err.tail_cm < 5.0
+
+
+def test_fit_to_error_scales_the_tolerance_until_the_target_holds():
+    from humananim.solver.sequence.key_reduction import fit_to_error
+    t = np.linspace(0.0, 4.0, 401)
+    x = np.column_stack((np.sin(3 * t), np.cos(5 * t)))
+    reduce = lambda scale: kr.reduce_channels(t, x, np.array([0.05, 0.05]) * scale)
+    measure = lambda keys: float(np.abs(kr.evaluate_channels(keys, t) - x).max())
+    keys, scale, error = fit_to_error(reduce, measure, 0.01)
+    assert error <= 0.01 and 0.0 < scale < 1.0 and error == measure(keys)
+    assert fit_to_error(reduce, measure, 1.0)[1] == 1.0  # met at once: no bisection
