@@ -179,16 +179,8 @@ def cmd_simulate(args):
     from ..solver.progress import run_to_end
     from . import simulation
     t0 = time.perf_counter()
-    obj, scene, unit = _load(args.file, args.armature, args.scale)
-    if args.mass:
-        obj.data.humananim.total_mass = args.mass
+    obj, scene, unit = load_job(args, "humananim_simulation")
     props = scene.humananim_simulation
-    if args.action:
-        props.action = bpy.data.actions.get(args.action)
-        if props.action is None:
-            raise UsageError(f"no action named '{args.action}'")
-    if args.frames:
-        props.frame_start, props.frame_end = args.frames
     props.tracking, props.controller = args.tracking, args.controller.upper()
     props.balance_assist, props.strength_scale = args.balance_assist, args.strength
     props.ground = "MOTION" if args.ground is None else "HEIGHT"
@@ -196,7 +188,7 @@ def cmd_simulate(args):
     props.load_left, props.load_right = args.load_left, args.load_right
     scene.humananim.output = args.output
     for text in args.push:
-        frame, bone, force, seconds = _parse_push(text, obj)
+        frame, bone, force, seconds = parse_arrow(text, obj, "--push", 0.1)
         simulation.add_push(obj, scene, bone, frame, force, float(np.linalg.norm(force)), seconds)
     summary = run_to_end(simulation.run(obj, scene))
     out = os.path.abspath(args.out)
@@ -209,18 +201,40 @@ def cmd_simulate(args):
     return summary
 
 
-def _parse_push(text, obj):
+def parse_arrow(text, obj, option, default_seconds):
+    """FRAME:BONE:FX,FY,FZ[:SECONDS] of --push and --impulse: (frame, bone, vector, seconds)."""
     parts = text.split(":")
     try:
-        frame, bone, force = int(parts[0]), parts[1], np.array([float(v) for v in parts[2].split(",")])
-        seconds = float(parts[3]) if len(parts) > 3 else 0.1
+        frame, bone, vector = int(parts[0]), parts[1], np.array([float(v) for v in parts[2].split(",")])
+        seconds = float(parts[3]) if len(parts) > 3 else default_seconds
+        if len(parts) > 4:
+            raise ValueError
     except (IndexError, ValueError):
-        raise UsageError(f"--push {text!r}: expected FRAME:BONE:FX,FY,FZ[:SECONDS]") from None
+        raise UsageError(f"{option} {text!r}: expected FRAME:BONE:FX,FY,FZ[:SECONDS]") from None
     if bone not in obj.data.bones:
-        raise UsageError(f"--push {text!r}: no bone named '{bone}'")
-    if force.shape != (3,) or not np.linalg.norm(force) > 0.0:
-        raise UsageError(f"--push {text!r}: the force needs three components FX,FY,FZ, not all zero")
-    return frame, bone, force, seconds
+        raise UsageError(f"{option} {text!r}: no bone named '{bone}'")
+    if vector.shape != (3,) or not np.isfinite(vector).all() or not np.linalg.norm(vector) > 0.0:
+        raise UsageError(f"{option} {text!r}: the vector needs three finite components FX,FY,FZ, not all zero")
+    if seconds < 0.0:
+        raise UsageError(f"{option} {text!r}: SECONDS can't be negative")
+    return frame, bone, vector, seconds
+
+
+def load_job(args, props):
+    """The file, mass, source action and frame range of a simulate/control command, set on
+    the command's settings group: (armature, scene, BVH unit or None)."""
+    import bpy
+    obj, scene, unit = _load(args.file, args.armature, args.scale)
+    if args.mass:
+        obj.data.humananim.total_mass = args.mass
+    props = getattr(scene, props)
+    if args.action:
+        props.action = bpy.data.actions.get(args.action)
+        if props.action is None:
+            raise UsageError(f"no action named '{args.action}'")
+    if args.frames:
+        props.frame_start, props.frame_end = args.frames
+    return obj, scene, unit
 
 
 def _load(path, armature_name, scale):

@@ -41,18 +41,10 @@ def add_commands(sub, add_common_options):
 
 def cmd_control(args):
     import bpy
-    from .cli import _load
+    from .cli import load_job, parse_arrow
     t0 = time.perf_counter()
-    obj, scene, unit = _load(args.file, args.armature, args.scale)
-    if args.mass:
-        obj.data.humananim.total_mass = args.mass
+    obj, scene, unit = load_job(args, "humananim_control")
     props = scene.humananim_control
-    if args.action:
-        props.action = bpy.data.actions.get(args.action)
-        if props.action is None:
-            raise UsageError(f"no action named '{args.action}'")
-    if args.frames:
-        props.frame_start, props.frame_end = args.frames
     if args.substeps < 1:
         raise UsageError("--substeps must be at least 1")
     if args.collide:
@@ -67,7 +59,7 @@ def cmd_control(args):
     props.ground_height = args.ground or 0.0
     scene.humananim.output = args.output
     for text in args.impulse:
-        frame, bone, vector, seconds = parse_impulse(text, obj)
+        frame, bone, vector, seconds = parse_arrow(text, obj, "--impulse", 0.0)
         add_impulse_from_vector(obj, scene, bone, frame, vector, seconds)
     summary = control_and_save(obj, scene, args.out, args.picture)
     summary.update(command="control", file=os.path.abspath(args.file), armature=obj.name,
@@ -116,24 +108,6 @@ def _title(s):
     if s["colliders"]:
         parts.append(f"colliding with {', '.join(s['colliders'])}")
     return ", ".join(parts) + f" (frames {s['frame_range'][0]:g}-{s['frame_range'][1]:g})"
-
-
-def parse_impulse(text, obj):
-    parts = text.split(":")
-    try:
-        frame, bone, vector = int(parts[0]), parts[1], np.array([float(v) for v in parts[2].split(",")])
-        seconds = float(parts[3]) if len(parts) > 3 else 0.0
-        if len(parts) > 4:
-            raise ValueError
-    except (IndexError, ValueError):
-        raise UsageError(f"--impulse {text!r}: expected FRAME:BONE:FX,FY,FZ[:SECONDS]") from None
-    if bone not in obj.data.bones:
-        raise UsageError(f"--impulse {text!r}: no bone named '{bone}'")
-    if vector.shape != (3,) or not np.isfinite(vector).all() or not np.linalg.norm(vector) > 0.0:
-        raise UsageError(f"--impulse {text!r}: the vector needs three finite components FX,FY,FZ, not all zero")
-    if seconds < 0.0:
-        raise UsageError(f"--impulse {text!r}: SECONDS can't be negative")
-    return frame, bone, vector, seconds
 
 
 def text_summary(s):
