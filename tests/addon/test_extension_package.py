@@ -449,4 +449,3 @@ def test_disable_enable_cycle_and_uninstall(installed):
     assert not d2["enabled"] and not d2["op_exists"], d2
     un = _step(installed, "uninstall")
     assert un["result"] == ["FINISHED"] and not un["dir_exists"], un
-    assert installed["elapsed"] < 60, f"installed-extension session took {installed['elapsed']:.1f} s"
