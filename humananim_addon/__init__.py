@@ -4,7 +4,8 @@ import logging
 
 import bpy
 
-from . import cli, motion_control, overlay, preferences, properties, sequence, simulation
+from . import (capture, cli, cloth, flexible, motion_control, overlay, preferences, properties, sequence,
+               simulation, walking)
 
 log = logging.getLogger(preferences.PACKAGE)
 _cli_handle = None
@@ -18,6 +19,10 @@ def register():
     simulation.register()
     motion_control.register()
     sequence.register()
+    cloth.register()
+    flexible.register()
+    walking.register()
+    capture.register()
     operators.register()
     panels.register()
     overlay.register()
@@ -37,6 +42,10 @@ def unregister():
     overlay.unregister()
     panels.unregister()
     operators.unregister()
+    capture.unregister()
+    walking.unregister()
+    flexible.unregister()
+    cloth.unregister()
     sequence.unregister()
     motion_control.unregister()
     simulation.unregister()

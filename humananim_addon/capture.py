@@ -1,0 +1,9 @@
+"""Live capture (issue 10): the bridge between Blender data and the solver (being built)."""
+
+
+def register():
+    pass
+
+
+def unregister():
+    pass

@@ -1,0 +1,5 @@
+"""Live capture (issue 10): batch commands (being built)."""
+
+
+def add_commands(sub, add_common_options):
+    return {}

@@ -1,0 +1,9 @@
+"""Fast plausible cloth (issue 7): the bridge between Blender data and the solver (being built)."""
+
+
+def register():
+    pass
+
+
+def unregister():
+    pass

@@ -1,0 +1,5 @@
+"""Fast plausible cloth (issue 7): batch commands (being built)."""
+
+
+def add_commands(sub, add_common_options):
+    return {}

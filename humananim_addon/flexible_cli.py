@@ -1,0 +1,5 @@
+"""Flexible characters (issue 8): batch commands (being built)."""
+
+
+def add_commands(sub, add_common_options):
+    return {}

@@ -1,0 +1,3 @@
+"""Procedural walking (issue 11): operators (being built)."""
+
+CLASSES = ()

@@ -1,0 +1,3 @@
+"""Live capture (issue 10): sidebar panel (being built)."""
+
+CLASSES = ()

@@ -1,0 +1,3 @@
+"""Fast plausible cloth (issue 7): sidebar panel (being built)."""
+
+CLASSES = ()

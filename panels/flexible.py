@@ -1,0 +1,3 @@
+"""Flexible characters (issue 8): sidebar panel (being built)."""
+
+CLASSES = ()

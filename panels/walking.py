@@ -1,0 +1,3 @@
+"""Procedural walking (issue 11): sidebar panel (being built)."""
+
+CLASSES = ()
