@@ -22,6 +22,7 @@ from .properties import settings_registration
 
 STRESS = "humananim_stress"  # N m: torque beyond the muscles' strength, magnitude over the axes
 BALANCE_ERROR = "humananim_balance_error"  # m: ZMP outside the support polygon
+FALLING_BALANCE = -1.0  # the balance error's value while falling (nothing to measure against)
 FALLING = "humananim_falling"  # 0/1: the figure turns about its edge of support
 
 CONTROL_KINDS = ("none", "passive", "comfort", "balance")  # ControlResult.control codes 0..3
@@ -270,7 +271,7 @@ def stress_channels(obj, skeleton, result):
     for prop in (BALANCE_ERROR, FALLING):
         if prop not in obj:
             obj[prop] = 0.0
-    channels[(f'["{BALANCE_ERROR}"]', "HumanAnim")] = np.asarray(result.balance_error, float)
+    channels[(f'["{BALANCE_ERROR}"]', "HumanAnim")] = np.nan_to_num(result.balance_error, nan=FALLING_BALANCE)
     channels[(f'["{FALLING}"]', "HumanAnim")] = np.asarray(result.falling, float)
     return channels
 

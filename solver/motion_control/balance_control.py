@@ -141,7 +141,10 @@ def balance_candidates(state, part, a):
     p, mmp, dist = balance_error(state, wrench)
     if mmp is None or dist <= state.settings.zmp_tolerance:
         return []
-    point = np.r_[mmp, state.ground_height]
+    # the ZMP goes back just inside the tolerance: the MMP itself for a tolerance of ~0, the input's
+    # own excursion for captured motion (controller's baseline)
+    target = mmp + (p - mmp) * (0.9 * state.settings.zmp_tolerance / dist)
+    point = np.r_[target, state.ground_height]
     rate = state.cached("momentum_rate", lambda: _momentum_rate(state.model, state.data, state.q))
     matrix = part_matrix(state, part)
     if part == "legs":  # horizontally: unloading the feet is no way to balance

@@ -123,6 +123,7 @@ class ControlState:
     f_ext: np.ndarray = None  # (nb, 6) world wrenches (pushes, hands on things)
     ground_height: float = 0.0
     settings: Settings = field(default_factory=Settings)
+    allowance: np.ndarray = None  # (nv,) N m each DOF may exceed its strength (the input's own excess)
 
     def __post_init__(self):
         self.q = np.asarray(self.q, float)
@@ -145,6 +146,8 @@ class ControlState:
         j, s = m.dof_joint[6:], m.dof_slot[6:]
         low, high = np.full(m.nv, -np.inf), np.full(m.nv, np.inf)
         low[6:], high[6:] = self.strength.select(j, s).limits(joint_angles(m, self.q)[j, s], self.v[6:])
+        if self.allowance is not None:
+            low, high = low - self.allowance, high + self.allowance
         return low, high
 
     def sole_world(self):

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
+from scipy.ndimage import gaussian_filter1d
 
 from ..body_roles import SIDES
 from ..progress import run_to_end
@@ -57,6 +58,7 @@ from ..dynamics.ground_contact import default_contacts, point_jacobians
 from ..dynamics.inertia_matrix import bias_forces, crba
 from ..dynamics.model import build_model
 from ..dynamics.strength import default_strength, limit_torques
+from ..dynamics.balance import inside, minimum_moment_point
 from .balance_control import balance_error, support_polygon
 from .comfort_control import Settings as CriteriaSettings
 from .comfort_control import body_parts, joint_stress, required_torques
@@ -139,6 +141,14 @@ class ControlSettings:
     weld_static_helpers: bool = True
     min_horizon: float = None  # tracking (TrackingController)
     max_horizon: float = 0.5
+    # the input is taken as feasible for the performer (Oshita: "our method assumes that input
+    # motion is already realistic"): the stress and ZMP excursion the input motion itself has, with
+    # this body model and the detected support, are allowed at its frames (+-1), so control acts on
+    # what loads, pushes and collisions add, not on the capture's and the model's errors
+    input_allowance: bool = True
+    # a captured supporting foot often slides (CMU 131_01: up to 10 cm while planted): the whole
+    # input is moved with it (root offset, ControlResult.foot_skate) so planted feet stay put
+    remove_foot_skate: bool = True
     criteria: CriteriaSettings = field(default_factory=CriteriaSettings)  # comfort/balance tolerances
 
 
@@ -146,14 +156,17 @@ class ControlSettings:
 class ControlResult:
     trajectories: Trajectories  # at the input's frames
     stress: np.ndarray  # (F, J, 3) N m per bone axis at the output acceleration
-    balance_error: np.ndarray  # (F,) m, ZMP to the support polygon (0 inside or without support)
+    # (F,) m, ZMP outside the support polygon, beyond the input's own excursion at that frame (0
+    # inside or without support, NaN falling)
+    balance_error: np.ndarray
     zmp: np.ndarray  # (F, 2) NaN without support
     mmp: np.ndarray  # (F, 2) NaN without support
     support: np.ndarray  # (F, 2) bool (left, right) feet planted
     polygon: list  # per frame (k, 2) support polygon
     control: np.ndarray  # (F, J) int8: 0 none, 1 passive, 2 comfort, 3 balance
     falling: np.ndarray  # (F,) bool
-    foot_slide: np.ndarray  # (F, 2) m, horizontal travel of each planted sole's centre since landing
+    foot_slide: np.ndarray  # (F, 2) m, horizontal travel of each planted foot's contact point since landing
+    foot_skate: np.ndarray = None  # (F, 2) m, the root offset that removed the input's foot skate
     model: object = None
 
 
@@ -199,13 +212,22 @@ class _Loop:
         self._bodies = {}
         self.body = self._body(self._active_loads(0.0))
         m = self.body.model
-        self.tracking = TrackingController(m, sk, tr, min_horizon=st.min_horizon, max_horizon=st.max_horizon)
-        self.dt_frame = self.tracking.dt
         self.desired_data = m.create_data()
         self.ground = float(motion_floor(sk, tr) if st.ground_height is None else st.ground_height)
         sup = support_intervals(sk, tr, st.support_overrides, floor=self.ground)
         self.support_in = np.stack([sup.get(s, np.zeros(tr.frame_count, bool)) for s in SIDES], axis=1)
+        self.skate = np.zeros((tr.frame_count, 2))
+        self.dt_frame = 1.0 / tr.fps if tr.frame_count < 2 else float(np.mean(np.diff(tr.times)))
+        if st.remove_foot_skate:
+            self.skate = self._foot_skate(tr)
+            pos, ori = tr.root_pose(sk)
+            tr = self.tr = tr.with_root_pose(sk, pos + np.c_[self.skate, np.zeros(len(pos))], ori)
+        self.tracking = TrackingController(m, sk, tr, min_horizon=st.min_horizon, max_horizon=st.max_horizon)
+        self.dt_frame = self.tracking.dt
         self.impulses = [self._impulse(i) for i in st.impulses]
+        self.allow_tau, self.allow_zmp = self._input_allowance() if st.input_allowance else (None, None)
+        self.roll_weights, self.roll = self._rolling_anchor()
+        self._drift = [None, None]  # per side: (contact drift (2,), last sole points (k, 3))
         self.q = self.tracking.q_d[0].copy()
         self.v = self.tracking.v_d[0].copy()
         self.t = 0.0
@@ -256,6 +278,52 @@ class _Loop:
         pos, ori = self.tr.root_pose(self.sk)
         return m.configuration(pos[0], ori[0], self.tr.rotations[0])
 
+    def _input_allowance(self):
+        """Per input frame: (nv,) torque beyond strength and the ZMP's distance outside the support
+        polygon of the input motion itself (unloaded body, no pushes), the max over frames f-1..f+1."""
+        body = self._body(tuple(False for _ in self.st.loads))
+        m, tk = body.model, self.tracking
+        nf = self.tr.frame_count
+        tau_x, zmp_x, self.allow_capture = np.zeros((nf, m.nv)), np.zeros(nf), np.zeros(nf)
+        for f in range(nf):
+            cs = control_state(m, body.data, tk.q_d[f], tk.v_d[f], self.support_in[f], body.strength,
+                               ground_height=self.ground, parts=body.parts, settings=self.st.criteria)
+            tau, wrench = required_torques(cs, tk.a_d[f])
+            tau_x[f] = np.abs(joint_stress(tau, cs.limits))
+            zmp_x[f] = balance_error(cs, wrench)[2]
+            self.allow_capture[f] = self._capture_error(cs)
+        self.allow_capture = _window_max(self.allow_capture)
+        return _window_max(tau_x), _window_max(zmp_x)
+
+    def _can_stop(self, cs, t):
+        """Whether the figure can still stop over its feet: its capture point no further outside
+        the support polygon than the input's own, plus _CAPTURE_TOLERANCE."""
+        fi = min(int(np.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+        allowed = (self.allow_capture[fi] if self.allow_tau is not None else 0.0) + _CAPTURE_TOLERANCE
+        return self._capture_error(cs) <= allowed
+
+    def _capture_error(self, cs):
+        """How far (m) the capture point (the centre of mass extrapolated by its velocity over
+        sqrt(h / g), Hof 2005) lies outside the support polygon: where a standing figure can still
+        stop without a step; 0 inside or without support."""
+        polygon = support_polygon(cs)
+        if len(polygon) < 3:
+            return 0.0
+        m, d = cs.model, cs.data
+        com = kinematics.center_of_mass(m, d, cs.q)
+        vel = kinematics.com_jacobian(m, d, cs.q) @ cs.v
+        g = max(abs(float(self.st.gravity[2])), 1e-6)
+        point = com[:2] + vel[:2] * np.sqrt(max(com[2] - self.ground, 1e-3) / g)
+        return 0.0 if inside(polygon, point) else float(np.linalg.norm(minimum_moment_point(polygon, point) - point))
+
+    def _allowance(self, t):
+        if self.allow_tau is None:
+            return None, self.st.criteria
+        fi = min(int(np.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+        zmp = self.allow_zmp[fi]
+        crit = self.st.criteria if zmp <= self.st.criteria.zmp_tolerance else replace(self.st.criteria, zmp_tolerance=zmp)
+        return self.allow_tau[fi], crit
+
     def _impulse(self, imp):
         d = np.asarray(imp.direction, float)
         d = d / max(np.linalg.norm(d), 1e-12)
@@ -284,43 +352,46 @@ class _Loop:
             fi = min(int(np.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
             feet = self.support_in[fi].copy()
             self._update_plants(body, feet, t)
-        a_track = self.tracking.acceleration(t, q, v)
+        a_raw = self.tracking.acceleration(t, q, v)
         targets = self._foot_targets(body, feet, t) if feet.any() else None
-        if targets is not None:
-            a_track = self._constrain_legs(body, q, v, a_track, feet, targets)
+        a_track = self._constrain_legs(body, q, v, a_raw, feet, targets) if targets is not None else a_raw
         fall = None
         if self.fallen:
             a = None
         else:
+            allow, criteria = self._allowance(t)
             cs = control_state(m, d, q, v, feet, body.strength, f_ext=f_ext, ground_height=self.ground,
-                               parts=body.parts, settings=st.criteria)
+                               parts=body.parts, settings=criteria, allowance=allow)
             if st.tracking_only:
                 a = a_track
                 if record:
                     self._record_diagnostics(f, cs, a, feet)
             else:
                 res = dynamic_control(cs, a_track)
+                if res.falling is not None:
+                    a_track, res = self._slower_return(body, cs, t, a_raw, a_track, res, feet, targets)
                 a = a_track + _bounded(res.delta, st.max_dynamic_acceleration)
                 fall = res.falling
                 if record:
                     self._record_result(f, cs, res, feet)
                 self.unbalanced = self.unbalanced + dt if fall is not None else 0.0
-                if fall is not None and self.unbalanced >= st.fall_time - 1e-9:
+                if (fall is not None and self.unbalanced >= st.fall_time - 1e-9
+                        and not self._can_stop(cs, t)):
                     a = a + fall.base_acceleration
                 else:
                     fall = None
         if record:
             self.falling[f] = self.fallen or fall is not None
+            if self.falling[f]:  # no support to measure against: no balance error
+                self.err[f] = np.nan
             self.support[f] = feet
             for s in range(2):
                 if feet[s] and self.planted[s] is not None:
-                    centre = self._sole_centre(body, q, s)
-                    self.slide[f, s] = np.linalg.norm(centre[:2] - self.planted[s][1])
+                    self.slide[f, s] = self._contact_drift(body, q, s, f)
         if not integrate:
             return
         try:
             with np.errstate(over="raise", invalid="raise"):
-                v0 = v
                 if self.fallen:
                     v = self._ragdoll_velocity(body, q, v, dt, f_ext)
                 else:
@@ -331,21 +402,38 @@ class _Loop:
                     self.fallen = True
                     self.planted = [None, None]
                     feet[:] = False
-                if feet.any():
+                if feet.any():  # the feet's velocity over the step: the targets' at its end
+                    targets = self._foot_targets(body, feet, t + dt)
                     v = self._project_velocity(body, q, v, feet, targets)
-                # positions with the step's mean velocity (q (+) (v + a dt / 2) dt without impulses:
-                # follows a motion sampled by central differences exactly, see test_motion_control_
-                # tracking); the fallen body with the new velocity (semi-implicit, contact-safe)
-                q = kinematics.integrate(m, q, (v if self.fallen else 0.5 * (v0 + v)) * dt)
+                # semi-implicit Euler: with tracking.step_consistent's input velocities it steps
+                # onto the input's frames and velocities exactly (test_motion_control_tracking)
+                q = kinematics.integrate(m, q, v * dt)
                 self.t = t + dt
                 if feet.any():
-                    targets = self._foot_targets(body, feet, self.t)
                     q = self._project_position(body, q, feet, targets)
         except (np.linalg.LinAlgError, FloatingPointError) as exc:
             raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}: {exc}") from None
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
             raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}")
         self.q, self.v = q, v
+
+    def _slower_return(self, body, cs, t, a_raw, a_track, res, feet, targets):
+        """When balance control cannot keep the ZMP in the support polygon, return to the input
+        more slowly before giving in to a fall: the tracking's feedback (its acceleration beyond the
+        input's own) scaled by each of RETURN_SCALES until one balances. Only while the figure can
+        still stop on its feet (capture point within the support polygon, or no further out than
+        the input's own): a figure pushed beyond that falls, as in the thesis."""
+        if not self._can_stop(cs, t):  # it cannot stop without a step: it falls
+            return a_track, res
+        a_d = self.tracking.desired_state(t)[2]
+        for scale in RETURN_SCALES:
+            a = a_d + scale * (a_raw - a_d)
+            if targets is not None:
+                a = self._constrain_legs(body, cs.q, cs.v, a, feet, targets)
+            out = dynamic_control(cs, a)
+            if out.falling is None:
+                return a, out
+        return a_track, res
 
     # ---- diagnostics ----
 
@@ -356,7 +444,7 @@ class _Loop:
         if res.zmp is not None:
             self.zmp[f] = res.zmp
             self.mmp[f] = res.mmp
-            self.err[f] = float(np.linalg.norm(res.zmp - res.mmp))
+            self.err[f] = self._excess(float(np.linalg.norm(res.zmp - res.mmp)), cs)
         code = np.zeros(m.nv, np.int8)
         code[res.log.passive] = PASSIVE
         code[res.log.comfort] = np.maximum(code[res.log.comfort], COMFORT)
@@ -372,14 +460,20 @@ class _Loop:
         self.polygon[f] = poly
         p, mmp, dist = balance_error(cs, wrench, poly)
         if p is not None:
-            self.zmp[f], self.mmp[f], self.err[f] = p, mmp, dist
+            self.zmp[f], self.mmp[f], self.err[f] = p, mmp, self._excess(dist, cs)
+
+    @staticmethod
+    def _excess(dist, cs):
+        """The balance error beyond what the input itself has at this frame (its allowance)."""
+        tol = cs.settings.zmp_tolerance
+        return max(0.0, dist - tol) if tol > _BALANCED else dist
 
     def result(self):
         m = self.body.model
         traj = _to_trajectories(m, self.sk, self.tr, self.out_q)
         return ControlResult(trajectories=traj, stress=self.stress, balance_error=self.err, zmp=self.zmp,
                              mmp=self.mmp, support=self.support, polygon=self.polygon, control=self.control,
-                             falling=self.falling, foot_slide=self.slide, model=m)
+                             falling=self.falling, foot_slide=self.slide, foot_skate=self.skate, model=m)
 
     # ---- external input ----
 
@@ -418,7 +512,65 @@ class _Loop:
                 now = kinematics.point_positions(m, body.data, self.q, [foot], [np.zeros(3)])[0]
                 qd = self.tracking.desired_state(t)[0]
                 want = kinematics.point_positions(m, self.desired_data, qd, [foot], [np.zeros(3)])[0]
-                self.planted[s] = (now - want, self._sole_centre(body, self.q, s)[:2])
+                self.planted[s] = (now - want, self._roll_offset(s, t)[0])
+                self._drift[s] = None
+
+    def _foot_skate(self, tr):
+        """The input's foot skate as a root offset (F, 2): what moves the whole motion so that the
+        contact point of a supporting foot stays where it is (the mean over both feet in double
+        support; held while no foot supports). The capture's own root travel is otherwise kept."""
+        m = self.body.model
+        pos, ori = tr.root_pose(self.sk)
+        qs = [m.configuration(pos[f], ori[f], tr.rotations[f]) for f in range(tr.frame_count)]
+        steps = [_contact_steps(m, self.desired_data, qs, self.body.parts, s)[1] for s in range(2)]
+        out = np.zeros((tr.frame_count, 2))
+        for f in range(1, tr.frame_count):
+            sides = [s for s in range(2) if self.support_in[f, s] and self.support_in[f - 1, s]]
+            out[f] = out[f - 1] - (np.mean([steps[s][f - 1] for s in sides], axis=0) if sides else 0.0)
+        # the offset's velocity jumps where the supporting feet change: smoothed over ~0.05 s so
+        # the root gets no acceleration spike (the planted feet's rolling anchor takes the rest)
+        return gaussian_filter1d(out, _SKATE_SMOOTHING / self.dt_frame, axis=0, mode="nearest")
+
+    def _rolling_anchor(self):
+        """A planted foot rolls (heel to toe) but its contact does not slide: per input frame and
+        side, the weights of the sole points in contact (the lowest ones) and the horizontal offset
+        (F, 2, 3) that cancels the input's own travel of that contact point over each support
+        interval (capture's foot skate included)."""
+        body = self._body(tuple(False for _ in self.st.loads))
+        nf = self.tr.frame_count
+        weights, roll = [], np.zeros((nf, 2, 3))
+        for s in range(2):
+            w, step = _contact_steps(body.model, self.desired_data, self.tracking.q_d, body.parts, s)
+            weights.append(w)
+            for f in range(1, nf):
+                if self.support_in[f, s] and self.support_in[f - 1, s]:
+                    roll[f, s, :2] = roll[f - 1, s, :2] - step[f - 1]
+        return weights, roll
+
+    def _roll_offset(self, s, t):
+        """The rolling anchor's offset (3,), velocity and acceleration at time t (linear between
+        frames; central differences)."""
+        x = float(np.clip(t / self.dt_frame, 0.0, self.tr.frame_count - 1))
+        f0 = min(int(np.floor(x)), self.tr.frame_count - 1)
+        f1 = min(f0 + 1, self.tr.frame_count - 1)
+        r = self.roll[:, s]
+        pos = r[f0] + (x - f0) * (r[f1] - r[f0])
+        fm, fp = max(f0 - 1, 0), f1
+        vel = (r[fp] - r[fm]) / (max(fp - fm, 1) * self.dt_frame)
+        acc = (r[fp] - 2.0 * r[f0] + r[fm]) / self.dt_frame ** 2 if fp - fm == 2 else np.zeros(3)
+        supported = self.support_in[fm:fp + 1, s].all()
+        return pos, (vel if supported else np.zeros(3)), (acc if supported else np.zeros(3))
+
+    def _contact_drift(self, body, q, s, f):
+        """Horizontal travel (m) of the planted foot's contact point since landing: the sole points'
+        steps weighted by the input's contact weights (a roll about the contact is no travel)."""
+        p = body.parts
+        pts = kinematics.point_positions(body.model, body.data, q, p.sole_joints[s], p.sole_points[s])
+        drift = np.zeros(2) if self._drift[s] is None else self._drift[s][0]
+        if self._drift[s] is not None:
+            drift = drift + self.roll_weights[s][f] @ (pts[:, :2] - self._drift[s][1][:, :2])
+        self._drift[s] = (drift, pts)
+        return float(np.linalg.norm(drift))
 
     def _sole_centre(self, body, q, s):
         p = body.parts
@@ -448,7 +600,9 @@ class _Loop:
             al, ao = acc[b, :3], acc[b, 3:]
             xd = vo + _cross(w, x)
             xdd = ao + _cross(al, x) + _cross(w, xd)
-            out[s] = (frame[:3, :3], x + self.planted[s][0], np.r_[w, xd], np.r_[al, xdd])
+            roll, roll_v, roll_a = self._roll_offset(s, t)
+            out[s] = (frame[:3, :3], x + self.planted[s][0] + roll - self.planted[s][1],
+                      np.r_[w, xd + roll_v], np.r_[al, xdd + roll_a])
         return out
 
     def _leg_jacobians(self, body, q, feet):
@@ -643,6 +797,37 @@ def _cross(a, b):
     out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
     out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
     out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+RETURN_SCALES = (0.5, 0.25, 0.0)
+_BALANCED = 1e-3  # m: a ZMP tolerance above this is an input allowance (_Loop._excess)
+# _Loop._slower_return: m beyond the input's own capture-point excursion (arms swung by passive
+# control move the centre of mass quickly without the body falling; a 150 N s push: 0.6 m)
+_CAPTURE_TOLERANCE = 0.2
+
+
+def _contact_steps(model, data, qs, parts, side):
+    """Per frame the weights (F, k) of a foot's sole points in contact (the lowest ones, by
+    exp(-height above the lowest / _CONTACT_SCALE)) and the horizontal step (F - 1, 2) of that
+    contact point from each frame to the next."""
+    pts = np.array([kinematics.point_positions(model, data, q, parts.sole_joints[side], parts.sole_points[side])
+                    for q in qs])
+    z = pts[..., 2]
+    w = np.exp(-(z - z.min(axis=1, keepdims=True)) / _CONTACT_SCALE)
+    w /= w.sum(axis=1, keepdims=True)
+    return w, np.einsum("fk,fkc->fc", w[1:], pts[1:, :, :2] - pts[:-1, :, :2])
+
+
+_SKATE_SMOOTHING = 0.02  # s, standard deviation of _Loop._foot_skate's smoothing
+_CONTACT_SCALE = 0.01  # m: sole points this much above the lowest share the contact by exp(-dz / scale)
+
+
+def _window_max(x):
+    """Max over each frame and its neighbours (along axis 0)."""
+    out = x.copy()
+    out[1:] = np.maximum(out[1:], x[:-1])
+    out[:-1] = np.maximum(out[:-1], x[1:])
     return out
 
 

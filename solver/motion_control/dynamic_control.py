@@ -61,11 +61,12 @@ def dynamic_control(state, a_tracking):
 
 
 def control_state(model, data, q, v, feet, strength, f_ext=None, ground_height=0.0, parts=None,
-                  settings=None):
-    """A ControlState for one step; pass `parts` (body_parts(model)) to reuse it across steps."""
+                  settings=None, allowance=None):
+    """A ControlState for one step; pass `parts` (body_parts(model)) to reuse it across steps.
+    `allowance`: (nv,) torque each DOF may exceed its strength by (see controller's baseline)."""
     kw = {} if settings is None else {"settings": settings}
     return ControlState(model, data, q, v, feet, parts or body_parts(model), strength, f_ext=f_ext,
-                        ground_height=ground_height, **kw)
+                        ground_height=ground_height, allowance=allowance, **kw)
 
 
 def stress_by_bone(model, stress):

@@ -41,7 +41,26 @@ import numpy as np
 from ..dynamics import kinematics, spatial
 from ..dynamics.closed_loop import desired_motion
 
-MIN_HORIZON = 0.0  # s, a floor for the default min_horizon (module notes)
+MIN_HORIZON = 1.0 / 15.0  # s, a floor for the default min_horizon (module notes)
+
+
+def step_consistent(model, q_d, v_c, a_c, dt):
+    """The input's velocities and accelerations as the control loop's Euler step reads them:
+    v[f] is the step from frame f-1 to f (kinematics.difference, in frame f-1's axes) over dt and
+    a[f] = (v[f+1] - v[f]) / dt, so that v' = v + a dt, q' = q (+) v' dt reproduces the input's
+    frames and velocities exactly. Central differences (v_c, a_c) reproduce the frames but not the
+    velocities: on a captured motion's jittery light bones (CMU toes, 900 rad/s^2 from frame to
+    frame) the velocity error then feeds back through the tracking and drifts by degrees."""
+    nf = len(q_d)
+    if nf < 3:
+        return q_d, v_c, a_c, dt
+    v = np.empty_like(v_c)
+    v[1:] = [kinematics.difference(model, q_d[f], q_d[f + 1]) / dt for f in range(nf - 1)]
+    v[0] = v[1]
+    a = np.empty_like(a_c)
+    a[:-1] = (v[1:] - v[:-1]) / dt
+    a[-1] = a[-2]  # the last frame is not stepped from; its diagnostics see the motion going on
+    return q_d, v, a, dt
 
 
 class TrackingController:
@@ -54,7 +73,7 @@ class TrackingController:
                  feedforward=True):
         self.model = model
         self.feedforward = bool(feedforward)
-        self.q_d, self.v_d, self.a_d, self.dt = desired_motion(model, skeleton, trajectories)
+        self.q_d, self.v_d, self.a_d, self.dt = step_consistent(model, *desired_motion(model, skeleton, trajectories))
         self.min_horizon = max(3.0 * self.dt, MIN_HORIZON) if min_horizon is None else float(min_horizon)
         self.max_horizon = float(max_horizon)
         if not 0.0 < self.min_horizon <= self.max_horizon:

