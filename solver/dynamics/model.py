@@ -199,7 +199,7 @@ class Model:
 
     def expand(self, v):
         """(nb, 6) per-body local (angular, linear) entries of a velocity-like vector."""
-        return np.append(v, 0.0)[self.v_index]
+        return np.concatenate((v, _ZERO))[self.v_index]
 
     def create_data(self):
         return Data(self)
@@ -335,3 +335,6 @@ def _merge_inertia(sk, nb, body_of, offset, seg_mass, loads, min_inertia):
     low = np.linalg.eigvalsh(about_com)[:, 0]
     about_com += np.maximum(min_inertia - low, 0.0)[:, None, None] * np.eye(3)
     return mass, com, about_com
+
+
+_ZERO = np.zeros(1)

@@ -197,8 +197,7 @@ def ground_reaction(state, wrench):
     n, f = wrench[:3], wrench[3:]
     p = np.array([(h * f[0] - n[1]) / f[2], (n[0] + h * f[1]) / f[2], h])
     sides = np.flatnonzero(state.feet)
-    centres = state.cached("sole_centres", lambda: np.array(
-        [np.r_[state.sole_world()[s][:, :2].mean(axis=0), h] for s in sides]))
+    centres = state.cached("sole_centres", lambda: _sole_centres(state, sides, h))
     w = np.ones(1) if len(sides) == 1 else _split(centres[:, :2], p[:2])
     x = centres + (p - w @ centres)  # application points, weighted mean at the ZMP
     moment = n - spatial.cross(p, f)  # about the ZMP: vertical only
@@ -206,6 +205,14 @@ def ground_reaction(state, wrench):
     bodies = state.model.joint_body[np.asarray(state.parts.feet)[sides]]
     out[bodies, :3] = spatial.cross(x, w[:, None] * f) + w[:, None] * moment
     out[bodies, 3:] = w[:, None] * f
+    return out
+
+
+def _sole_centres(state, sides, height):
+    soles = state.sole_world()
+    out = np.full((len(sides), 3), float(height))
+    for i, s in enumerate(sides):
+        out[i, :2] = soles[s][:, :2].mean(axis=0)
     return out
 
 

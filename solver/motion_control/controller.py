@@ -46,6 +46,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg.lapack import dposv
 from scipy.ndimage import gaussian_filter1d
 
 from ..body_roles import SIDES
@@ -126,7 +127,7 @@ class ControlSettings:
     limit_stiffness: float = 300.0  # N m/rad, ragdoll joint limits
     limit_damping: float = 10.0
     contact_iterations: int = 30  # projected Gauss-Seidel sweeps
-    foot_iterations: int = 2  # Gauss-Newton iterations of the planted legs' position re-solve
+    foot_iterations: int = 1  # Gauss-Newton iterations of the planted legs' position re-solve
     foot_damping: float = 1e-3  # damped least squares of the legs' IK (a straight knee is singular)
     kinematic_fraction: float = 0.0015  # as closed_loop.Settings: fingers follow the input
     # joint armature as a share of each DOF's own inertia H_ii in the first frame (closed_loop's
@@ -227,6 +228,9 @@ class _Loop:
         self.impulses = [self._impulse(i) for i in st.impulses]
         self.allow_tau, self.allow_zmp = self._input_allowance() if st.input_allowance else (None, None)
         self.roll_weights, self.roll = self._rolling_anchor()
+        self._grid_targets = [self._input_feet(self.body, f * self.dt_frame) for f in range(tr.frame_count)]
+        self._soles_cache = None
+        self._eye6 = st.foot_damping ** 2 * np.eye(6)
         self._drift = [None, None]  # per side: (contact drift (2,), last sole points (k, 3))
         self.q = self.tracking.q_d[0].copy()
         self.v = self.tracking.v_d[0].copy()
@@ -362,6 +366,7 @@ class _Loop:
             allow, criteria = self._allowance(t)
             cs = control_state(m, d, q, v, feet, body.strength, f_ext=f_ext, ground_height=self.ground,
                                parts=body.parts, settings=criteria, allowance=allow)
+            cs._cache["soles"] = self._soles(body, q)
             if st.tracking_only:
                 a = a_track
                 if record:
@@ -561,11 +566,21 @@ class _Loop:
         supported = self.support_in[fm:fp + 1, s].all()
         return pos, (vel if supported else np.zeros(3)), (acc if supported else np.zeros(3))
 
+    def _soles(self, body, q):
+        """World sole points of both feet at q, [(k, 3), (k, 3)], one forward-kinematics pass
+        (shared by the control state, the support polygon and the drift measure)."""
+        key = (q.tobytes(), id(body))
+        if self._soles_cache is None or self._soles_cache[0] != key:
+            p = body.parts
+            pts = kinematics.point_positions(body.model, body.data, q, np.concatenate(p.sole_joints),
+                                             np.concatenate(p.sole_points))
+            self._soles_cache = (key, np.split(pts, [len(p.sole_joints[0])]))
+        return self._soles_cache[1]
+
     def _contact_drift(self, body, q, s, f):
         """Horizontal travel (m) of the planted foot's contact point since landing: the sole points'
         steps weighted by the input's contact weights (a roll about the contact is no travel)."""
-        p = body.parts
-        pts = kinematics.point_positions(body.model, body.data, q, p.sole_joints[s], p.sole_points[s])
+        pts = self._soles(body, q)[s]
         drift = np.zeros(2) if self._drift[s] is None else self._drift[s][0]
         if self._drift[s] is not None:
             drift = drift + self.roll_weights[s][f] @ (pts[:, :2] - self._drift[s][1][:, :2])
@@ -573,8 +588,7 @@ class _Loop:
         return float(np.linalg.norm(drift))
 
     def _sole_centre(self, body, q, s):
-        p = body.parts
-        return kinematics.point_positions(body.model, body.data, q, p.sole_joints[s], p.sole_points[s]).mean(axis=0)
+        return self._soles(body, q)[s].mean(axis=0)
 
     def _foot_targets(self, body, feet, t):
         key = (t, tuple(feet), tuple(None if p is None else p[0].tobytes() for p in self.planted), id(body))
@@ -587,11 +601,22 @@ class _Loop:
     def _foot_targets_at(self, body, feet, t):
         """Per planted side: the input foot's world rotation (3, 3), head position (3,), 6-D velocity
         and 6-D acceleration (angular; head point), moved by the landing offset."""
+        f = self.tracking._on_frame(t)
+        feet_in = self._grid_targets[f] if f is not None else self._input_feet(body, t)
+        out = [None, None]
+        for s in np.flatnonzero(feet):
+            rot, pos, vel, acc = feet_in[s]
+            out[s] = (rot, pos + (self.planted[s][0] - self.planted[s][1]), vel, acc)
+        return out
+
+    def _input_feet(self, body, t):
+        """Both input feet at time t, without their skate (rolling anchor): world rotation, head
+        position, 6-D velocity and acceleration (precomputed on the frame grid)."""
         m, dd = body.model, self.desired_data
         qd, vd, ad = self.tracking.desired_state(t)
         vel, acc = kinematics.body_accelerations(m, dd, qd, vd, ad)
-        out = [None, None]
-        for s in np.flatnonzero(feet):
+        out = []
+        for s in range(2):
             foot = body.parts.feet[s]
             b = m.joint_body[foot]
             frame = dd.frames[b] @ m.joint_offset[foot]
@@ -601,8 +626,8 @@ class _Loop:
             xd = vo + _cross(w, x)
             xdd = ao + _cross(al, x) + _cross(w, xd)
             roll, roll_v, roll_a = self._roll_offset(s, t)
-            out[s] = (frame[:3, :3], x + self.planted[s][0] + roll - self.planted[s][1],
-                      np.r_[w, xd + roll_v], np.r_[al, xdd + roll_a])
+            out.append((frame[:3, :3], x + roll, np.concatenate((w, xd + roll_v)),
+                        np.concatenate((al, xdd + roll_a))))
         return out
 
     def _leg_jacobians(self, body, q, feet):
@@ -639,8 +664,11 @@ class _Loop:
         return jac[:, cols], frame, cols
 
     def _dls(self, jac, r):
-        lam = self.st.foot_damping
-        return jac.T @ np.linalg.solve(jac @ jac.T + lam * lam * np.eye(len(jac)), r)
+        """Damped least squares J' (J J' + lambda^2)^-1 r of a (6, k) leg Jacobian."""
+        _, x, info = dposv(jac @ jac.T + self._eye6, r)
+        if info != 0:
+            raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
+        return jac.T @ x
 
     def _constrain_legs(self, body, q, v, a, feet, targets):
         """Leg accelerations that give each planted foot its target acceleration: the tracking
@@ -657,7 +685,7 @@ class _Loop:
             x = frame[:3, 3]
             w, vo, al, ao = vel[b, :3], vel[b, 3:], acc[b, :3], acc[b, 3:]
             xd = vo + _cross(w, x)
-            now = np.r_[al, ao + _cross(al, x) + _cross(w, xd)]
+            now = np.concatenate((al, ao + _cross(al, x) + _cross(w, xd)))
             a[cols] += self._dls(jac[:, cols], targets[s][3] - now)
         return a
 
@@ -678,7 +706,8 @@ class _Loop:
                     continue
                 jac, frame, cols = leg
                 rot, pos = targets[s][0], targets[s][1]
-                step[cols] = self._dls(jac[:, cols], np.r_[_rotation_log(rot @ frame[:3, :3].T), pos - frame[:3, 3]])
+                error = np.concatenate((_rotation_log(rot @ frame[:3, :3].T), pos - frame[:3, 3]))
+                step[cols] = self._dls(jac[:, cols], error)
             q = kinematics.integrate(m, q, step)
         return q
 
