@@ -155,9 +155,9 @@ def cmd_demo(args):
     return result
 
 
-DEMO_FRAMES = (1, 240)  # two seconds of the walk
-DEMO_LOAD_KG = 8.0  # in each hand
-DEMO_PUSH = (120, 25.0)  # frame, N s backwards on the chest
+DEMO_FRAMES = (1, 200)  # the start of the walk: standing, shuffling (the thesis's method is for double support)
+DEMO_LOAD_KG = 5.0  # in each hand
+DEMO_PUSH = (120, 15.0)  # frame, N s backwards on the chest
 
 
 def demo_control(obj, scene, skeleton, out):

@@ -90,13 +90,22 @@ def default_strength(model, scale=1.0, gravity=9.81):
             roles[n] = role.split(".")[0]
     static = _static_moments(sk) * gravity
     for j in range(J):
-        entry = PEAK_TORQUE.get(roles.get(sk.names[j]))
+        entry = PEAK_TORQUE.get(roles.get(sk.names[j]) or _trunk_role(sk, j, roles))
         if entry is None:
             peak[j] = max(2.5 * static[j], 5.0) * AXIS_SHARE
         else:
             peak[j] = entry[0] * AXIS_SHARE
             vmax[j] = entry[1]
     return StrengthModel(peak=peak, max_velocity=vmax, scale=float(scale))
+
+
+def _trunk_role(sk, j, roles):
+    """The role of the trunk bone below an unnamed bone that lies on the trunk (between the spine
+    or chest and the neck: CMU's Chest2, a spine.002 the role tables left out): it carries the
+    same upper body, so it gets the same strength."""
+    below = next((roles.get(sk.names[a]) for a in sk.ancestors(j) if roles.get(sk.names[a])), None)
+    above = {roles.get(sk.names[d]) for d in sk.descendants(j)}
+    return below if below in ("spine", "chest") and above & {"chest", "neck", "head"} else None
 
 
 def _static_moments(sk):

@@ -57,6 +57,16 @@ _HULL_REUSE = 1e-4  # m
 _hull_cache = {}
 
 
+# the ZMP is a ratio over the vertical ground force: below this share of the body's weight (a
+# body all but airborne, a capture's one-frame glitch) it is ill-conditioned (metres off for a
+# newton) and the figure is not judged for balance
+MIN_SUPPORT = 0.2
+
+
+def _weight(model):
+    return float(model.mass.sum() * np.linalg.norm(model.gravity))
+
+
 def zmp_of(wrench, ground_height=0.0):
     """ZMP (2,) of a ground wrench (world, about the origin: torque, force)."""
     n, f, h = wrench[:3], wrench[3:], ground_height
@@ -72,7 +82,7 @@ def balance_error(state, wrench, polygon=None):
     """(zmp, mmp, distance) of a ground wrench on the current support polygon; mmp is None when
     nothing supports the body (no foot down) or nothing pushes on the ground."""
     polygon = support_polygon(state) if polygon is None else polygon
-    if len(polygon) == 0 or wrench[5] <= 1e-9:
+    if len(polygon) == 0 or wrench[5] <= MIN_SUPPORT * state.cached("weight", lambda: _weight(state.model)):
         return None, None, 0.0
     p = zmp_of(wrench, state.ground_height)
     if len(polygon) >= 3 and inside(polygon, p):

@@ -28,12 +28,13 @@ extremum (a root moving steadily forward) the target is the desired state max_ho
 the extremum is closer than min_horizon, the target is the desired state min_horizon ahead (with
 its non-zero velocity), because the curve's gains 6/T^2 and 4/T grow without bound as T -> 0 and
 an Euler step of length dt is stable only for T > 2 dt (semi-implicit Euler; explicit Euler for
-T > 1.5 dt), hence at least three frames. MIN_HORIZON can raise that floor: at a high frame rate
-(CMU's 120 fps) three frames are 25 ms, and the near targets of a captured motion's many small
-extrema make the per-step corrections jerky: with tracking only, the CMU clip tracked at 1.28 deg
-RMS with three frames, 0.51 deg with a 1/15 s floor (0.69 with 0.1 s, 0.60 with 0.05 s). It is 0
-for now because with full control the 1/15 s floor made dynamic control act on most CMU frames
-(the demo fell for 7 frames and ran 3x slower); to be resolved with the control loop's tuning.
+T > 1.5 dt), hence at least three frames. MIN_HORIZON raises that floor to 0.2 s. The input
+itself is followed exactly by the feedforward term whatever T is (step_consistent), so T only
+sets how hard a disturbance is corrected: a -4 e'/T pull on a velocity error. With CMU's 120 fps
+three frames are 25 ms, and a push's velocity change was corrected within 1/15 s: 1000 rad/s^2
+at the neck, which passive and comfort control turned into chaos (1 kN m of ankle stress, ZMPs
+metres off). 0.2 s, a human reaction time, keeps the thesis's squat results (a 15 N s push is
+back within 2 deg in 1.7 s rather than 1.9) and the CMU demo's pushes under 100 N m of stress.
 """
 
 import numpy as np
@@ -41,7 +42,7 @@ import numpy as np
 from ..dynamics import kinematics, spatial
 from ..dynamics.closed_loop import desired_motion
 
-MIN_HORIZON = 1.0 / 15.0  # s, a floor for the default min_horizon (module notes)
+MIN_HORIZON = 0.2  # s, a floor for the default min_horizon (module notes)
 
 
 def step_consistent(model, q_d, v_c, a_c, dt):
