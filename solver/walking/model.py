@@ -51,7 +51,7 @@ PRESETS = {
                    heel_strike=1.3, torso_lean=4.0),
     "tired": Style(stride=0.85, pelvis_rotation=0.7, pelvis_tilt=1.4, arm_swing=0.4, knee_flexion=1.5,
                    heel_strike=0.4, torso_lean=10.0),
-    "sneaking": Style(stride=0.75, pelvis_rotation=0.5, pelvis_tilt=0.5, arm_swing=0.3, knee_flexion=3.0,
+    "sneaking": Style(stride=0.75, pelvis_rotation=0.5, pelvis_tilt=0.5, arm_swing=0.3, knee_flexion=3.5,
                       heel_strike=0.2, torso_lean=18.0),
 }
 
