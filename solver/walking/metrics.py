@@ -149,7 +149,7 @@ def summary(result, w=None):
     flex = knee_flexion(result, w)
     rel = [abs(c["rlc"] / c["rlc_model"] - 1) for c in cyc if not np.isnan(c["rlc_model"])]
     return {"thigh_height_m": result.body.ht, "steps": len(result.plan.strikes),
-            "frames": int(result.trajectories.frame_count), "seconds": float(result.times[-1] - result.times[0]),
+            "frames": int(result.trajectories.frame_count), "walk_seconds": float(result.times[-1] - result.times[0]),
             "cycles": len(cyc), "cycle_length_error_max": max(rel) if rel else 0.0,
             "max_foot_slip_mm": 1000 * foot_slip(result, w), "max_root_deviation_cm": 100 * root_deviation(result, w),
             "min_knee_flexion_deg": float(np.degrees(min(f.min() for f in flex.values()))),
