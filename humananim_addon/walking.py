@@ -29,11 +29,13 @@ STYLE_FIELDS = ("stride", "pelvis_rotation", "pelvis_tilt", "arm_swing", "knee_f
                 "torso_lean")
 
 
-def _apply_preset(self, _context):
-    if self.preset != "CUSTOM":
-        style = PRESETS[self.preset.lower()]
-        for name in STYLE_FIELDS:
-            setattr(self, name, getattr(style, name))
+def apply_preset(props, name):
+    """Copy a preset's values into the custom style fields and switch to Custom (a plain function:
+    an update callback on the enum crashes the bpy 4.2 module at exit)."""
+    style = PRESETS[name.lower()]
+    for field_name in STYLE_FIELDS:
+        setattr(props, field_name, getattr(style, field_name))
+    props.preset = "CUSTOM"
 
 
 def _style_property(name, label, description, soft_max=3.0, unit="NONE"):
@@ -64,7 +66,7 @@ class HumanAnimWalk(bpy.types.PropertyGroup):
     segment_speeds: StringProperty(name="Segment Speeds", default="1.0",
                                    description="One speed (m/s) per segment between control points, comma-separated")
     preset: EnumProperty(name="Style", items=[(k.upper(), k.title(), f"The {k} walk") for k in PRESETS]
-                         + [("CUSTOM", "Custom", "Your own values")], default="NEUTRAL", update=_apply_preset)
+                         + [("CUSTOM", "Custom", "The values below")], default="NEUTRAL")
     stride: _style_property("stride", "Stride", "Cycle length as a multiple of the model's (1: normal)")
     pelvis_rotation: _style_property("pelvis_rotation", "Pelvis Rotation", "Pelvic turning amplitude (1: normal)")
     pelvis_tilt: _style_property("pelvis_tilt", "Pelvis Tilt", "Pelvic list and bounce amplitude (1: normal)")
@@ -100,6 +102,8 @@ register, unregister = settings_registration(CLASSES, bpy.types.Scene, "humanani
 
 
 def style_of(props):
+    if props.preset != "CUSTOM":
+        return PRESETS[props.preset.lower()]
     return Style(**{name: float(getattr(props, name)) for name in STYLE_FIELDS})
 
 

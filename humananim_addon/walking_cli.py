@@ -57,6 +57,8 @@ def cmd_walk(args):
     if args.style not in PRESETS:
         raise UsageError(f"--style: unknown style '{args.style}' (styles: {', '.join(PRESETS)})")
     props.preset = args.style.upper()
+    if args.set:
+        walking.apply_preset(props, args.style)
     for item in args.set:
         name, _, value = item.partition("=")
         if name not in walking.STYLE_FIELDS:

@@ -25,6 +25,23 @@ class HUMANANIM_OT_walk(JobOperator, bpy.types.Operator):
                 f"{s['max_foot_slip_mm']:.2f} mm at most, root within {s['max_root_deviation_cm']:.1f} cm of the path")
 
 
+class HUMANANIM_OT_customise_walk_style(bpy.types.Operator):
+    """Copy the chosen style preset into the custom style values, to edit them"""
+
+    bl_idname = "humananim.customise_walk_style"
+    bl_label = "Customise Style"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene.humananim_walk.preset != "CUSTOM"
+
+    def execute(self, context):
+        props = context.scene.humananim_walk
+        walking.apply_preset(props, props.preset)
+        return {"FINISHED"}
+
+
 class HUMANANIM_OT_add_generator(bpy.types.Operator):
     """Add a generator strip on the armature's stack: the chosen action on a scope (its bones only), with a priority"""
 
@@ -67,4 +84,4 @@ class HUMANANIM_OT_clear_generators(bpy.types.Operator):
         return run_reporting(self, work)
 
 
-CLASSES = (HUMANANIM_OT_walk, HUMANANIM_OT_add_generator, HUMANANIM_OT_clear_generators)
+CLASSES = (HUMANANIM_OT_walk, HUMANANIM_OT_customise_walk_style, HUMANANIM_OT_add_generator, HUMANANIM_OT_clear_generators)

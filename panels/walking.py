@@ -35,9 +35,13 @@ class VIEW3D_PT_humananim_walk(HumanAnimPanel, bpy.types.Panel):
         if props.ground is None:
             col.prop(props, "ground_height")
         col.separator()
-        col.prop(props, "preset")
+        row = col.row(align=True)
+        row.prop(props, "preset")
+        row.operator("humananim.customise_walk_style", text="", icon="GREASEPENCIL")
+        custom = col.column()
+        custom.enabled = props.preset == "CUSTOM"  # a preset's own values show in the summary
         for name in walking.STYLE_FIELDS:
-            col.prop(props, name)
+            custom.prop(props, name)
         layout.operator("humananim.walk", icon="MOD_DYNAMICPAINT")
         box = layout.box()
         box.label(text="Generator Stack", icon="NLA")

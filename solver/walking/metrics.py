@@ -91,7 +91,8 @@ def knee_flexion(result, w=None):
 def cycles(result, w=None):
     """Each full walking cycle of each foot between two steady footprints: measured cycle length
     (m, along the path between the balls of the foot at mid-stance) and duration (s, heel strike to heel strike),
-    the relative values RV = L / (Dc Ht), RLc = L / Ht and the model's 1.346 sqrt(RV)."""
+    the relative values RV = L / (Dc Ht), RLc = L / Ht and the model's 1.346 sqrt(RV) (times the
+    style's stride factor)."""
     pts = sole_points(result, w)
     ht = result.body.ht
     out = []
@@ -106,7 +107,8 @@ def cycles(result, w=None):
             dc = float(result.times[ib[0]] - result.times[ia[0]])
             rv = length / (dc * ht)
             out.append({"side": s, "start": float(result.times[ia[0]]), "length_m": length, "duration_s": dc,
-                        "rv": rv, "rlc": length / ht, "rlc_model": float(model.relative_cycle_length(rv))})
+                        "rv": rv, "rlc": length / ht,
+                        "rlc_model": float(result.style.stride * model.relative_cycle_length(rv))})
     return sorted(out, key=lambda c: c["start"])
 
 

@@ -70,6 +70,10 @@ def iter_walk(skeleton, path, speed=None, speed_keys=None, segment_speeds=None, 
     body = WalkerBody(skeleton)
     skeleton = body.skeleton
     if progress is None:
+        asked = [speed] if speed is not None else [v for _, v in np.reshape(speed_keys, (-1, 2))] \
+            if speed_keys is not None else list(np.ravel(segment_speeds if segment_speeds is not None else []))
+        if asked:
+            model.check_rv(max(asked) / body.ht, body.ht)  # refuse what the model can't do, however short the path
         progress = progress_from_speed(*speed_profile(path, speed, speed_keys, segment_speeds))
     steps = plan_steps(body, path, progress, style, ground, first_side, fps)
     yield 0.1

@@ -218,7 +218,11 @@ def test_operator_and_user_errors(metarig):
     assert not bpy.ops.humananim.walk.poll()
     props.path = line_object(scene, 2.0)
     props.preset = "SNEAKING"
-    assert props.knee_flexion == pytest.approx(3.5) and props.torso_lean == pytest.approx(18.0)
+    assert walking.style_of(props).knee_flexion == pytest.approx(3.5)
+    assert bpy.ops.humananim.customise_walk_style() == {"FINISHED"}
+    assert props.preset == "CUSTOM" and props.knee_flexion == pytest.approx(3.5)
+    props.torso_lean = 12.0
+    assert walking.style_of(props).torso_lean == pytest.approx(12.0)
     assert bpy.ops.humananim.walk() == {"FINISHED"}
     assert any(t.name.startswith(walking.TRACK_PREFIX) for t in metarig.animation_data.nla_tracks)
     props.ground = props.path  # a curve is no ground
@@ -228,3 +232,25 @@ def test_operator_and_user_errors(metarig):
     props.speed_mode, props.speed_keys = "KEYED", "0:fast"
     with pytest.raises(RuntimeError, match="DISTANCE:SPEED"):
         bpy.ops.humananim.walk()
+
+
+def test_speed_ramp_and_per_segment_speeds_on_a_curve(metarig):
+    scene = bpy.context.scene
+    path = line_object(scene, 14.0)
+    summary, action, result = _walk(metarig, path, speed_mode="KEYED", speed_keys="0:0.5, 2:0.5, 11:2.0, 14:2.0")
+    from humananim.solver.walking import metrics
+    cyc = metrics.cycles(result)
+    speeds = [c["rv"] * result.body.ht for c in cyc]
+    assert min(speeds) < 0.55 and max(speeds) > 1.85
+    assert all(abs(c["rlc"] / c["rlc_model"] - 1) < 0.05 for c in cyc)
+    frames, w = _evaluated(metarig, result, every=2)
+    assert _planted(result, w, frames) < 0.002
+    assert result.path.distance_to(_hip_centre(result, w)).max() < 0.03
+    # per segment: the curve's control points split the path
+    from humananim.humananim_addon.walking_cli import _curve
+    bent = _curve(scene, "Bent", [(0, 3, 0), (5, 3, 0), (9, 6, 0)])
+    summary, action, result = _walk(metarig, bent, speed_mode="SEGMENTS", segment_speeds="0.8, 1.6")
+    assert len(result.path.corners) == 3
+    fast = [c for c in metrics.cycles(result) if result.path.project(np.array([[7.0, 4.5, 0.0]]))[0] - 1.5 <
+            result.progress(c["start"]) < result.path.length - 1.5]
+    assert fast and max(c["rv"] * result.body.ht for c in fast) > 1.3
