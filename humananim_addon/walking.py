@@ -319,7 +319,10 @@ def write_walk(obj, skeleton, result, name):
         ad.action.use_fake_user = True
         ad.action = None
     action[GENERATOR_KEY] = json.dumps({"name": action.name, "scope": "all", "priority": "default",
-                                        "weight": 1.0, "start": float(traj.frames[0])})
+                                        "weight": 1.0, "start": float(traj.frames[0]), "walk": True})
+    # a new walk replaces the rig's previous one on its stack (that action stays in the file)
+    kept = [a.name for a in generator_actions(obj) if not json.loads(a[GENERATOR_KEY]).get("walk")]
+    obj[STACK_KEY] = json.dumps(kept)
     _push(obj, action)
     rebuild_stack(obj)
     return action
