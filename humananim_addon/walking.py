@@ -12,7 +12,7 @@ import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from ..solver.errors import HumanAnimError, MotionError
-from ..solver.walking import PRESETS, PRIORITIES, SCOPES, Style, metrics
+from ..solver.walking import PRESETS, SCOPES, Style, metrics
 from ..solver.walking.generators import Generator, schedule, scope_bones
 from ..solver.walking.walk import STAND
 from . import action_api, actions

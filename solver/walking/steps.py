@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import model
-from .body import UP, rot_x, rot_z
+from .body import rot_x, rot_z
 
 STEP_WIDTH = 0.6  # share of the hip width between the feet while walking (they come closer)
 

@@ -13,7 +13,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import rotations
-from ..errors import HumanAnimError
 from ..progress import run_to_end
 from ..skeleton import decompose
 from ..trajectories import Trajectories
@@ -361,11 +360,7 @@ def _pose(body, sk, pelvis, gait, feet, times, fps, frame_start, a2w):
 
 def _toe_local(foot, sk, pitch):
     """Local rotation of the toe bone pitched by `pitch` about the sole's lateral axis relative to
-    the foot (positive lifts the toe tip relative to the foot... here: keeps the toe flat while the
-    foot rolls over the ball)."""
-    foot_rot = foot.rel_foot[:3, :3]
-    toe_rot = foot.rel_toe[:3, :3]
+    the foot: while the foot rolls over the ball (heel up), this keeps the toe flat on the ground."""
     # toe world = sole R_x(p_foot + pitch) rel_toe; foot world = sole R_x(p_foot) rel_foot
     rl = sk.rest_local[foot.toe][:3, :3]
-    return (foot_rot @ rl).T @ rot_x(pitch) @ toe_rot
-
+    return (foot.rel_foot[:3, :3] @ rl).T @ rot_x(pitch) @ foot.rel_toe[:3, :3]

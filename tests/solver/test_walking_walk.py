@@ -4,7 +4,7 @@ an S curve and a speed ramp 0.5 -> 2 m/s, and on uneven ground (issue 11, proof)
 import numpy as np
 import pytest
 
-from humananim.solver.walking import metrics, model
+from humananim.solver.walking import metrics
 from humananim.solver.walking.body import KNEE_MIN
 
 from walking_cases import FPS, bumps, walked
