@@ -83,6 +83,11 @@ def test_walk_along_a_curve_object(request, rig):
         assert {fc.data_path: len(fc.keyframe_points) for fc in action_api.fcurves_of(source, obj)} == keys_before
     constraints = json.loads(action[walking.SUPPORT_KEY])
     assert len(constraints) == summary["supports"] >= 8
+    for fc in action_api.fcurves_of(action, obj):  # the support channels, frame by frame
+        if fc.data_path.startswith('["humananim_support_'):
+            side = fc.data_path[-3]
+            values = np.array([fc.evaluate(f) for f in result.frames])
+            np.testing.assert_array_equal(values > 0.5, result.support[side])
     # what Blender shows is the walk, the feet stay planted, the root follows the curve
     frames, w = _evaluated(obj, result, every=2)
     fk = result.trajectories.world_frames(result.body.skeleton)[::2]

@@ -121,3 +121,15 @@ def test_running_has_a_flight_phase_and_no_double_support():
 def test_speeds_beyond_the_model_are_refused():
     with pytest.raises(HumanAnimError, match="beyond the gait model"):
         walk(rig("cmu"), Path.from_points([[0, 0, 0], [30, 0, 0]]), speed=6.0, fps=FPS)
+
+
+def test_the_armature_object_may_stand_anywhere():
+    # the walk is in the world: a turned, moved armature object walks the same path
+    from humananim.solver import rotations
+    from walking_cases import s_curve
+    a2w = np.eye(4)
+    a2w[:3, :3] = rotations.to_matrix(rotations.from_axis_angle([1.1, 0.0, 0.0, 1.0]))
+    a2w[:3, 3] = [2.0, -1.0, 0.5]
+    r = walk(rig("metarig"), Path.from_points(s_curve(6.0)), speed=1.2, fps=FPS, armature_to_world=a2w)
+    assert metrics.foot_slip(r) < 0.002 and metrics.root_deviation(r) < 0.03 and r.reached.all()
+    assert abs(metrics.sole_points(r)["L"]["heel"][0, 2]) < 1e-6  # standing on z = 0, not on the object
