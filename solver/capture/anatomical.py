@@ -1,0 +1,172 @@
+"""The anatomical converter (Molet et al. 96, Huang 1996 §6.4.1): 6-D sensors strapped on body
+segments to joint rotations of the rig's hierarchy, after a one-pose calibration.
+
+Calibration: the performer stands in the rig's calibration pose (its rest pose unless told
+otherwise). For every sensor s on bone b the constant sensor-to-segment rotation
+O_s = (T S_s)^-1 B_b is solved, with S_s the sensor's orientation in the tracker frame, T the
+tracker-to-world rotation and B_b the bone's world orientation in that pose; the root sensor
+also fixes where the tracker's origin lies in the world, and every other sensor gets its
+offset to its bone's head in its own frame.
+
+Live: a bone with a sensor turns to T S_s(t) O_s; a bone without one keeps its calibration-pose
+rotation relative to its parent; when an arm or leg has a sensor only at its end (hand or foot),
+two-bone IK turns the upper and lower limb so the end reaches the sensor's position.
+Positions of other bones come from the rig's own bone lengths (the converter outputs joint
+rotations, so the motion fits any character of the same proportions)."""
+
+import numpy as np
+
+from .. import rotations
+from ..body_roles import SIDES, sided
+from ..errors import HumanAnimError
+
+# Ascension transmitter frame (X forward, Y right, Z down) to Z-up world: a half turn about X
+TRACKER_Z_DOWN = np.diag([1.0, -1.0, -1.0])
+LIMBS = (("upper_arm", "forearm", "hand"), ("thigh", "shin", "foot"))
+
+
+class CalibrationError(HumanAnimError):
+    pass
+
+
+def _rot(q):
+    return rotations.to_matrix(np.asarray(q, float))
+
+
+def _swing(a, b):
+    """The smallest rotation matrix taking direction a to direction b."""
+    a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
+    v, c = np.cross(a, b), float(np.dot(a, b))
+    s = np.linalg.norm(v)
+    if s < 1e-12:
+        if c > 0:
+            return np.eye(3)
+        perp = np.cross(a, [1.0, 0, 0] if abs(a[0]) < 0.9 else [0, 1.0, 0])
+        perp /= np.linalg.norm(perp)
+        return 2 * np.outer(perp, perp) - np.eye(3)
+    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + k + k @ k * ((1 - c) / s ** 2)
+
+
+class AnatomicalConverter:
+    """`attachments` maps a sensor key (device, channel) to the bone it is strapped on;
+    `root`: the key of the sensor on the root bone (its position moves the whole body)."""
+
+    def __init__(self, skeleton, attachments, tracker_rotation=TRACKER_Z_DOWN, root=None):
+        self.skeleton = skeleton
+        self.attachments = {k: skeleton.index(b) if isinstance(b, str) else int(b) for k, b in attachments.items()}
+        self.tracker = np.asarray(tracker_rotation, float)
+        self.root = root
+        if root is not None and root not in self.attachments:
+            raise CalibrationError(f"the root sensor {root} is not attached to a bone")
+        self.offsets = {}
+        self.head_offsets = {}
+        self.origin = np.zeros(3)
+        self.calib_basis = None
+        self.calibrated = False
+        self._limbs = self._ik_limbs()
+
+    def _ik_limbs(self):
+        sk, attached = self.skeleton, set(self.attachments.values())
+        out = []
+        for side in SIDES:
+            for upper, lower, end in LIMBS:
+                js = [sk.role_index(sided(r, side)) for r in (upper, lower, end)]
+                if None in js or js[2] not in attached or js[0] in attached or js[1] in attached:
+                    continue
+                if sk.parents[js[1]] != js[0] or sk.parents[js[2]] != js[1]:
+                    continue
+                out.append(tuple(js))
+        return out
+
+    def calibrate(self, readings, pose_basis=None):
+        """readings: {key: (position (3,), quaternion (4,))} in the tracker frame, taken while the
+        performer holds the calibration pose; pose_basis (J, 4, 4): that pose on the rig."""
+        sk = self.skeleton
+        missing = [k for k in self.attachments if k not in readings]
+        if missing:
+            raise CalibrationError(f"no reading from {', '.join(map(str, missing))} to calibrate")
+        basis = np.tile(np.eye(4), (sk.joint_count, 1, 1)) if pose_basis is None else np.asarray(pose_basis, float)
+        world = sk.world_frames(basis)
+        if self.root is not None:
+            pos, _ = readings[self.root]
+            self.origin = world[self.attachments[self.root], :3, 3] - self.tracker @ np.asarray(pos, float)
+        for key, j in self.attachments.items():
+            pos, quat = readings[key]
+            s_world = self.tracker @ _rot(quat)
+            self.offsets[key] = s_world.T @ world[j, :3, :3]
+            self.head_offsets[key] = s_world.T @ (world[j, :3, 3] - self.sensor_position(pos))
+        self.calib_basis = basis.copy()
+        self.calibrated = True
+
+    def sensor_position(self, pos):
+        return self.tracker @ np.asarray(pos, float) + self.origin
+
+    def bone_targets(self, readings):
+        """{joint: (world rotation, world head position)} for the bones whose sensor has a reading."""
+        out = {}
+        for key, j in self.attachments.items():
+            if key in readings:
+                pos, quat = readings[key]
+                s_world = self.tracker @ _rot(quat)
+                out[j] = (s_world @ self.offsets[key], self.sensor_position(pos) + s_world @ self.head_offsets[key])
+        return out
+
+    def solve(self, readings):
+        """Local pose bases (J, 4, 4) of the rig for the newest readings."""
+        if not self.calibrated:
+            raise CalibrationError("calibrate first: stand in the calibration pose and press Calibrate")
+        sk = self.skeleton
+        targets = self.bone_targets(readings)
+        rest_local = sk.rest_local
+        basis = self.calib_basis.copy()
+        world = np.empty((sk.joint_count, 4, 4))
+        for j, p in enumerate(sk.parents):
+            parent = np.eye(4) if p < 0 else world[p]
+            frame = parent @ rest_local[j]
+            if j in targets:
+                rot, head = targets[j]
+                basis[j, :3, :3] = frame[:3, :3].T @ rot
+                if j == sk.root and self.root is not None and self.attachments[self.root] == j:
+                    basis[j, :3, 3] = frame[:3, :3].T @ (head - frame[:3, 3])
+            world[j] = frame @ basis[j]
+        for upper, lower, end in self._limbs:
+            self._two_bone_ik(basis, world, upper, lower, end, targets[end])
+        return basis
+
+    def _two_bone_ik(self, basis, world, upper, lower, end, target):
+        sk, rest_local = self.skeleton, self.skeleton.rest_local
+        a, b, c = world[upper, :3, 3], world[lower, :3, 3], world[end, :3, 3]
+        goal = target[1]
+        l1, l2 = np.linalg.norm(b - a), np.linalg.norm(c - b)
+        d_vec = goal - a
+        d = np.clip(np.linalg.norm(d_vec), abs(l1 - l2) + 1e-6, l1 + l2 - 1e-6)
+        u = d_vec / max(np.linalg.norm(d_vec), 1e-9)
+        bend = np.cross(b - a, c - b)
+        n = bend / np.linalg.norm(bend) if np.linalg.norm(bend) > 1e-6 * l1 * l2 else world[upper, :3, 0]
+        side = np.cross(n, u)
+        side /= max(np.linalg.norm(side), 1e-9)
+        cos_a = np.clip((l1 ** 2 + d ** 2 - l2 ** 2) / (2 * l1 * d), -1, 1)
+        elbow = a + l1 * (cos_a * u + np.sqrt(1 - cos_a ** 2) * side)
+        wrist = a + d * u
+        # turn the upper limb, then the lower one, by the smallest rotations (keeps their twist)
+        for j, head, tail, new_tail in ((upper, a, b, elbow), (lower, None, c, wrist)):
+            p = sk.parents[j]
+            frame = world[p] @ rest_local[j]
+            w_rot = world[j, :3, :3]
+            head = world[j, :3, 3]
+            tail = world[sk.children(j)[0] if j == upper else end, :3, 3] if j != upper else b
+            new_rot = _swing(tail - head, new_tail - head) @ w_rot
+            basis[j, :3, :3] = frame[:3, :3].T @ new_rot
+            world[j] = frame @ basis[j]
+            self._refresh(basis, world, j)
+        # the end keeps the sensor's orientation
+        frame = world[lower] @ rest_local[end]
+        basis[end, :3, :3] = frame[:3, :3].T @ target[0]
+        world[end] = frame @ basis[end]
+        self._refresh(basis, world, end)
+
+    def _refresh(self, basis, world, j):
+        sk, rest_local = self.skeleton, self.skeleton.rest_local
+        for k in sk.descendants(j):
+            world[k] = world[sk.parents[k]] @ rest_local[k] @ basis[k]
