@@ -47,39 +47,52 @@ class GraspAutomaton:
         return "thumb" in fingers and bool(fingers & {"index", "middle", "ring", "pinky", "palm"})
 
     def correct_posture(self, basis, shapes, world_of):
-        """Scale back the flexion of fingers whose sensors sink into an object; returns the new basis."""
+        """Scale back the flexion of fingers whose sensors would sink into an object: each finger
+        closes along the glove's posture until it first touches (scan, then bisection)."""
         basis = basis.copy()
+        world = world_of(basis)
+        rest_local = self.skeleton.rest_local
         for finger, chain in self.chains.items():
             if not chain:
                 continue
             idx = [k for k, s in enumerate(self.sensors) if s.joint in chain]
-            glove = basis[chain, :3, :3].copy()
+            glove = [rotations.from_matrix(basis[j, :3, :3]) for j in chain]
+            glove = [q if q[0] >= 0 else -q for q in glove]
+            base = world[self.skeleton.parents[chain[0]]]
+            pos = {j: n for n, j in enumerate(chain)}
+            sensors = [self.sensors[k] for k in idx]
+            radii = self.radii[idx]
+
+            def pose(scale):
+                frames, parent, rots = {}, base, []
+                for n, j in enumerate(chain):
+                    q = rotations.normalize(np.array([1.0, 0, 0, 0]) * (1 - scale) + glove[n] * scale)
+                    r = rotations.to_matrix(q)
+                    b = basis[j].copy()
+                    b[:3, :3] = r
+                    rots.append(r)
+                    parent = frames[j] = parent @ rest_local[j] @ b
+                return frames, rots
 
             def depth(scale):
-                b = basis.copy()
-                for n, j in enumerate(chain):
-                    q = rotations.from_matrix(glove[n])
-                    q = rotations.normalize(np.array([1.0, 0, 0, 0]) * (1 - scale) + q * scale) \
-                        if q[0] >= 0 else rotations.normalize(np.array([-1.0, 0, 0, 0]) * (1 - scale) + q * scale)
-                    b[j, :3, :3] = rotations.to_matrix(q)
-                world = world_of(b)
-                centres = sensor_centres([self.sensors[k] for k in idx], world, self.skeleton)
-                d = max(float(np.max(self.radii[idx] - s.distance(centres))) for s in shapes) if shapes else -1.0
-                return d, b
+                frames, _ = pose(scale)
+                centres = np.array([frames[s.joint][:3, :3] @ np.array([0.0, s.along * self.skeleton.lengths[s.joint], 0])
+                                    + frames[s.joint][:3, 3] for s in sensors])
+                return max(float(np.max(radii - sh.distance(centres))) for sh in shapes)
 
-            d, _ = depth(1.0)
-            if d <= self.tolerance:
-                continue
-            lo, hi = 0.0, 1.0
-            if depth(0.0)[0] > self.tolerance:
-                continue  # the finger is inside even when straight: the hand itself is in the object
-            for _ in range(18):
+            steps = 16
+            hi = next((k / steps for k in range(0, steps + 1) if depth(k / steps) > self.tolerance), None)
+            if hi is None or hi == 0.0:
+                continue  # never touches, or inside even when straight (the hand is in the object)
+            lo = hi - 1.0 / steps
+            for _ in range(14):
                 mid = 0.5 * (lo + hi)
-                if depth(mid)[0] > 0.0:
+                if depth(mid) > 0.0:
                     hi = mid
                 else:
                     lo = mid
-            basis = depth(lo)[1]
+            for j, r in zip(chain, pose(lo)[1]):
+                basis[j, :3, :3] = r
         return basis
 
     def update(self, basis, shapes, world_of):
