@@ -7,6 +7,7 @@ import time
 import numpy as np
 
 from .. import bvh as bvh_io
+from ..units import bvh_rest_extent, guess_length_scale
 from .device import Device, DeviceError
 
 
@@ -29,9 +30,13 @@ class ReplayDevice(Device):
             if not source.lower().endswith(".bvh"):
                 raise DeviceError(f"replay plays a .bvh file or a recorded take, not '{source}'")
             try:
-                clip = bvh_io.read(source, scale=0.01)
+                with open(source) as f:
+                    text = f.read()
             except OSError as exc:
                 raise DeviceError(f"cannot read '{source}': {exc.strerror}") from None
+            # the unit guessed as the BVH import does, so the replay fits the imported rig
+            scale, _ = guess_length_scale(bvh_rest_extent(text))
+            clip = bvh_io.parse(text, scale)
             roles = bvh_io.guess_roles(clip.names)
             by_name = {}
             for role, names in roles.bones.items():

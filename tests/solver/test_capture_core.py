@@ -179,7 +179,9 @@ def test_anatomical_converter_recovers_the_pose_and_ik_fills_the_arms():
 
 
 def test_replay_of_a_bvh_at_its_own_rate_loops():
-    clip = bvh.read(CLIP, scale=0.01)
+    from humananim.solver.units import bvh_rest_extent, guess_length_scale
+    text = open(CLIP).read()
+    clip = bvh.parse(text, guess_length_scale(bvh_rest_extent(text))[0])
     dev = ReplayDevice("replay", CLIP, speed=20.0)
     dev.start()
     try:
