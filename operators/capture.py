@@ -137,15 +137,9 @@ class HUMANANIM_OT_capture_calibrate(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class HUMANANIM_OT_capture_calibrate_glove(bpy.types.Operator):
-    """Store the glove's flat hand or fist: both give each sensor's gain and offset"""
-
-    bl_idname = "humananim.capture_calibrate_glove"
-    bl_label = "Calibrate Glove"
+class _GloveCalibration:
     bl_options = {"REGISTER", "UNDO"}
-
-    pose: bpy.props.EnumProperty(items=(("FLAT", "Flat Hand", "The hand flat, fingers together"),
-                                        ("FIST", "Fist", "A closed fist")))
+    pose = "FLAT"
 
     @classmethod
     def poll(cls, context):
@@ -160,6 +154,22 @@ class HUMANANIM_OT_capture_calibrate_glove(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class HUMANANIM_OT_capture_glove_flat(_GloveCalibration, bpy.types.Operator):
+    """Store the glove's flat hand (fingers straight and together): each sensor's zero"""
+
+    bl_idname = "humananim.capture_glove_flat"
+    bl_label = "Flat Hand"
+    pose = "FLAT"
+
+
+class HUMANANIM_OT_capture_glove_fist(_GloveCalibration, bpy.types.Operator):
+    """Store the glove's fist: with the flat hand, each flexion sensor's gain"""
+
+    bl_idname = "humananim.capture_glove_fist"
+    bl_label = "Fist"
+    pose = "FIST"
+
+
 class HUMANANIM_OT_capture_add_device(bpy.types.Operator):
     """Add a capture device"""
 
@@ -167,7 +177,10 @@ class HUMANANIM_OT_capture_add_device(bpy.types.Operator):
     bl_label = "Add Device"
     bl_options = {"REGISTER", "UNDO"}
 
-    kind: bpy.props.EnumProperty(items=capture.DEVICE_KINDS)
+    kind: bpy.props.EnumProperty(name="Device", items=capture.DEVICE_KINDS)
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self)
 
     def execute(self, context):
         capture.add_device(context.scene, self.kind)
@@ -194,5 +207,6 @@ class HUMANANIM_OT_capture_remove_device(bpy.types.Operator):
 
 
 CLASSES = (HUMANANIM_OT_capture_live, HUMANANIM_OT_capture_disconnect, HUMANANIM_OT_capture_record,
-           HUMANANIM_OT_capture_calibrate, HUMANANIM_OT_capture_calibrate_glove, HUMANANIM_OT_capture_add_device,
+           HUMANANIM_OT_capture_calibrate, HUMANANIM_OT_capture_glove_flat, HUMANANIM_OT_capture_glove_fist,
+           HUMANANIM_OT_capture_add_device,
            HUMANANIM_OT_capture_remove_device)

@@ -31,10 +31,10 @@ class VIEW3D_PT_humananim_capture(HumanAnimPanel, bpy.types.Panel):
         row = layout.row()
         row.template_list("HUMANANIM_UL_capture_devices", "", s, "devices", s, "device_index", rows=2)
         col = row.column(align=True)
-        col.operator_menu_enum("humananim.capture_add_device", "kind", icon="ADD", text="")
+        col.operator("humananim.capture_add_device", icon="ADD", text="")
         col.operator("humananim.capture_remove_device", icon="REMOVE", text="")
         if 0 <= s.device_index < len(s.devices):
-            self.draw_device(layout, s.devices[s.device_index], live is None)
+            draw_device(layout, s.devices[s.device_index], live is None)
         col = layout.column()
         col.use_property_split = True
         col.prop(s, "display_rate")
@@ -57,46 +57,47 @@ class VIEW3D_PT_humananim_capture(HumanAnimPanel, bpy.types.Panel):
                 box.label(text=d["last_error"], icon="INFO")
         row = layout.row(align=True)
         row.operator("humananim.capture_calibrate", icon="ARMATURE_DATA")
-        row.operator("humananim.capture_calibrate_glove", text="Flat Hand").pose = "FLAT"
-        row.operator("humananim.capture_calibrate_glove", text="Fist").pose = "FIST"
+        row.operator("humananim.capture_glove_flat")
+        row.operator("humananim.capture_glove_fist")
         recording = live.session.recording
         layout.operator("humananim.capture_record", text="Stop Recording" if recording else "Record",
                         icon="PAUSE" if recording else "REC", depress=recording)
         for side, ga in live.grasp.items():
             layout.label(text=f"{side} hand: {ga.state.replace('_', ' ').lower()}", icon="VIEW_PAN")
 
-    @staticmethod
-    def draw_device(layout, item, editable):
-        col = layout.column()
-        col.use_property_split = True
-        col.enabled = editable
-        col.prop(item, "kind")
-        if item.kind in {"FLOCK", "CYBERGLOVE"}:
-            col.prop(item, "simulate")
-            if not item.simulate:
-                col.prop(item, "port")
-                col.prop(item, "baud")
-            col.prop(item, "mode")
-            col.prop(item, "rate")
-        if item.kind == "FLOCK":
-            col.prop(item, "birds")
-            col.prop(item, "bones")
-            col.prop(item, "record")
-            col.prop(item, "hemisphere")
-            if item.simulate:
-                col.prop(item, "extended_range")
-        elif item.kind == "CYBERGLOVE":
-            col.prop(item, "sensors")
-            col.prop(item, "hand")
-        elif item.kind == "HID_GLOVE":
-            col.prop(item, "decoder")
-            col.prop(item, "hand")
-        elif item.kind == "VMC":
-            col.prop(item, "host")
-            col.prop(item, "vmc_port")
-        elif item.kind == "REPLAY":
-            col.prop(item, "filepath")
-            col.prop(item, "rate")
+
+
+def draw_device(layout, item, editable):
+    col = layout.column()
+    col.use_property_split = True
+    col.enabled = editable
+    col.prop(item, "kind")
+    if item.kind in {"FLOCK", "CYBERGLOVE"}:
+        col.prop(item, "simulate")
+        if not item.simulate:
+            col.prop(item, "port")
+            col.prop(item, "baud")
+        col.prop(item, "mode")
+        col.prop(item, "rate")
+    if item.kind == "FLOCK":
+        col.prop(item, "birds")
+        col.prop(item, "bones")
+        col.prop(item, "record")
+        col.prop(item, "hemisphere")
+        if item.simulate:
+            col.prop(item, "extended_range")
+    elif item.kind == "CYBERGLOVE":
+        col.prop(item, "sensors")
+        col.prop(item, "hand")
+    elif item.kind == "HID_GLOVE":
+        col.prop(item, "decoder")
+        col.prop(item, "hand")
+    elif item.kind == "VMC":
+        col.prop(item, "host")
+        col.prop(item, "vmc_port")
+    elif item.kind == "REPLAY":
+        col.prop(item, "filepath")
+        col.prop(item, "rate")
 
 
 CLASSES = (HUMANANIM_UL_capture_devices, VIEW3D_PT_humananim_capture)

@@ -127,10 +127,10 @@ def test_glove_drives_the_finger_bones_and_the_hand_grasps_a_ball(metarig, live_
     sim.hold = np.full(22, 40, np.uint8)
     assert wait_for(lambda: live.session.pump() >= 0 and ("glove", "glove") in live.session.latest
                     and live.session.latest[("glove", "glove")].data["raw"][0] == 40)
-    bpy.ops.humananim.capture_calibrate_glove(pose="FLAT")
+    bpy.ops.humananim.capture_glove_flat()
     sim.hold = np.full(22, 220, np.uint8)
     assert wait_for(lambda: live.session.pump() >= 0 and live.session.latest[("glove", "glove")].data["raw"][0] == 220)
-    bpy.ops.humananim.capture_calibrate_glove(pose="FIST")
+    bpy.ops.humananim.capture_glove_fist()
     live.step(bpy.context)
     bpy.context.view_layer.update()
     world = np.array(obj.matrix_world)
@@ -167,6 +167,11 @@ def test_glove_drives_the_finger_bones_and_the_hand_grasps_a_ball(metarig, live_
     live.step(bpy.context)
     ga = live.grasp["R"]
     assert ga.state != FREE_HAND and ga.touching.any()
+    from test_panels import draw_all
+    log = draw_all(bpy.context)  # the panel shows the live session: status, calibration, record, hand state
+    assert ("operator", "humananim.capture_glove_fist") in log and ("operator", "humananim.capture_record") in log
+    assert any(kind == "label" and "hand:" in text for kind, text in log)
+    assert any(kind == "label" and "dropped" in text for kind, text in log)
     geometry = capture.overlay_geometry(live)
     assert geometry[0][0] == "LINES" and geometry[0][2] == ga.colour
     assert any(kind == "POINTS" and colour == (0.8, 0.8, 0.8, 1.0) for kind, _, colour in geometry)  # touching
