@@ -37,7 +37,8 @@ class Device:
         self.garbage_bytes = 0
         self.reconnects = 0
         self.seq = 0
-        self._times = collections.deque(maxlen=256)
+        self._times = collections.deque(maxlen=1024)
+        self._channels = set()
         self._thread = None
         self._stop = threading.Event()
         self._opened = False
@@ -99,6 +100,7 @@ class Device:
             for s in samples:
                 self.buffer.push(s)
                 self._times.append(s.time)
+                self._channels.add(s.channel)
             self.status = "disconnected" if self.silent else "resyncing" if self.resyncing else "connected"
 
     def _fault(self, exc):
@@ -120,7 +122,8 @@ class Device:
 
     # -- what the panel shows ------------------------------------------------------------
     def measured_rate(self, window=1.0):
-        """Samples per second over the last `window` seconds of received samples."""
+        """Samples per second (all channels) over the last `window` seconds of received samples;
+        the status shows it per channel (per bird)."""
         times = list(self._times)
         if len(times) < 2:
             return 0.0
@@ -135,7 +138,8 @@ class Device:
 
     def status_dict(self):
         return {"name": self.name, "kind": self.kind, "status": self.status,
-                "rate_hz": round(self.measured_rate(), 2), "samples": self.seq, "dropped": self.dropped,
+                "rate_hz": round(self.measured_rate() / max(1, len(self._channels)), 2),
+                "channels": len(self._channels), "samples": self.seq, "dropped": self.dropped,
                 "garbage_bytes": self.garbage_bytes, "reconnects": self.reconnects,
                 "last_error": self.last_error}
 
