@@ -206,6 +206,7 @@ class LiveCapture:
                 self.grasp[side] = GraspAutomaton(sk, default_hand_sensors(sk, side), side)
         self.flex_sign = {side: _flex_sign(sk, side) for side in "LR"}
         self.pose_order = np.array([obj.pose.bones.find(n) for n in sk.names])
+        self.rest_local = sk.rest_local
         self.rest_q = rotations.from_matrix(sk.rest[:, :3, :3])
         self.held = None  # (object name, automaton side) of a grasped object
         self.applied = 0
@@ -352,8 +353,17 @@ class LiveCapture:
         obj.update_tag()
 
     def _world_of(self, obj, scene):
+        """Forward kinematics to world frames with the rest frames solved once."""
         base = armature_to_world(obj, scene)
-        return lambda b: self.skeleton.world_frames(b, base)
+        parents, rest_local = self.skeleton.parents, self.rest_local
+
+        def fk(basis):
+            local = rest_local @ basis
+            world = np.empty_like(local)
+            for j, p in enumerate(parents):
+                world[j] = (base if p < 0 else world[p]) @ local[j]
+            return world
+        return fk
 
     def _grasp(self, context, obj, basis):
         scene = context.scene
@@ -417,7 +427,9 @@ class LiveCapture:
         fps = actions.scene_fps(scene)
         samples = take.merged()
         t_first = samples[0].time
-        latest, times, bases = {}, [], []
+        # until a channel's first sample in the take, hold that sample (a full pose from the start)
+        latest = {k: v[0] for k, v in take.samples.items() if v}
+        times, bases = [], []
         i = 0
         while i < len(samples):
             t = samples[i].time

@@ -64,6 +64,8 @@ class AnatomicalConverter:
         self.origin = np.zeros(3)
         self.calib_basis = None
         self.calibrated = False
+        self.rest_local = skeleton.rest_local  # a property that solves: once, not per pose
+        self._descendants = {j: skeleton.descendants(j) for j in range(skeleton.joint_count)}
         self._limbs = self._ik_limbs()
 
     def _ik_limbs(self):
@@ -118,7 +120,7 @@ class AnatomicalConverter:
             raise CalibrationError("calibrate first: stand in the calibration pose and press Calibrate")
         sk = self.skeleton
         targets = self.bone_targets(readings)
-        rest_local = sk.rest_local
+        rest_local = self.rest_local
         basis = self.calib_basis.copy()
         world = np.empty((sk.joint_count, 4, 4))
         for j, p in enumerate(sk.parents):
@@ -131,11 +133,13 @@ class AnatomicalConverter:
                     basis[j, :3, 3] = frame[:3, :3].T @ (head - frame[:3, 3])
             world[j] = frame @ basis[j]
         for upper, lower, end in self._limbs:
+            if end not in targets:
+                continue  # that sensor has not spoken yet
             self._two_bone_ik(basis, world, upper, lower, end, targets[end])
         return basis
 
     def _two_bone_ik(self, basis, world, upper, lower, end, target):
-        sk, rest_local = self.skeleton, self.skeleton.rest_local
+        sk, rest_local = self.skeleton, self.rest_local
         a, b, c = world[upper, :3, 3], world[lower, :3, 3], world[end, :3, 3]
         goal = target[1]
         l1, l2 = np.linalg.norm(b - a), np.linalg.norm(c - b)
@@ -167,6 +171,6 @@ class AnatomicalConverter:
         self._refresh(basis, world, end)
 
     def _refresh(self, basis, world, j):
-        sk, rest_local = self.skeleton, self.skeleton.rest_local
-        for k in sk.descendants(j):
+        sk, rest_local = self.skeleton, self.rest_local
+        for k in self._descendants[j]:
             world[k] = world[sk.parents[k]] @ rest_local[k] @ basis[k]

@@ -142,7 +142,8 @@ class CyberGlove(Device):
             self._write(POLL)
             data = self._ser.read(self._parser.size)
         else:
-            data = self._ser.read(max(1, self._ser.in_waiting))
+            # wait for the rest of a record, not byte by byte: one wake-up per record
+            data = self._ser.read(max(self._ser.in_waiting, self._parser.size - len(self._parser.buf), 1))
         now = time.perf_counter()
         if not data:
             if now - self._last_data > self.watchdog:

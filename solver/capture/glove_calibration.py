@@ -87,12 +87,9 @@ def joint_rotations(angles, side="R"):
         e = eulers.setdefault((finger, bone), np.zeros(3))
         k = AXES[axis]
         e[k] += -v if (k == 2 and side == "L") else v
-    out = {}
-    for key, e in eulers.items():
-        out[key] = _xyz_to_quaternion(e)
-    return out
-
-
-def _xyz_to_quaternion(e):
+    if not eulers:
+        return {}
     from .. import rotations
-    return rotations.from_euler(e, "XYZ")
+    keys = list(eulers)
+    quats = rotations.from_euler(np.array([eulers[k] for k in keys]), "XYZ")
+    return dict(zip(keys, quats))

@@ -30,6 +30,7 @@ class GraspAutomaton:
         self.touching = np.zeros(len(self.sensors), bool)
         self._apart = 0
         self.hand = skeleton.role_index(sided("hand", side))
+        self.rest_local = skeleton.rest_local
         self.chains = {f: [skeleton.index(n) for n in skeleton.roles.chain(sided(f, side))] for f in FINGERS}
 
     def _touch(self, world, shapes):
@@ -51,7 +52,7 @@ class GraspAutomaton:
         closes along the glove's posture until it first touches (scan, then bisection)."""
         basis = basis.copy()
         world = world_of(basis)
-        rest_local = self.skeleton.rest_local
+        rest_local = self.rest_local
         for finger, chain in self.chains.items():
             if not chain:
                 continue

@@ -82,7 +82,9 @@ def test_step_applies_the_newest_flock_samples_and_recording_writes_a_quaternion
     hips = [fc for fc in curves if fc.data_path == 'pose.bones["LeftWrist"].rotation_quaternion']
     assert len(hips) == 4
     times = sorted({s.time for s in take.merged()})
-    assert len(hips[0].keyframe_points) == len(times) >= 0.6 * 120 * 0.8  # every sample time is a key
+    assert len(hips[0].keyframe_points) == len(times) >= 10  # every sample time is a key
+    seqs = [s.seq for s in take.merged()]  # and the take holds every sample decoded while recording
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
     co = np.empty(2 * len(times))
     hips[0].keyframe_points.foreach_get("co", co)
     fps = scene.render.fps / scene.render.fps_base

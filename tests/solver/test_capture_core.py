@@ -258,3 +258,13 @@ def test_grasping_automaton_states_posture_correction_and_the_object_following_t
         b[0] = basis[0]
         ga.update(b, shapes, world_of)
     assert ga.state == FREE_HAND and ga.object_pose(world_of(b)) is None
+
+
+def test_converter_solves_with_some_sensors_still_silent():
+    clip, sk, traj = _cmu()
+    attach = {("fob", "bird1"): sk.roles.bone("pelvis"), ("fob", "bird2"): sk.roles.bone("hand.L")}
+    conv = AnatomicalConverter(sk, attach, root=("fob", "bird1"))
+    q = np.array([1.0, 0, 0, 0])
+    conv.calibrate({k: (np.zeros(3), q) for k in attach})
+    basis = conv.solve({("fob", "bird1"): (np.array([0.1, 0, 0]), q)})  # the hand's bird not heard yet
+    assert np.all(np.isfinite(basis))
