@@ -24,7 +24,7 @@ from ..solver.capture.glove_calibration import GloveCalibration, joint_rotations
 from ..solver.capture.grasp import SENSOR_COLOURS, GraspAutomaton
 from ..solver.capture.hand_sensors import Box, Sphere, default_hand_sensors, sensor_centres
 from ..solver.capture.replay import ReplayDevice
-from ..solver.capture.session import Session
+from ..solver.capture.session import Session, Take
 from ..solver.errors import HumanAnimError, MotionError
 from ..solver.trajectories import Trajectories
 from . import actions
@@ -76,7 +76,8 @@ class HumanAnimCaptureDevice(bpy.types.PropertyGroup):
     decoder: EnumProperty(name="Decoder", items=_decoder_items)
     host: StringProperty(name="Host", default="127.0.0.1")
     vmc_port: IntProperty(name="UDP Port", default=vmc.DEFAULT_PORT, min=0, max=65535)
-    filepath: StringProperty(name="File", subtype="FILE_PATH", description="The .bvh file to replay")
+    filepath: StringProperty(name="File", subtype="FILE_PATH",
+                             description="The .bvh file, or a take saved as .json, to replay")
 
 
 class HumanAnimCapture(bpy.types.PropertyGroup):
@@ -90,6 +91,11 @@ class HumanAnimCapture(bpy.types.PropertyGroup):
     grasp_collection: PointerProperty(name="Graspable", type=bpy.types.Collection,
                                       description="Objects the gloved hand can pick up (spheres and boxes)")
     take_name: StringProperty(name="Take", default="capture")
+    reduce_keys: BoolProperty(name="Reduce Keys", description="After recording, reduce the take's keys "
+                                                               "(one per sample) with the sequence tools' key "
+                                                               "reduction, within the tolerance below")
+    reduce_degrees: FloatProperty(name="Tolerance", default=0.5, min=0.01, max=10.0,
+                                  description="Largest rotation error of the reduced keys, degrees")
     quaternion_bones: BoolProperty(name="Quaternion Bones", default=True,
                                    description="Turn the captured rig's bones to quaternion rotation, so the "
                                                "recorded keys are quaternions (they blend in the NLA)")
@@ -151,6 +157,11 @@ def build_device(item):
         return vmc.VMCReceiver(name, host=item.host, port=item.vmc_port), None
     if item.kind == "REPLAY":
         path = bpy.path.abspath(item.filepath)
+        if path.lower().endswith(".json"):  # a take saved by Save Take
+            try:
+                return ReplayDevice(name, Take.load(path)), None
+            except (OSError, ValueError, KeyError) as exc:
+                raise HumanAnimError(f"cannot read the take '{path}': {exc}") from None
         return ReplayDevice(name, path, rate=item.rate or None), None
     raise HumanAnimError(f"unknown device kind {item.kind}")
 
@@ -214,6 +225,7 @@ class LiveCapture:
         self.step_cpu = collections.deque(maxlen=4096)
         self.record_frame = scene.frame_current
         self.overlay = None
+        self.reduction = None
         self._skeleton_maps = {}
         if settings.quaternion_bones:
             for n in sk.names:
@@ -451,7 +463,14 @@ class LiveCapture:
             raise MotionError("the take has a single pose: record longer")
         ad = obj.animation_data
         source = ad.action if ad else None
-        return actions.write_action(obj, self.skeleton, traj, take.name, source=source)
+        action = actions.write_action(obj, self.skeleton, traj, take.name, source=source)
+        settings = context.scene.humananim_capture
+        if settings.reduce_keys:
+            from . import sequence
+            sel = sequence.select_channels(obj, context.scene, action, "ALL")
+            self.reduction = sequence.compress(obj, context.scene, action, sel, degrees=settings.reduce_degrees,
+                                               centimetres=0.5, replace=True)
+        return action
 
     def status(self):
         out = self.session.status()

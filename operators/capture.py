@@ -170,6 +170,33 @@ class HUMANANIM_OT_capture_glove_fist(_GloveCalibration, bpy.types.Operator):
     pose = "FIST"
 
 
+class HUMANANIM_OT_capture_save_take(bpy.types.Operator):
+    """Save the last recorded take (every sample, with its time) as .json, to replay it later"""
+
+    bl_idname = "humananim.capture_save_take"
+    bl_label = "Save Take"
+
+    filepath: bpy.props.StringProperty(subtype="FILE_PATH")
+
+    @classmethod
+    def poll(cls, context):
+        return capture.LIVE is not None and bool(capture.LIVE.session.takes)
+
+    def invoke(self, context, event):
+        self.filepath = bpy.path.ensure_ext(capture.LIVE.session.takes[-1].name, ".json")
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def execute(self, context):
+        path = bpy.path.ensure_ext(bpy.path.abspath(self.filepath), ".json")
+        try:
+            capture.LIVE.session.takes[-1].save(path)
+        except OSError as error:
+            return _report_error(self, f"cannot write {path}: {error.strerror}")
+        self.report({"INFO"}, f"saved {path}")
+        return {"FINISHED"}
+
+
 class HUMANANIM_OT_capture_add_device(bpy.types.Operator):
     """Add a capture device"""
 
@@ -208,5 +235,5 @@ class HUMANANIM_OT_capture_remove_device(bpy.types.Operator):
 
 CLASSES = (HUMANANIM_OT_capture_live, HUMANANIM_OT_capture_disconnect, HUMANANIM_OT_capture_record,
            HUMANANIM_OT_capture_calibrate, HUMANANIM_OT_capture_glove_flat, HUMANANIM_OT_capture_glove_fist,
-           HUMANANIM_OT_capture_add_device,
+           HUMANANIM_OT_capture_save_take, HUMANANIM_OT_capture_add_device,
            HUMANANIM_OT_capture_remove_device)

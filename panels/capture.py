@@ -42,6 +42,9 @@ class VIEW3D_PT_humananim_capture(HumanAnimPanel, bpy.types.Panel):
         col.prop(s, "grasp_collection")
         col.prop(s, "take_name")
         col.prop(s, "quaternion_bones")
+        col.prop(s, "reduce_keys")
+        if s.reduce_keys:
+            col.prop(s, "reduce_degrees")
         if live is None:
             layout.operator("humananim.capture_live", text="Connect", icon="PLAY")
             return
@@ -62,6 +65,7 @@ class VIEW3D_PT_humananim_capture(HumanAnimPanel, bpy.types.Panel):
         recording = live.session.recording
         layout.operator("humananim.capture_record", text="Stop Recording" if recording else "Record",
                         icon="PAUSE" if recording else "REC", depress=recording)
+        layout.operator("humananim.capture_save_take", icon="FILE_TICK")
         for side, ga in live.grasp.items():
             layout.label(text=f"{side} hand: {ga.state.replace('_', ' ').lower()}", icon="VIEW_PAN")
 

@@ -223,3 +223,31 @@ def test_a_missing_bone_and_no_device_are_clear_errors(cmu_rig, live_cleanup):
     with pytest.raises(RuntimeError, match="no bone named 'NoSuchBone'"):
         bpy.ops.humananim.capture_live()
     assert capture.LIVE is None
+
+
+def test_reduced_take_saved_and_replayed(cmu_rig, live_cleanup, tmp_path):
+    obj, scene = cmu_rig, bpy.context.scene
+    _fob(scene, CMU_BONES[:2])
+    scene.humananim_capture.reduce_keys = True
+    bpy.ops.humananim.capture_live()
+    live = capture.LIVE
+    assert wait_for(lambda: live.session.pump() >= 0 and len(live.session.pose_readings()) == 2)
+    live.calibrate()
+    live.start_recording(scene)
+    assert wait_for(lambda: live.session.take.count() > 120)
+    action, take = live.stop_recording(bpy.context)
+    curves = fcurves_of(action, obj)
+    keys = max(len(fc.keyframe_points) for fc in curves)
+    assert live.reduction["keys_after"] < live.reduction["keys_before"] and keys < len({s.time for s in take.merged()})
+    assert live.reduction["max_error_deg"] <= 0.5 + 1e-6
+    path = tmp_path / "take.json"
+    assert "FINISHED" in bpy.ops.humananim.capture_save_take(filepath=str(path))
+    capture.disconnect()
+    # the saved take as a replay device: the same samples come back through a session
+    scene.humananim_capture.devices.clear()
+    capture.add_device(scene, "REPLAY", name="again", filepath=str(path))
+    bpy.ops.humananim.capture_live()
+    live = capture.LIVE
+    assert wait_for(lambda: live.session.pump() >= 0 and live.session.device("again").seq >= take.count() // 2)
+    first = live.session.device("again")
+    assert first.kind == "replay" and first.last_error == ""
