@@ -44,8 +44,6 @@ POSE_KINDS = {"FLOCK"}
 GLOVE_KINDS = {"CYBERGLOVE", "HID_GLOVE"}
 
 
-def _decoder_items(_self, _context):
-    return [(name, name, f"USB HID glove report decoder '{name}'") for name in sorted(hidglove.DECODERS)]
 
 
 class HumanAnimCaptureDevice(bpy.types.PropertyGroup):
@@ -73,7 +71,11 @@ class HumanAnimCaptureDevice(bpy.types.PropertyGroup):
     sensors: EnumProperty(name="Model", items=(("18", "18 Sensors", "CyberGlove with 18 sensors"),
                                                ("22", "22 Sensors", "CyberGlove with 22 sensors")))
     hand: EnumProperty(name="Hand", items=(("R", "Right", "Right hand"), ("L", "Left", "Left hand")))
-    decoder: EnumProperty(name="Decoder", items=_decoder_items)
+    # a name, not an enum: decoders are plug-ins registered at run time (and a dynamic enum's
+    # items callback crashes the bpy 4.2 module at exit)
+    decoder: StringProperty(name="Decoder", default="5dt_ultra_14",
+                            description="The report decoder: " + ", ".join(sorted(hidglove.DECODERS))
+                                        + " or one registered with hidglove.register_decoder")
     host: StringProperty(name="Host", default="127.0.0.1")
     vmc_port: IntProperty(name="UDP Port", default=vmc.DEFAULT_PORT, min=0, max=65535)
     filepath: StringProperty(name="File", subtype="FILE_PATH",
