@@ -436,20 +436,17 @@ class LiveCapture:
         return self.write_take(context, take), take
 
     def take_trajectories(self, scene, take):
-        """The take's poses at every sample time (samples at the same instant make one pose)."""
+        """The take's poses at every sample time (samples within 1 ms make one pose: Take.poses)."""
         obj = bpy.data.objects[self.obj_name]
         fps = actions.scene_fps(scene)
-        samples = take.merged()
-        t_first = samples[0].time
+        poses = take.poses()
+        t_first = poses[0][0]
         # until a channel's first sample in the take, hold that sample (a full pose from the start)
         latest = {k: v[0] for k, v in take.samples.items() if v}
         times, bases = [], []
-        i = 0
-        while i < len(samples):
-            t = samples[i].time
-            while i < len(samples) and samples[i].time == t:
-                latest[(samples[i].device, samples[i].channel)] = samples[i]
-                i += 1
+        for t, group in poses:
+            for s in group:
+                latest[(s.device, s.channel)] = s
             times.append(t)
             bases.append(self.solve(latest))
         bases = np.array(bases)

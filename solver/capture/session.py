@@ -39,6 +39,18 @@ class Take:
         """All samples in time order."""
         return sorted((s for v in self.samples.values() for s in v), key=lambda s: (s.time, s.seq))
 
+    def poses(self, merge=0.001):
+        """The samples grouped into poses: samples closer than `merge` seconds to a group's first
+        (the birds of one group-mode record, read a moment apart) make one pose.
+        Returns [(time, [samples])]."""
+        out = []
+        for s in self.merged():
+            if out and s.time - out[-1][0] < merge:
+                out[-1][1].append(s)
+            else:
+                out.append((s.time, [s]))
+        return out
+
     @property
     def duration(self):
         times = [s.time for v in self.samples.values() for s in v]
