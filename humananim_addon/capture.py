@@ -208,6 +208,7 @@ class LiveCapture:
             raise
         self.session = Session(devices)
         self.session.gestures.enabled = settings.gestures
+        self.session.take_name = settings.take_name
         self.converter = AnatomicalConverter(sk, self.attach, root=root_key) if self.attach else None
         self.session.converter = self.converter
         for name, (dev, _, layout) in self.gloves.items():
@@ -228,6 +229,9 @@ class LiveCapture:
         self.record_frame = scene.frame_current
         self.overlay = None
         self.reduction = None
+        self._take_seen = None
+        self._takes_written = 0
+        self.gesture_actions = []
         self._skeleton_maps = {}
         if settings.quaternion_bones:
             for n in sk.names:
@@ -332,6 +336,7 @@ class LiveCapture:
         if obj is None:
             raise HumanAnimError(f"the captured armature '{self.obj_name}' is gone")
         self.session.pump()
+        self._gesture_takes(context)
         newest = self.session.newest()
         if not newest:
             return False
@@ -346,6 +351,18 @@ class LiveCapture:
         self.applied += 1
         self.step_cpu.append((time.thread_time() - c0, now - t0))
         return True
+
+    def _gesture_takes(self, context):
+        """Recording started or stopped by a glove gesture (in the pump thread): the take starts at
+        the current frame, and a finished take becomes an action here, on the main thread."""
+        take = self.session.take if self.session.recording else None
+        if take is not None and take is not self._take_seen:
+            self._take_seen = take
+            self.record_frame = context.scene.frame_current
+        for take in self.session.takes[self._takes_written:]:
+            self._takes_written += 1
+            if take.count():
+                self.gesture_actions.append(self.write_take(context, take))
 
     def _write_pose(self, obj, basis):
         sk = self.skeleton
@@ -426,11 +443,12 @@ class LiveCapture:
 
     def start_recording(self, scene):
         self.record_frame = scene.frame_current
-        self.session.start_recording(scene.humananim_capture.take_name)
+        self._take_seen = self.session.start_recording(scene.humananim_capture.take_name)
 
     def stop_recording(self, context):
         """The take as a new action on the rig (None when nothing was recorded)."""
         take = self.session.stop_recording()
+        self._takes_written = len(self.session.takes)  # written here, not again by the step
         if take is None or take.count() == 0:
             return None, take
         return self.write_take(context, take), take

@@ -110,6 +110,7 @@ class Session:
         self.gestures = GestureRecognizer()
         self.converter = None  # an AnatomicalConverter to recalibrate on the fist gesture
         self.calibration_pose = None
+        self.take_name = "take"  # the name of takes started by a gesture
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._thread = None
@@ -170,7 +171,7 @@ class Session:
             return
         self.events.append((s.time, command))
         if command == "start_recording" and not self.recording:
-            self.start_recording()
+            self.start_recording(self.take_name)
         elif command == "stop_recording" and self.recording:
             self.stop_recording()
         elif command == "recalibrate" and self.converter is not None:

@@ -301,3 +301,40 @@ def test_a_secure_grasp_carries_the_object_with_the_hand(metarig, live_cleanup):
     bpy.context.view_layer.update()
     live.step(bpy.context)
     assert ga.state == FREE_HAND and np.allclose(np.array(ball.matrix_world), after, atol=1e-6)
+
+
+def test_glove_gestures_record_a_take_that_becomes_an_action(metarig, live_cleanup):
+    from humananim.solver.capture.cyberglove import SENSORS_18
+    obj, scene = metarig, bpy.context.scene
+    capture.add_device(scene, "CYBERGLOVE", name="glove", simulate=True, rate=100.0, sensors="18", hand="L")
+    scene.humananim_capture.take_name = "gestured"
+    bpy.ops.humananim.capture_live()
+    live = capture.LIVE
+    sim = live.sims[0]
+    flat, fist = np.full(18, 40, np.uint8), np.full(18, 220, np.uint8)
+
+    def posture(extended):
+        raw = fist.copy()
+        for i, (finger, _, axis) in enumerate(SENSORS_18):
+            if axis != "flex" or finger in extended or finger == "thumb":
+                raw[i] = 40
+        return raw
+
+    def hold(raw):
+        sim.hold = raw
+        assert wait_for(lambda: live.step(bpy.context) is not None and ("glove", "glove") in live.session.latest
+                        and np.array_equal(live.session.latest[("glove", "glove")].data["raw"], raw.astype(float)))
+
+    hold(flat)
+    bpy.ops.humananim.capture_glove_flat()
+    hold(fist)
+    bpy.ops.humananim.capture_glove_fist()
+    hold(flat)
+    assert wait_for(lambda: live.step(bpy.context) is not None and live.session.gestures.posture == "neutral")
+    hold(posture({"index"}))  # pointing: start recording
+    assert wait_for(lambda: live.step(bpy.context) is not None and live.session.recording)
+    hold(posture({"index", "middle"}))  # the V: stop
+    assert wait_for(lambda: live.step(bpy.context) is not None and live.gesture_actions)
+    action = live.gesture_actions[0]
+    assert action.name.startswith("gestured") and obj.animation_data.action == action
+    assert [c for _, c in live.session.events][-3:] == ["neutral", "start_recording", "stop_recording"]
