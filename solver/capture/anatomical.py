@@ -154,13 +154,11 @@ class AnatomicalConverter:
         elbow = a + l1 * (cos_a * u + np.sqrt(1 - cos_a ** 2) * side)
         wrist = a + d * u
         # turn the upper limb, then the lower one, by the smallest rotations (keeps their twist)
-        for j, head, tail, new_tail in ((upper, a, b, elbow), (lower, None, c, wrist)):
-            p = sk.parents[j]
-            frame = world[p] @ rest_local[j]
-            w_rot = world[j, :3, :3]
+        for j, new_tail in ((upper, elbow), (lower, wrist)):
+            frame = world[sk.parents[j]] @ rest_local[j]
             head = world[j, :3, 3]
-            tail = world[sk.children(j)[0] if j == upper else end, :3, 3] if j != upper else b
-            new_rot = _swing(tail - head, new_tail - head) @ w_rot
+            tail = world[lower if j == upper else end, :3, 3]
+            new_rot = _swing(tail - head, new_tail - head) @ world[j, :3, :3]
             basis[j, :3, :3] = frame[:3, :3].T @ new_rot
             world[j] = frame @ basis[j]
             self._refresh(basis, world, j)

@@ -423,7 +423,9 @@ class FlockSimulator(PtySimulator):
 
     @property
     def range_inches(self):
-        return RANGES_INCHES["EXTENDED" if self.extended_range else "STANDARD"]
+        if self.extended_range:
+            return RANGES_INCHES["EXTENDED"]
+        return RANGES_INCHES["STANDARD_72" if self.scaling else "STANDARD"]
 
     def on_power_up(self):
         self.streaming = False

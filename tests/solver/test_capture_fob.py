@@ -85,6 +85,21 @@ def test_standalone_bird_in_point_mode_and_extended_range():
             _check(s, sim, "POSITION/ANGLES", 1, first + k)
 
 
+def test_the_72_inch_scaling_is_read_from_the_flock():
+    with fob.FlockSimulator(birds=(1,), rate=100) as sim:
+        sim.scaling = 1  # set earlier with CHANGE VALUE 3, kept by the flock
+        dev = fob.FlockOfBirds("fob", sim.port, record="POSITION/ANGLES", settle=0.02)
+        dev.start()
+        try:
+            samples = collect(dev, 10)
+        finally:
+            dev.stop()
+        assert dev.range_inches == 72.0
+        first = _tick_of(sim, "POSITION/ANGLES", 1, samples[0].data["position"], range(10))
+        for k, s in enumerate(samples):
+            _check(s, sim, "POSITION/ANGLES", 1, first + k)
+
+
 def test_group_mode_reads_several_birds_on_one_port_through_fbb_addressing():
     birds = (1, 2, 3)
     with fob.FlockSimulator(birds=birds, rate=100) as sim:
