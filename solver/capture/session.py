@@ -39,16 +39,48 @@ class Take:
         """All samples in time order."""
         return sorted((s for v in self.samples.values() for s in v), key=lambda s: (s.time, s.seq))
 
-    def poses(self, merge=0.001):
-        """The samples grouped into poses: samples closer than `merge` seconds to a group's first
-        (the birds of one group-mode record, read a moment apart) make one pose.
-        Returns [(time, [samples])]."""
-        out = []
-        for s in self.merged():
-            if out and s.time - out[-1][0] < merge:
-                out[-1][1].append(s)
+    def device_ticks(self, device):
+        """A device's samples as ticks (one sample per channel: the birds of one group-mode record)
+        with their times, bursts spread out: records that arrived in one read (a loaded machine
+        reads a few at once) share a decoding time, so they are placed evenly between the previous
+        read and theirs, as the device sent them. Returns [(time, [samples])]."""
+        samples = sorted((s for (d, _), v in self.samples.items() if d == device for s in v), key=lambda s: s.seq)
+        ticks = []
+        for s in samples:
+            if not ticks or any(x.channel == s.channel for x in ticks[-1]):
+                ticks.append([s])
             else:
-                out.append((s.time, [s]))
+                ticks[-1].append(s)
+        t = np.array([max(x.time for x in tick) for tick in ticks])
+        out = t.copy()
+        i = 0
+        while i < len(t):
+            j = i
+            while j + 1 < len(t) and t[j + 1] - t[i] < 1e-4:
+                j += 1
+            if j > i and i > 0:
+                out[i:j + 1] = t[i - 1] + (t[i] - t[i - 1]) * np.arange(1, j - i + 2) / (j - i + 1)
+            elif j > i:  # a burst first in the take: back from its time at the device's usual period
+                steps = np.diff(np.unique(t))
+                period = float(np.median(steps)) if len(steps) else 1e-3
+                out[:j + 1] = t[j] - period * np.arange(j, -1, -1)
+            i = j + 1
+        return list(zip(out, ticks))
+
+    def poses(self, merge=0.001):
+        """Poses in time order: every tick of every device, with ticks of different devices closer
+        than `merge` seconds made one pose. Returns [(time, [samples])]."""
+        ticks = []
+        for device in sorted({d for d, _ in self.samples}):
+            ticks.extend(self.device_ticks(device))
+        ticks.sort(key=lambda x: (x[0], x[1][0].seq))
+        out = []
+        for t, group in ticks:
+            keys = {(s.device, s.channel) for s in group}
+            if out and t - out[-1][0] < merge and not keys & {(s.device, s.channel) for s in out[-1][1]}:
+                out[-1][1].extend(group)
+            else:
+                out.append((t, list(group)))
         return out
 
     @property

@@ -268,3 +268,24 @@ def test_converter_solves_with_some_sensors_still_silent():
     conv.calibrate({k: (np.zeros(3), q) for k in attach})
     basis = conv.solve({("fob", "bird1"): (np.array([0.1, 0, 0]), q)})  # the hand's bird not heard yet
     assert np.all(np.isfinite(basis))
+
+
+def test_a_take_spreads_bursts_and_keeps_one_pose_per_record():
+    take = Take()
+    dev = fob.FlockOfBirds("fob", "/nonexistent", birds=(1, 2))
+    # bird records of ticks 0..5; ticks 2-4 arrived in one read (same decoding time)
+    arrival = [0.0, 0.01, 0.04, 0.04, 0.04, 0.05]
+    for k, t in enumerate(arrival):
+        for b in (1, 2):  # bird 2 of tick 1 comes in the next read, with tick 2
+            take.add(dev.make_sample(f"bird{b}", "pose", {"tick": k}, t=0.04 if (k, b) == (1, 2) else t))
+    ticks = take.device_ticks("fob")
+    assert np.allclose([t for t, _ in ticks], [0.0, 0.01, 0.02, 0.03, 0.04, 0.05])  # as sent, 100 Hz
+    poses = take.poses()
+    assert len(poses) == 6  # one pose per tick: both birds in it, no tick merged into another
+    assert all(sorted(s.channel for s in group) == ["bird1", "bird2"] for _, group in poses)
+    assert [group[0].data["tick"] for _, group in poses] == list(range(6))
+    # a burst first in the take goes back at the device's period
+    take = Take()
+    for k, t in enumerate([0.02, 0.02, 0.02, 0.03, 0.04]):
+        take.add(dev.make_sample("bird1", "pose", {}, t=t))
+    assert np.allclose([t for t, _ in take.device_ticks("fob")], [0.0, 0.01, 0.02, 0.03, 0.04])
