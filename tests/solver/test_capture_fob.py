@@ -182,3 +182,21 @@ def test_garbage_and_partial_records_resync_without_losing_later_samples():
         after = [t for t in ticks if t >= cut]
         assert after[: 30] == list(range(cut, cut + 30))  # every record after the garbage arrived
 
+
+
+def test_status_shows_resyncing_while_only_garbage_arrives_then_connected():
+    with fob.FlockSimulator(birds=(1,), rate=100) as sim:
+        dev = fob.FlockOfBirds("fob", sim.port, settle=0.02, watchdog=5.0)
+        dev.start()
+        try:
+            assert wait_for(lambda: dev.status == "connected" and dev.seq > 5)
+            with sim._lock:
+                sim.streaming = False
+                sim.send(bytes(range(1, 100, 3)) + bytes([0x85, 0x01, 0x02]))  # noise and half a record
+            assert wait_for(lambda: dev.status == "resyncing")
+            with sim._lock:
+                sim.streaming = True
+            n = dev.seq
+            assert wait_for(lambda: dev.status == "connected" and dev.seq > n + 5)
+        finally:
+            dev.stop()
