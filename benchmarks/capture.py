@@ -79,7 +79,6 @@ def run(seconds):
                            record="POSITION/QUATERNION")
         capture.add_device(scene, "CYBERGLOVE", name="glove", port=ports["glove"], sensors="22", hand="R")
         live = capture.connect(obj, scene)
-        devices = {d.name: d for d in live.session.devices}
         end = time.perf_counter() + 10
         while len(live.session.pose_readings()) < 2 and time.perf_counter() < end:
             live.session.pump()

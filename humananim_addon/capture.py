@@ -19,7 +19,6 @@ from ..solver import rotations
 from ..solver.body_roles import FINGERS, sided
 from ..solver.capture import cyberglove, fob, hidglove, vmc
 from ..solver.capture.anatomical import AnatomicalConverter, CalibrationError
-from ..solver.capture.device import DeviceError
 from ..solver.capture.glove_calibration import GloveCalibration, joint_rotations
 from ..solver.capture.grasp import SENSOR_COLOURS, GraspAutomaton
 from ..solver.capture.hand_sensors import Box, Sphere, default_hand_sensors, sensor_centres

@@ -60,7 +60,6 @@ class GraspAutomaton:
             glove = [rotations.from_matrix(basis[j, :3, :3]) for j in chain]
             glove = [q if q[0] >= 0 else -q for q in glove]
             base = world[self.skeleton.parents[chain[0]]]
-            pos = {j: n for n, j in enumerate(chain)}
             sensors = [self.sensors[k] for k in idx]
             radii = self.radii[idx]
 

@@ -1,7 +1,6 @@
 """A replay device for demos: a BVH file or a recorded take played back at its own rate,
 looping, through the same ring buffer and session as a live device."""
 
-import threading
 import time
 
 import numpy as np
@@ -12,8 +11,8 @@ from .device import Device, DeviceError
 
 
 class ReplayDevice(Device):
-    """`source`: a .bvh path or a session.Take; `rate`: frames per second (default: the BVH's
-    own, or the take's own timing); `speed` scales playback."""
+    """`source`: a .bvh path or a session.Take; `rate`: a BVH's frames per second (default: the
+    file's own; a take keeps its recorded timing); `speed` scales playback."""
 
     kind = "replay"
 
@@ -54,10 +53,11 @@ class ReplayDevice(Device):
         samples = source.merged()
         if not samples:
             raise DeviceError("the take is empty")
+        # a take plays at its own timing (`speed` scales it); it loops after one mean interval
         t0 = samples[0].time
-        scale = 1.0 if rate is None else 1.0
-        self.period = (samples[-1].time - t0) * scale + (1.0 / rate if rate else 1e-3)
-        return [((s.time - t0) * scale, s.kind, dict(s.data, channel=s.channel)) for s in samples]
+        gap = (samples[-1].time - t0) / max(1, len(samples) - 1)
+        self.period = samples[-1].time - t0 + gap
+        return [(s.time - t0, s.kind, dict(s.data, channel=s.channel)) for s in samples]
 
     def _open(self):
         self._t0 = time.perf_counter()

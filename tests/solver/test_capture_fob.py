@@ -5,8 +5,6 @@ import pytest
 
 from humananim.solver import rotations
 from humananim.solver.capture import fob
-from humananim.solver.capture.device import DeviceError
-from humananim.solver.capture.session import Session
 from capture_helpers import collect, wait_for
 
 pytest.importorskip("serial")
