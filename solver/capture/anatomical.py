@@ -8,9 +8,10 @@ tracker-to-world rotation and B_b the bone's world orientation in that pose; the
 also fixes where the tracker's origin lies in the world, and every other sensor gets its
 offset to its bone's head in its own frame.
 
-Live: a bone with a sensor turns to T S_s(t) O_s; a bone without one keeps its calibration-pose
-rotation relative to its parent; when an arm or leg has a sensor only at its end (hand or foot),
-two-bone IK turns the upper and lower limb so the end reaches the sensor's position.
+Live: a bone with a sensor turns to T S_s(t) O_s; the bones without a sensor between it and the
+next sensor above share its turn (a spine bends along its length, not at one joint); when an arm
+or leg has a sensor only at its end (hand or foot), two-bone IK turns the upper and lower limb so
+the end reaches the sensor's position; other bones keep their calibration-pose rotation.
 Positions of other bones come from the rig's own bone lengths (the converter outputs joint
 rotations, so the motion fits any character of the same proportions)."""
 
@@ -72,6 +73,7 @@ class AnatomicalConverter:
         self.rest_local = skeleton.rest_local  # a property that solves: once, not per pose
         self._descendants = {j: skeleton.descendants(j) for j in range(skeleton.joint_count)}
         self._limbs = self._ik_limbs()
+        self._chains = self._sensorless_chains()
 
     def _ik_limbs(self):
         sk, attached = self.skeleton, set(self.attachments.values())
@@ -137,11 +139,51 @@ class AnatomicalConverter:
                 if j == sk.root and self.root is not None and self.attachments[self.root] == j:
                     basis[j, :3, 3] = frame[:3, :3].T @ (head - frame[:3, 3])
             world[j] = frame @ basis[j]
+        for j, path in self._chains.items():
+            if j in targets:
+                self._share_along_chain(basis, world, j, path, targets[j][0])
         for upper, lower, end in self._limbs:
             if end not in targets:
                 continue  # that sensor has not spoken yet
             self._two_bone_ik(basis, world, upper, lower, end, targets[end])
         return basis
+
+    def _sensorless_chains(self):
+        """{sensor bone: the bones without sensor between it and the nearest sensor bone above}
+        (top-down), for bones whose limb the IK does not already fill (e.g. the spine between
+        the pelvis and the chest)."""
+        sk, attached = self.skeleton, set(self.attachments.values())
+        ik_ends = {end for _, _, end in self._limbs}
+        out = {}
+        for j in attached - ik_ends:
+            path, a = [], sk.parents[j]
+            while a >= 0 and a not in attached:
+                path.append(a)
+                a = sk.parents[a]
+            if path and a >= 0:
+                out[j] = path[::-1]
+        return out
+
+    def _share_along_chain(self, basis, world, j, path, target_rot):
+        """The sensor bone's turn relative to its calibration pose, shared evenly by the bones
+        above it without sensors (their joints bend together, like a spine), so it is not all
+        taken at one joint."""
+        sk, rest_local = self.skeleton, self.rest_local
+        frame = world[sk.parents[j]] @ rest_local[j]
+        calib = frame[:3, :3] @ self.calib_basis[j, :3, :3]
+        axis_angle = rotations.to_axis_angle(rotations.from_matrix(target_rot @ calib.T))
+        n = len(path) + 1
+        for b in path:
+            turn = rotations.to_matrix(rotations.from_axis_angle(np.r_[axis_angle[0] / n, axis_angle[1:]]))
+            frame_b = world[sk.parents[b]] @ rest_local[b]
+            new_rot = turn @ world[b, :3, :3]
+            basis[b, :3, :3] = frame_b[:3, :3].T @ new_rot
+            world[b] = frame_b @ basis[b]
+            self._refresh(basis, world, b)
+        frame = world[sk.parents[j]] @ rest_local[j]
+        basis[j, :3, :3] = frame[:3, :3].T @ target_rot
+        world[j] = frame @ basis[j]
+        self._refresh(basis, world, j)
 
     def _two_bone_ik(self, basis, world, upper, lower, end, target):
         sk, rest_local = self.skeleton, self.rest_local

@@ -289,3 +289,25 @@ def test_a_take_spreads_bursts_and_keeps_one_pose_per_record():
     for k, t in enumerate([0.02, 0.02, 0.02, 0.03, 0.04]):
         take.add(dev.make_sample("bird1", "pose", {}, t=t))
     assert np.allclose([t for t, _ in take.device_ticks("fob")], [0.0, 0.01, 0.02, 0.03, 0.04])
+
+
+def test_the_spine_without_sensors_shares_the_chest_sensor_turn():
+    clip, sk, traj = _cmu()
+    attach = {("fob", "bird1"): "Hips", ("fob", "bird2"): "Chest2"}
+    idx = {k: sk.index(b) for k, b in attach.items()}
+    conv = AnatomicalConverter(sk, attach, root=("fob", "bird1"))
+    rest_world = sk.world_frames(np.tile(np.eye(4), (sk.joint_count, 1, 1)))
+    offsets = {k: np.eye(3) for k in attach}
+    heads = {k: np.zeros(3) for k in attach}
+    conv.calibrate(_readings(sk, rest_world, idx, offsets, heads, np.zeros(3)))
+    assert conv._chains[sk.index("Chest2")] == [sk.index("lowerback"), sk.index("Chest")]
+    # the chest bends 60 degrees forward about the world X axis, the pelvis stays
+    target = rest_world.copy()
+    turn = rotations.to_matrix(rotations.axis_rotation(0, np.radians(60)))
+    target[sk.index("Chest2"), :3, :3] = turn @ rest_world[sk.index("Chest2"), :3, :3]
+    basis = conv.solve(_readings(sk, target, idx, offsets, heads, np.zeros(3)))
+    world = sk.world_frames(basis)
+    assert np.allclose(world[sk.index("Chest2"), :3, :3], target[sk.index("Chest2"), :3, :3], atol=1e-9)
+    for name in ("lowerback", "Chest", "Chest2"):  # 20 degrees at each of the three joints
+        local = rotations.from_matrix(basis[sk.index(name), :3, :3])
+        assert np.degrees(rotations.angle_between(local, np.array([1.0, 0, 0, 0]))) == pytest.approx(20.0, abs=1e-6)
