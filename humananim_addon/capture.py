@@ -47,6 +47,9 @@ GLOVE_KINDS = {"CYBERGLOVE", "HID_GLOVE"}
 
 class HumanAnimCaptureDevice(bpy.types.PropertyGroup):
     name: StringProperty(name="Name", default="device")
+    use: BoolProperty(name="Use", default=True,
+                      description="Open this device when connecting (off: only its bone mapping is used, e.g. "
+                                  "by a replayed take of it)")
     kind: EnumProperty(name="Device", items=DEVICE_KINDS)
     simulate: BoolProperty(name="Simulate", description="No hardware: run the device's simulator on a "
                                                         "pseudo-terminal and read it through the real driver")
@@ -167,10 +170,13 @@ def build_device(item):
     raise HumanAnimError(f"unknown device kind {item.kind}")
 
 
-def glove_layout(dev):
-    if isinstance(dev, cyberglove.CyberGlove):
-        return cyberglove.LAYOUTS[dev.sensors]
-    return dev.decoder.layout
+def glove_layout(item):
+    if item.kind == "CYBERGLOVE":
+        return cyberglove.LAYOUTS[int(item.sensors)]
+    if item.decoder not in hidglove.DECODERS:
+        raise HumanAnimError(f"{item.name}: no HID glove decoder '{item.decoder}' (known: "
+                             f"{', '.join(sorted(hidglove.DECODERS))})")
+    return hidglove.DECODERS[item.decoder].layout
 
 
 # -- the live session ---------------------------------------------------------------------------------
@@ -184,23 +190,28 @@ class LiveCapture:
         root_key = None
         try:
             for item in settings.devices:
-                dev, sim = build_device(item)
-                devices.append(dev)
-                if sim is not None:
-                    self.sims.append(sim.start())
-                if item.kind == "FLOCK":
-                    names = [b.strip() for b in item.bones.split(",")]
-                    for bird, bone in zip(dev.birds, names):
+                name = item.name or item.kind.lower()
+                if item.kind == "FLOCK":  # even a device not in use: a replayed take of it drives the rig
+                    birds = _ints(item.birds, f"{name}: Birds")
+                    for bird, bone in zip(birds, [b.strip() for b in item.bones.split(",")]):
                         if not bone:
                             continue
                         if sk.find(bone) is None:
-                            raise HumanAnimError(f"{dev.name}: no bone named '{bone}' in '{obj.name}'")
-                        key = (dev.name, f"bird{bird}")
+                            raise HumanAnimError(f"{name}: no bone named '{bone}' in '{obj.name}'")
+                        key = (name, f"bird{bird}")
                         self.attach[key] = bone
                         if sk.index(bone) == sk.root and root_key is None:
                             root_key = key
                 if item.kind in GLOVE_KINDS:
-                    self.gloves[dev.name] = (dev, item.hand, glove_layout(dev))
+                    self.gloves[name] = (item.hand, glove_layout(item))
+                if not item.use:
+                    continue
+                dev, sim = build_device(item)
+                devices.append(dev)
+                if sim is not None:
+                    self.sims.append(sim.start())
+            if not devices:
+                raise HumanAnimError("no device is in use")
         except Exception:
             for sim in self.sims:
                 sim.stop()
@@ -210,11 +221,11 @@ class LiveCapture:
         self.session.take_name = settings.take_name
         self.converter = AnatomicalConverter(sk, self.attach, root=root_key) if self.attach else None
         self.session.converter = self.converter
-        for name, (dev, _, layout) in self.gloves.items():
+        for name, (_, layout) in self.gloves.items():
             self.session.glove_calibrations[name] = GloveCalibration.nominal(layout)
         self.glove_poses = {}
         self.grasp = {}
-        for name, (_, side, _) in self.gloves.items():
+        for name, (side, _) in self.gloves.items():
             if sk.role_index(sided("hand", side)) is not None and any(sk.roles.chain(sided(f, side)) for f in FINGERS):
                 self.grasp[side] = GraspAutomaton(sk, default_hand_sensors(sk, side), side)
         self.flex_sign = {side: _flex_sign(sk, side) for side in "LR"}
@@ -309,7 +320,7 @@ class LiveCapture:
 
     def _apply_glove(self, basis, s):
         sk = self.skeleton
-        dev, side, _ = self.gloves[s.device]
+        side, _ = self.gloves[s.device]
         angles = self.session.glove_calibrations[s.device].angles(s.data["raw"])
         sign = self.flex_sign[side]
         angles = {k: (v * sign if k[2] == "flex" else v) for k, v in angles.items()}
@@ -425,7 +436,7 @@ class LiveCapture:
         self.session.pump()
         newest = self.session.newest()
         done = []
-        for name, (dev, _, layout) in self.gloves.items():
+        for name, (_, layout) in self.gloves.items():
             s = newest.get((name, "glove"))
             if s is None:
                 raise CalibrationError(f"{name}: no glove record yet")

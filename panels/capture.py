@@ -12,6 +12,7 @@ STATUS_ICONS = {"connected": "CHECKMARK", "resyncing": "FILE_REFRESH", "disconne
 class HUMANANIM_UL_capture_devices(bpy.types.UIList):
     def draw_item(self, _context, layout, _data, item, _icon, _active, _prop):
         row = layout.row(align=True)
+        row.prop(item, "use", text="")
         row.prop(item, "name", text="", emboss=False)
         row.label(text=item.kind.replace("_", " ").title() + (" (simulated)" if item.simulate else ""))
 

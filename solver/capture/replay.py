@@ -57,7 +57,9 @@ class ReplayDevice(Device):
         t0 = samples[0].time
         gap = (samples[-1].time - t0) / max(1, len(samples) - 1)
         self.period = samples[-1].time - t0 + gap
-        return [(s.time - t0, s.kind, dict(s.data, channel=s.channel)) for s in samples]
+        # the samples come back as their devices sent them (same device and channel names), so
+        # the rig maps them as it mapped the live devices
+        return [(s.time - t0, s.kind, dict(s.data, channel=s.channel, device=s.device)) for s in samples]
 
     def _open(self):
         self._t0 = time.perf_counter()
@@ -78,8 +80,9 @@ class ReplayDevice(Device):
             t, kind, data = self._frames[i]
             if t + loops * self.period > elapsed:
                 break
-            channel = data.get("channel", "skeleton") if kind != "skeleton" or "channel" in data else "skeleton"
-            out.append(self.make_sample(channel, kind, data, now))
+            sample = self.make_sample(data.get("channel", "skeleton"), kind, data, now)
+            sample.device = data.get("device", self.name)
+            out.append(sample)
             self._index += 1
         if not out:
             loops, i = divmod(self._index, len(self._frames))

@@ -244,14 +244,26 @@ def test_reduced_take_saved_and_replayed(cmu_rig, live_cleanup, tmp_path):
     path = tmp_path / "take.json"
     assert "FINISHED" in bpy.ops.humananim.capture_save_take(filepath=str(path))
     capture.disconnect()
-    # the saved take as a replay device: the same samples come back through a session
-    scene.humananim_capture.devices.clear()
+    # the saved take as a replay device: the same samples come back through a session and, with
+    # the Flock of Birds kept for its bone mapping but not in use, drive the rig as they did
+    scene.humananim_capture.devices[0].use = False
     capture.add_device(scene, "REPLAY", name="again", filepath=str(path))
     bpy.ops.humananim.capture_live()
     live = capture.LIVE
-    assert wait_for(lambda: live.session.pump() >= 0 and live.session.device("again").seq >= take.count() // 2)
-    first = live.session.device("again")
-    assert first.kind == "replay" and first.last_error == ""
+    assert [d.name for d in live.session.devices] == ["again"]
+    assert wait_for(lambda: live.session.pump() >= 0 and len(live.session.pose_readings()) == 2)
+    live.calibrate()
+    assert wait_for(lambda: live.session.device("again").seq >= take.count() // 2)
+    assert live.step(bpy.context)
+    newest = live.last_applied
+    assert set(newest) == {("fob", "bird1"), ("fob", "bird2")}
+    sent = {(s.device, s.channel, tuple(s.data["position"])) for s in take.merged()}
+    assert all((k[0], k[1], tuple(s.data["position"])) in sent for k, s in newest.items())
+    expected = live.converter.solve({k: (s.data["position"], s.data["quaternion"]) for k, s in newest.items()})
+    sk = live.skeleton
+    got = _pose_quats(obj, sk.names)
+    want = rotations.from_matrix(expected[:, :3, :3])
+    assert np.all(np.abs(np.abs(np.sum(got * want, axis=1)) - 1.0) < 1e-5)
 
 
 def test_a_secure_grasp_carries_the_object_with_the_hand(metarig, live_cleanup):
