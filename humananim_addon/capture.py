@@ -170,6 +170,11 @@ def build_device(item):
     raise HumanAnimError(f"unknown device kind {item.kind}")
 
 
+def glove_resolution(item):
+    """One step of the glove's raw values."""
+    return 1.0 if item.kind == "CYBERGLOVE" else hidglove.DECODERS[item.decoder].resolution
+
+
 def glove_layout(item):
     if item.kind == "CYBERGLOVE":
         return cyberglove.LAYOUTS[int(item.sensors)]
@@ -187,6 +192,7 @@ class LiveCapture:
         self.obj_name = obj.name
         self.skeleton = sk = skeleton_from_armature(obj, scene, require=False)
         self.sims, devices, self.attach, self.gloves = [], [], {}, {}
+        self.glove_resolution = {}
         root_key = None
         try:
             for item in settings.devices:
@@ -204,6 +210,7 @@ class LiveCapture:
                             root_key = key
                 if item.kind in GLOVE_KINDS:
                     self.gloves[name] = (item.hand, glove_layout(item))
+                    self.glove_resolution[name] = glove_resolution(item)
                 if not item.use:
                     continue
                 dev, sim = build_device(item)
@@ -443,8 +450,8 @@ class LiveCapture:
             poses = self.glove_poses.setdefault(name, {})
             poses[pose] = np.array(s.data["raw"], float)
             if "FLAT" in poses and "FIST" in poses:
-                self.session.glove_calibrations[name] = GloveCalibration.from_poses(layout, poses["FLAT"],
-                                                                                    poses["FIST"])
+                self.session.glove_calibrations[name] = GloveCalibration.from_poses(
+                    layout, poses["FLAT"], poses["FIST"], self.glove_resolution[name])
                 done.append(name)
             elif "FLAT" in poses:
                 cal = self.session.glove_calibrations[name]

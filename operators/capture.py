@@ -63,6 +63,7 @@ class HUMANANIM_OT_capture_live(bpy.types.Operator):
         return {"PASS_THROUGH"}
 
     def _end(self, context, action):
+        capture.disable_overlay()
         if self._timer is not None:
             context.window_manager.event_timer_remove(self._timer)
             self._timer = None

@@ -38,7 +38,9 @@ class GloveCalibration:
         return cls(tuple(layout), offsets, np.full(n, np.radians(NOMINAL_GAIN_DEG)))
 
     @classmethod
-    def from_poses(cls, layout, flat, fist):
+    def from_poses(cls, layout, flat, fist, resolution=1.0):
+        """`resolution`: one step of the glove's raw values (1 count for the CyberGlove's bytes,
+        1/4096 for the 5DT's 12-bit values); a flexion sensor must move by more than two."""
         flat, fist = np.asarray(flat, float), np.asarray(fist, float)
         if flat.shape != (len(layout),) or fist.shape != flat.shape:
             raise DeviceError(f"calibration poses need {len(layout)} sensor values each")
@@ -48,7 +50,7 @@ class GloveCalibration:
             if target is None:
                 continue
             span = fist[i] - flat[i]
-            if abs(span) < 1.0:
+            if abs(span) <= 2 * resolution:
                 raise DeviceError(f"sensor {i} ({finger} {bone} {axis}) hardly changed between the flat hand "
                                   "and the fist: hold each pose and calibrate again")
             cal.gains[i] = np.radians(target) / span

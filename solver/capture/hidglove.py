@@ -24,6 +24,7 @@ class ReportDecoder:
     vendor_id = None
     product_ids = ()
     layout = ()
+    resolution = 0.0  # one step of the decoded values
 
     def decode(self, report):
         raise NotImplementedError
@@ -52,6 +53,7 @@ LAYOUT_5DT_5 = (("thumb", 1, "flex"), ("index", 0, "flex"), ("middle", 0, "flex"
 
 class FiveDTUltra(ReportDecoder):
     vendor_id = 0x5D70
+    resolution = 1.0 / 4096.0
 
     def __init__(self, sensors=14):
         if sensors not in (5, 14):

@@ -370,3 +370,18 @@ def test_a_replayed_bvh_puts_the_joints_where_the_file_says(cmu_rig, live_cleanu
     world = np.array(obj.matrix_world)
     got = np.array([(world @ np.array(obj.pose.bones[n].head.to_4d()))[:3] for n in clip.names])
     assert np.abs(got - want).max() < 1e-4
+
+
+def test_a_usb_glove_that_is_not_there_shows_why_in_the_status(metarig, live_cleanup):
+    scene = bpy.context.scene
+    capture.add_device(scene, "HID_GLOVE", name="usb", hand="L")
+    bpy.ops.humananim.capture_live()
+    live = capture.LIVE
+    dev = live.session.device("usb")
+    assert wait_for(lambda: dev.status == "disconnected" and dev.last_error)
+    assert "hidapi is not installed" in dev.last_error or "no USB glove" in dev.last_error
+    assert "usb" in live.gloves and live.grasp  # its hand is ready for when it is plugged in
+    capture.add_device(scene, "HID_GLOVE", name="other", decoder="nope")
+    capture.disconnect()
+    with pytest.raises(RuntimeError, match="no HID glove decoder 'nope'"):
+        bpy.ops.humananim.capture_live()

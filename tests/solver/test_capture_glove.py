@@ -120,6 +120,16 @@ def test_5dt_ultra_reports_decode_through_the_plugin():
         hidglove.DECODERS["5dt_ultra_14"].decode(report[:20])
 
 
+def test_5dt_glove_calibrates_on_its_own_scale():
+    dec = hidglove.DECODERS["5dt_ultra_14"]
+    flat, fist = np.full(14, 0.2), np.full(14, 0.8)
+    cal = GloveCalibration.from_poses(dec.layout, flat, fist, dec.resolution)
+    a = cal.angles(dec.decode(hidglove.FiveDTUltra.encode(fist)))
+    assert a[("index", 1, "flex")] == pytest.approx(math.radians(FIST_DEGREES[("index", 1)]), abs=1e-3)
+    with pytest.raises(DeviceError, match="hardly changed"):
+        GloveCalibration.from_poses(dec.layout, flat, flat + 1 / 4096, dec.resolution)
+
+
 def test_a_new_glove_is_a_new_decoder_not_a_new_driver(monkeypatch):
     class Toy(hidglove.ReportDecoder):
         name, vendor_id, product_ids = "toy", 0x1234, (0x1,)
