@@ -12,7 +12,8 @@ import shutil
 import tempfile
 import threading
 import time
-import tty
+
+from .device import DeviceError
 
 
 class PtySimulator:
@@ -38,6 +39,10 @@ class PtySimulator:
 
     # -- the line ------------------------------------------------------------------------
     def _plug(self):
+        if not hasattr(os, "openpty"):
+            raise DeviceError("the device simulators need a pseudo-terminal (Linux or macOS); on Windows "
+                              "use a real port or a null-modem pair (com0com)")
+        import tty  # POSIX only: imported here so the drivers still load on Windows
         master, slave = os.openpty()
         tty.setraw(slave)  # no echo, no CR/LF translation, ^C is a byte, not a signal
         os.set_blocking(master, False)
