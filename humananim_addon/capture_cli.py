@@ -1,5 +1,101 @@
-"""Live capture (issue 10): batch commands (being built)."""
+"""Batch live capture: `python -m humananim capture rig.blend --flock sim --bones Hips,Chest --seconds 5`.
+
+Runs the same session as the Live Capture panel without a window: devices (real ports or their
+simulators), calibration in the rig's rest pose, recording for a while with the display step at
+the display rate, then the take as a new action in the saved .blend."""
+
+import os
+import time
+
+from .cli import UsageError
 
 
 def add_commands(sub, add_common_options):
-    return {}
+    c = sub.add_parser("capture", help="record a take from capture devices (or their simulators) into a new "
+                                       "action")
+    c.add_argument("file", help="a .blend or .bvh file with the armature")
+    c.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
+    c.add_argument("--flock", metavar="PORT", help="a Flock of Birds on PORT, or 'sim' for its simulator")
+    c.add_argument("--birds", default="1", help="FBB addresses of the birds (default 1)")
+    c.add_argument("--bones", default="", help="the bone each bird is strapped on, in the order of --birds")
+    c.add_argument("--record", default="POSITION/QUATERNION", help="Flock of Birds record format")
+    c.add_argument("--glove", metavar="PORT", help="a CyberGlove on PORT, or 'sim' for its simulator")
+    c.add_argument("--glove-sensors", choices=("18", "22"), default="18")
+    c.add_argument("--hand", choices=("L", "R"), default="R")
+    c.add_argument("--vmc", type=int, metavar="UDP_PORT", help="listen for VMC on 127.0.0.1:UDP_PORT")
+    c.add_argument("--replay", metavar="BVH", help="replay a BVH file as a device")
+    c.add_argument("--rate", type=float, default=100.0, help="simulators' samples per second (default 100)")
+    c.add_argument("--seconds", type=float, default=3.0, help="how long to record (default 3)")
+    c.add_argument("--display-rate", type=float, default=60.0, help="display steps per second (default 60)")
+    c.add_argument("--out", default=os.path.join("out", "capture.blend"), help="the .blend to write")
+    add_common_options(c)
+    return {"capture": cmd_capture}
+
+
+def cmd_capture(args):
+    import bpy
+    import numpy as np
+    from . import capture
+    from .cli import _load
+    t0 = time.perf_counter()
+    if not (args.flock or args.glove or args.vmc is not None or args.replay):
+        raise UsageError("give at least one device: --flock, --glove, --vmc or --replay")
+    if args.seconds <= 0:
+        raise UsageError("--seconds must be positive")
+    obj, scene, unit = _load(args.file, args.armature, args.scale)
+    bpy.context.view_layer.objects.active = obj
+    settings = scene.humananim_capture
+    settings.devices.clear()
+    if args.flock:
+        capture.add_device(scene, "FLOCK", name="fob", simulate=args.flock == "sim", port=args.flock,
+                           rate=args.rate, birds=args.birds, bones=args.bones, record=args.record)
+    if args.glove:
+        capture.add_device(scene, "CYBERGLOVE", name="glove", simulate=args.glove == "sim", port=args.glove,
+                           rate=args.rate, sensors=args.glove_sensors, hand=args.hand)
+    if args.vmc is not None:
+        capture.add_device(scene, "VMC", name="vmc", vmc_port=args.vmc)
+    if args.replay:
+        if not os.path.isfile(args.replay):
+            raise UsageError(f"--replay: no such file: {args.replay}")
+        capture.add_device(scene, "REPLAY", name="replay", filepath=os.path.abspath(args.replay), rate=0.0)
+    live = capture.connect(obj, scene)
+    try:
+        deadline = time.perf_counter() + 10.0
+        while not all(d.seq for d in live.session.devices if d.kind != "vmc") and time.perf_counter() < deadline:
+            live.session.pump()
+            time.sleep(0.01)
+        if live.attach:
+            live.calibrate()  # the performer starts in the rig's rest pose
+        live.start_recording(scene)
+        period, end = 1.0 / args.display_rate, time.perf_counter() + args.seconds
+        steps = 0
+        while time.perf_counter() < end:
+            live.step(bpy.context)
+            steps += 1
+            time.sleep(period)
+        action, take = live.stop_recording(bpy.context)
+        status = live.status()
+        latency = float(np.median(live.latency)) if live.latency else None
+    finally:
+        capture.disconnect()
+    if action is None:
+        raise UsageError("nothing was recorded: no device sent data")
+    out = os.path.abspath(args.out)
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=out)
+    samples = {f"{d}/{c}": take.count((d, c)) for d, c in take.keys}
+    summary = {"command": "capture", "file": os.path.abspath(args.file), "armature": obj.name,
+               "action": action.name, "samples": samples, "take_seconds": round(take.duration, 3),
+               "display_steps": steps, "devices": status,
+               "dropped": sum(d["dropped"] for d in status),
+               "median_latency_ms": None if latency is None else round(1000 * latency, 3),
+               "wrote": [out], "seconds": round(time.perf_counter() - t0, 3)}
+    if unit:
+        summary["bvh_unit"] = unit
+    lines = [f"capture: '{obj.name}' recorded {sum(samples.values())} samples in {take.duration:.2f} s "
+             f"into '{action.name}' ({summary['dropped']} dropped)"]
+    lines += [f"  {d['name']}: {d['status']}, {d['rate_hz']:.0f} Hz, {d['samples']} samples"
+              + (f", {d['last_error']}" if d["last_error"] else "") for d in status]
+    lines += [f"  wrote {out}", f"  took {summary['seconds']:.2f} s"]
+    summary["summary"] = "\n".join(lines)
+    return summary

@@ -1,3 +1,108 @@
-"""Live capture (issue 10): sidebar panel (being built)."""
+"""The Live Capture panel: devices, connection and status per device, calibration, recording."""
 
-CLASSES = ()
+import bpy
+
+from ..humananim_addon import capture
+from .rig import HumanAnimPanel
+
+STATUS_ICONS = {"connected": "CHECKMARK", "resyncing": "FILE_REFRESH", "disconnected": "ERROR",
+                "connecting": "TIME", "stopped": "PAUSE"}
+
+
+class HUMANANIM_UL_capture_devices(bpy.types.UIList):
+    def draw_item(self, _context, layout, _data, item, _icon, _active, _prop):
+        row = layout.row(align=True)
+        row.prop(item, "use", text="")
+        row.prop(item, "name", text="", emboss=False)
+        row.label(text=item.kind.replace("_", " ").title() + (" (simulated)" if item.simulate else ""))
+
+
+class VIEW3D_PT_humananim_capture(HumanAnimPanel, bpy.types.Panel):
+    bl_label = "Live Capture"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return HumanAnimPanel.poll(context) or capture.LIVE is not None
+
+    def draw(self, context):
+        s = context.scene.humananim_capture
+        layout = self.layout
+        live = capture.LIVE
+        row = layout.row()
+        row.template_list("HUMANANIM_UL_capture_devices", "", s, "devices", s, "device_index", rows=2)
+        col = row.column(align=True)
+        col.operator("humananim.capture_add_device", icon="ADD", text="")
+        col.operator("humananim.capture_remove_device", icon="REMOVE", text="")
+        if 0 <= s.device_index < len(s.devices):
+            draw_device(layout, s.devices[s.device_index], live is None)
+        col = layout.column()
+        col.use_property_split = True
+        col.prop(s, "display_rate")
+        col.prop(s, "gestures")
+        col.prop(s, "grasp_collection")
+        col.prop(s, "take_name")
+        col.prop(s, "quaternion_bones")
+        col.prop(s, "reduce_keys")
+        if s.reduce_keys:
+            col.prop(s, "reduce_degrees")
+        if live is None:
+            layout.operator("humananim.capture_live", text="Connect", icon="PLAY")
+            return
+        layout.operator("humananim.capture_disconnect", text="Disconnect", icon="CANCEL")
+        box = layout.box()
+        for d in live.status():
+            r = box.row()
+            r.label(text=d["name"], icon=STATUS_ICONS.get(d["status"], "QUESTION"))
+            r.label(text=d["status"])
+            r = box.row()
+            r.label(text=f"{d['rate_hz']:.0f} Hz, {d['samples']} samples, {d['dropped']} dropped")
+            if d["last_error"]:
+                box.label(text=d["last_error"], icon="INFO")
+        row = layout.row(align=True)
+        row.operator("humananim.capture_calibrate", icon="ARMATURE_DATA")
+        row.operator("humananim.capture_glove_flat")
+        row.operator("humananim.capture_glove_fist")
+        recording = live.session.recording
+        layout.operator("humananim.capture_record", text="Stop Recording" if recording else "Record",
+                        icon="PAUSE" if recording else "REC", depress=recording)
+        layout.operator("humananim.capture_save_take", icon="FILE_TICK")
+        for side, ga in live.grasp.items():
+            layout.label(text=f"{side} hand: {ga.state.replace('_', ' ').lower()}", icon="VIEW_PAN")
+
+
+
+def draw_device(layout, item, editable):
+    col = layout.column()
+    col.use_property_split = True
+    col.enabled = editable
+    col.prop(item, "kind")
+    if item.kind in {"FLOCK", "CYBERGLOVE"}:
+        col.prop(item, "simulate")
+        if not item.simulate:
+            col.prop(item, "port")
+            col.prop(item, "baud")
+        col.prop(item, "mode")
+        col.prop(item, "rate")
+    if item.kind == "FLOCK":
+        col.prop(item, "birds")
+        col.prop(item, "bones")
+        col.prop(item, "record")
+        col.prop(item, "hemisphere")
+        if item.simulate:
+            col.prop(item, "extended_range")
+    elif item.kind == "CYBERGLOVE":
+        col.prop(item, "sensors")
+        col.prop(item, "hand")
+    elif item.kind == "HID_GLOVE":
+        col.prop(item, "decoder")
+        col.prop(item, "hand")
+    elif item.kind == "VMC":
+        col.prop(item, "host")
+        col.prop(item, "vmc_port")
+    elif item.kind == "REPLAY":
+        col.prop(item, "filepath")
+        col.prop(item, "rate")
+
+
+CLASSES = (HUMANANIM_UL_capture_devices, VIEW3D_PT_humananim_capture)

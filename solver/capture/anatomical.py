@@ -1,0 +1,221 @@
+"""The anatomical converter (Molet et al. 96, Huang 1996 §6.4.1): 6-D sensors strapped on body
+segments to joint rotations of the rig's hierarchy, after a one-pose calibration.
+
+Calibration: the performer stands in the rig's calibration pose (its rest pose unless told
+otherwise). For every sensor s on bone b the constant sensor-to-segment rotation
+O_s = (T S_s)^-1 B_b is solved, with S_s the sensor's orientation in the tracker frame, T the
+tracker-to-world rotation and B_b the bone's world orientation in that pose; the root sensor
+also fixes where the tracker's origin lies in the world, and every other sensor gets its
+offset to its bone's head in its own frame.
+
+Live: a bone with a sensor turns to T S_s(t) O_s; the bones without a sensor between it and the
+next sensor above share its turn (a spine bends along its length, not at one joint); when an arm
+or leg has a sensor only at its end (hand or foot), two-bone IK turns the upper and lower limb so
+the end reaches the sensor's position; other bones keep their calibration-pose rotation.
+Positions of other bones come from the rig's own bone lengths (the converter outputs joint
+rotations, so the motion fits any character of the same proportions)."""
+
+import numpy as np
+
+from .. import rotations
+from ..body_roles import SIDES, sided
+from ..errors import HumanAnimError
+
+# Ascension transmitter frame (X forward, Y right, Z down) to Z-up world: a half turn about X
+TRACKER_Z_DOWN = np.diag([1.0, -1.0, -1.0])
+LIMBS = (("upper_arm", "forearm", "hand"), ("thigh", "shin", "foot"))
+
+
+class CalibrationError(HumanAnimError):
+    pass
+
+
+def _rot(q):
+    return rotations.to_matrix(np.asarray(q, float))
+
+
+def _cross(a, b):
+    # np.cross costs ~20 us on 3-vectors; this is a few
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _swing(a, b):
+    """The smallest rotation matrix taking direction a to direction b."""
+    a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
+    v, c = _cross(a, b), float(np.dot(a, b))
+    s = np.linalg.norm(v)
+    if s < 1e-12:
+        if c > 0:
+            return np.eye(3)
+        perp = _cross(a, [1.0, 0, 0] if abs(a[0]) < 0.9 else [0, 1.0, 0])
+        perp /= np.linalg.norm(perp)
+        return 2 * np.outer(perp, perp) - np.eye(3)
+    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + k + k @ k * ((1 - c) / s ** 2)
+
+
+class AnatomicalConverter:
+    """`attachments` maps a sensor key (device, channel) to the bone it is strapped on;
+    `root`: the key of the sensor on the root bone (its position moves the whole body)."""
+
+    def __init__(self, skeleton, attachments, tracker_rotation=TRACKER_Z_DOWN, root=None):
+        self.skeleton = skeleton
+        self.attachments = {k: skeleton.index(b) if isinstance(b, str) else int(b) for k, b in attachments.items()}
+        self.tracker = np.asarray(tracker_rotation, float)
+        self.root = root
+        if root is not None and root not in self.attachments:
+            raise CalibrationError(f"the root sensor {root} is not attached to a bone")
+        self.offsets = {}
+        self.head_offsets = {}
+        self.origin = np.zeros(3)
+        self.calib_basis = None
+        self.calibrated = False
+        self.rest_local = skeleton.rest_local  # a property that solves: once, not per pose
+        self._descendants = {j: skeleton.descendants(j) for j in range(skeleton.joint_count)}
+        self._limbs = self._ik_limbs()
+        self._chains = self._sensorless_chains()
+
+    def _ik_limbs(self):
+        sk, attached = self.skeleton, set(self.attachments.values())
+        out = []
+        for side in SIDES:
+            for upper, lower, end in LIMBS:
+                js = [sk.role_index(sided(r, side)) for r in (upper, lower, end)]
+                if None in js or js[2] not in attached or js[0] in attached or js[1] in attached:
+                    continue
+                if sk.parents[js[1]] != js[0] or sk.parents[js[2]] != js[1]:
+                    continue
+                out.append(tuple(js))
+        return out
+
+    def calibrate(self, readings, pose_basis=None):
+        """readings: {key: (position (3,), quaternion (4,))} in the tracker frame, taken while the
+        performer holds the calibration pose; pose_basis (J, 4, 4): that pose on the rig."""
+        sk = self.skeleton
+        missing = [k for k in self.attachments if k not in readings]
+        if missing:
+            raise CalibrationError(f"no reading from {', '.join(map(str, missing))} to calibrate")
+        basis = np.tile(np.eye(4), (sk.joint_count, 1, 1)) if pose_basis is None else np.asarray(pose_basis, float)
+        world = sk.world_frames(basis)
+        if self.root is not None:
+            pos, _ = readings[self.root]
+            self.origin = world[self.attachments[self.root], :3, 3] - self.tracker @ np.asarray(pos, float)
+        for key, j in self.attachments.items():
+            pos, quat = readings[key]
+            s_world = self.tracker @ _rot(quat)
+            self.offsets[key] = s_world.T @ world[j, :3, :3]
+            self.head_offsets[key] = s_world.T @ (world[j, :3, 3] - self.sensor_position(pos))
+        self.calib_basis = basis.copy()
+        self.calibrated = True
+
+    def sensor_position(self, pos):
+        return self.tracker @ np.asarray(pos, float) + self.origin
+
+    def bone_targets(self, readings):
+        """{joint: (world rotation, world head position)} for the bones whose sensor has a reading."""
+        out = {}
+        for key, j in self.attachments.items():
+            if key in readings:
+                pos, quat = readings[key]
+                s_world = self.tracker @ _rot(quat)
+                out[j] = (s_world @ self.offsets[key], self.sensor_position(pos) + s_world @ self.head_offsets[key])
+        return out
+
+    def solve(self, readings):
+        """Local pose bases (J, 4, 4) of the rig for the newest readings."""
+        if not self.calibrated:
+            raise CalibrationError("calibrate first: stand in the calibration pose and press Calibrate")
+        sk = self.skeleton
+        targets = self.bone_targets(readings)
+        rest_local = self.rest_local
+        basis = self.calib_basis.copy()
+        world = np.empty((sk.joint_count, 4, 4))
+        for j, p in enumerate(sk.parents):
+            parent = np.eye(4) if p < 0 else world[p]
+            frame = parent @ rest_local[j]
+            if j in targets:
+                rot, head = targets[j]
+                basis[j, :3, :3] = frame[:3, :3].T @ rot
+                if j == sk.root and self.root is not None and self.attachments[self.root] == j:
+                    basis[j, :3, 3] = frame[:3, :3].T @ (head - frame[:3, 3])
+            world[j] = frame @ basis[j]
+        for j, path in self._chains.items():
+            if j in targets:
+                self._share_along_chain(basis, world, j, path, targets[j][0])
+        for upper, lower, end in self._limbs:
+            if end not in targets:
+                continue  # that sensor has not spoken yet
+            self._two_bone_ik(basis, world, upper, lower, end, targets[end])
+        return basis
+
+    def _sensorless_chains(self):
+        """{sensor bone: the bones without sensor between it and the nearest sensor bone above}
+        (top-down), for bones whose limb the IK does not already fill (e.g. the spine between
+        the pelvis and the chest)."""
+        sk, attached = self.skeleton, set(self.attachments.values())
+        ik_ends = {end for _, _, end in self._limbs}
+        out = {}
+        for j in attached - ik_ends:
+            path, a = [], sk.parents[j]
+            while a >= 0 and a not in attached:
+                path.append(a)
+                a = sk.parents[a]
+            if path and a >= 0:
+                out[j] = path[::-1]
+        return out
+
+    def _share_along_chain(self, basis, world, j, path, target_rot):
+        """The sensor bone's turn relative to its calibration pose, shared evenly by the bones
+        above it without sensors (their joints bend together, like a spine), so it is not all
+        taken at one joint."""
+        sk, rest_local = self.skeleton, self.rest_local
+        frame = world[sk.parents[j]] @ rest_local[j]
+        calib = frame[:3, :3] @ self.calib_basis[j, :3, :3]
+        axis_angle = rotations.to_axis_angle(rotations.from_matrix(target_rot @ calib.T))
+        n = len(path) + 1
+        for b in path:
+            turn = rotations.to_matrix(rotations.from_axis_angle(np.r_[axis_angle[0] / n, axis_angle[1:]]))
+            frame_b = world[sk.parents[b]] @ rest_local[b]
+            new_rot = turn @ world[b, :3, :3]
+            basis[b, :3, :3] = frame_b[:3, :3].T @ new_rot
+            world[b] = frame_b @ basis[b]
+            self._refresh(basis, world, b)
+        frame = world[sk.parents[j]] @ rest_local[j]
+        basis[j, :3, :3] = frame[:3, :3].T @ target_rot
+        world[j] = frame @ basis[j]
+        self._refresh(basis, world, j)
+
+    def _two_bone_ik(self, basis, world, upper, lower, end, target):
+        sk, rest_local = self.skeleton, self.rest_local
+        a, b, c = world[upper, :3, 3], world[lower, :3, 3], world[end, :3, 3]
+        goal = target[1]
+        l1, l2 = np.linalg.norm(b - a), np.linalg.norm(c - b)
+        d_vec = goal - a
+        d = np.clip(np.linalg.norm(d_vec), abs(l1 - l2) + 1e-6, l1 + l2 - 1e-6)
+        u = d_vec / max(np.linalg.norm(d_vec), 1e-9)
+        bend = _cross(b - a, c - b)
+        n = bend / np.linalg.norm(bend) if np.linalg.norm(bend) > 1e-6 * l1 * l2 else world[upper, :3, 0]
+        side = _cross(n, u)
+        side /= max(np.linalg.norm(side), 1e-9)
+        cos_a = np.clip((l1 ** 2 + d ** 2 - l2 ** 2) / (2 * l1 * d), -1, 1)
+        elbow = a + l1 * (cos_a * u + np.sqrt(1 - cos_a ** 2) * side)
+        wrist = a + d * u
+        # turn the upper limb, then the lower one, by the smallest rotations (keeps their twist)
+        for j, new_tail in ((upper, elbow), (lower, wrist)):
+            frame = world[sk.parents[j]] @ rest_local[j]
+            head = world[j, :3, 3]
+            tail = world[lower if j == upper else end, :3, 3]
+            new_rot = _swing(tail - head, new_tail - head) @ world[j, :3, :3]
+            basis[j, :3, :3] = frame[:3, :3].T @ new_rot
+            world[j] = frame @ basis[j]
+            self._refresh(basis, world, j)
+        # the end keeps the sensor's orientation
+        frame = world[lower] @ rest_local[end]
+        basis[end, :3, :3] = frame[:3, :3].T @ target[0]
+        world[end] = frame @ basis[end]
+        self._refresh(basis, world, end)
+
+    def _refresh(self, basis, world, j):
+        sk, rest_local = self.skeleton, self.rest_local
+        for k in self._descendants[j]:
+            world[k] = world[sk.parents[k]] @ rest_local[k] @ basis[k]
