@@ -40,7 +40,7 @@ DISPLAY = 60.0
 
 SIM_SCRIPT = r"""
 import json, sys, time
-from humananim.solver.capture import cyberglove, fob
+from humananim.humananim_addon.devices import cyberglove, fob
 f = fob.FlockSimulator(birds=(1, 2), rate=%(rate)r).start()
 g = cyberglove.CyberGloveSimulator(sensors=22, rate=%(rate)r).start()
 print(json.dumps({"fob": f.port, "glove": g.port}), flush=True)
@@ -70,7 +70,7 @@ def run(seconds):
     import humananim
     from humananim.humananim_addon import capture
     from humananim.humananim_addon.bvh_import import import_bvh
-    from humananim.solver.capture import cyberglove, fob
+    from humananim.humananim_addon.devices import cyberglove, fob
 
     sim = subprocess.Popen([sys.executable, "-c", SIM_SCRIPT % {"rate": RATE}], stdin=subprocess.PIPE,
                            stdout=subprocess.PIPE, text=True, env=dict(os.environ))

@@ -1,18 +1,16 @@
-"""The bridge between Blender and the solver: registration, settings, conversions, batch jobs."""
+"""The bridge between Blender and the solver: registration, settings, conversions, batch jobs.
 
-import logging
+Blender's modules are imported when Blender registers the add-on, not on import, so the bridge's
+bpy-free parts (the device protocols in `devices`) import without Blender."""
 
-import bpy
-
-from . import (capture, cli, cloth, flexible, motion_control, overlay, preferences, properties, sequence,
-               simulation, walking)
-
-log = logging.getLogger(preferences.PACKAGE)
 _cli_handle = None
 
 
 def register():
     global _cli_handle
+    import bpy
+    from . import (capture, cli, cloth, flexible, motion_control, overlay, preferences, properties, sequence,
+                   simulation, walking)
     from .. import operators, panels  # they import the bridge: import them after it
     bpy.utils.register_class(preferences.HumanAnimPreferences)
     properties.register()
@@ -35,6 +33,9 @@ def register():
 
 def unregister():
     global _cli_handle
+    import bpy
+    from . import (capture, cloth, flexible, motion_control, overlay, preferences, properties, sequence,
+                   simulation, walking)
     from .. import operators, panels
     if _cli_handle is not None:
         bpy.utils.unregister_cli_command(_cli_handle)

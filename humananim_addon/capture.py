@@ -2,7 +2,7 @@
 the display step that applies the newest sample of every device to the pose bones, recording
 into a new action, glove calibration, grasping of scene objects and its viewport overlay.
 
-Everything that talks to a device runs in bpy-free reader threads (solver/capture); this module
+Everything that talks to a device runs in bpy-free reader threads (humananim_addon/devices); this module
 only runs on the main thread: `step()` is what the modal operator calls on every timer event,
 and what tests and batch jobs call in a loop (timers never fire in the bpy module)."""
 
@@ -17,13 +17,13 @@ from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatPrope
 
 from ..solver import rotations
 from ..solver.body_roles import FINGERS, sided
-from ..solver.capture import cyberglove, fob, hidglove, vmc
-from ..solver.capture.anatomical import AnatomicalConverter, CalibrationError
-from ..solver.capture.glove_calibration import GloveCalibration, joint_rotations
-from ..solver.capture.grasp import SENSOR_COLOURS, GraspAutomaton
-from ..solver.capture.hand_sensors import Box, Sphere, default_hand_sensors, sensor_centres
-from ..solver.capture.replay import ReplayDevice
-from ..solver.capture.session import Session, Take
+from .devices import cyberglove, fob, hidglove, vmc
+from ..solver.anatomical_converter import AnatomicalConverter, CalibrationError
+from .devices.glove_calibration import GloveCalibration, joint_rotations
+from ..solver.hands.grasp_automaton import SENSOR_COLOURS, GraspAutomaton
+from ..solver.hands.sensors import Box, Sphere, default_hand_sensors, sensor_centres
+from .devices.replay import ReplayDevice
+from .devices.session import Session, Take
 from ..solver.errors import HumanAnimError, MotionError
 from ..solver.trajectories import Trajectories
 from . import actions

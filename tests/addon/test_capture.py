@@ -15,8 +15,8 @@ from humananim.humananim_addon import capture  # noqa: E402
 from humananim.humananim_addon.action_api import fcurves_of  # noqa: E402
 from humananim.operators.capture import HUMANANIM_OT_capture_live  # noqa: E402
 from humananim.solver import rotations  # noqa: E402
-from humananim.solver.capture import vmc  # noqa: E402
-from humananim.solver.capture.grasp import FREE_HAND  # noqa: E402
+from humananim.humananim_addon.devices import vmc  # noqa: E402
+from humananim.solver.hands.grasp_automaton import FREE_HAND  # noqa: E402
 
 CMU_BONES = ("Hips", "Chest", "Head", "LeftWrist", "RightWrist")
 
@@ -178,7 +178,7 @@ def test_glove_drives_the_finger_bones_and_the_hand_grasps_a_ball(metarig, live_
     geometry = capture.overlay_geometry(live)
     assert geometry[0][0] == "LINES" and geometry[0][2] == ga.colour
     assert any(kind == "POINTS" and colour == (0.8, 0.8, 0.8, 1.0) for kind, _, colour in geometry)  # touching
-    from humananim.solver.capture.hand_sensors import sensor_centres
+    from humananim.solver.hands.sensors import sensor_centres
     # the posture written to the rig keeps the finger sensors out of the ball
     basis = np.tile(np.eye(4), (sk.joint_count, 1, 1))
     q = np.empty(len(obj.pose.bones) * 4)
@@ -316,7 +316,7 @@ def test_a_secure_grasp_carries_the_object_with_the_hand(metarig, live_cleanup):
 
 
 def test_glove_gestures_record_a_take_that_becomes_an_action(metarig, live_cleanup):
-    from humananim.solver.capture.cyberglove import SENSORS_18
+    from humananim.humananim_addon.devices.cyberglove import SENSORS_18
     obj, scene = metarig, bpy.context.scene
     capture.add_device(scene, "CYBERGLOVE", name="glove", simulate=True, rate=100.0, sensors="18", hand="L")
     scene.humananim_capture.take_name = "gestured"

@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from .. import rotations
+from ...solver import rotations
 from .device import Device, DeviceError, open_serial
 from .pty_sim import PtySimulator
 

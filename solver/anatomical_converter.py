@@ -17,9 +17,9 @@ rotations, so the motion fits any character of the same proportions)."""
 
 import numpy as np
 
-from .. import rotations
-from ..body_roles import SIDES, sided
-from ..errors import HumanAnimError
+from . import rotations
+from .body_roles import SIDES, sided
+from .errors import HumanAnimError
 
 # Ascension transmitter frame (X forward, Y right, Z down) to Z-up world: a half turn about X
 TRACKER_Z_DOWN = np.diag([1.0, -1.0, -1.0])

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from humananim.solver import rotations
-from humananim.solver.capture import osc, vmc
+from humananim.humananim_addon.devices import osc, vmc
 from capture_helpers import wait_for
 
 

@@ -11,7 +11,7 @@ import collections
 import threading
 import time
 
-from ..errors import HumanAnimError
+from ...solver.errors import HumanAnimError
 from .ringbuffer import RingBuffer
 from .samples import Sample
 

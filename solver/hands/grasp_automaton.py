@@ -9,7 +9,7 @@ import numpy as np
 
 from .. import rotations
 from ..body_roles import FINGERS, sided
-from .hand_sensors import contacts, sensor_centres
+from .sensors import contacts, sensor_centres
 
 FREE_HAND, GRASPING_IN_PROGRESS, SECURE_GRASP = "FREE_HAND", "GRASPING_IN_PROGRESS", "SECURE_GRASP"
 # the thesis's colour code: pale skin, blue, green; touching sensors lighter than the others

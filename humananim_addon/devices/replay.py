@@ -5,8 +5,8 @@ import time
 
 import numpy as np
 
-from .. import bvh as bvh_io
-from ..units import bvh_rest_extent, guess_length_scale
+from ...solver import bvh as bvh_io
+from ...solver.units import bvh_rest_extent, guess_length_scale
 from .device import Device, DeviceError
 
 

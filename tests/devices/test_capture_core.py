@@ -8,14 +8,14 @@ import pytest
 
 from humananim.solver import bvh, rotations
 from humananim.solver.body_roles import sided
-from humananim.solver.capture import cyberglove, fob
-from humananim.solver.capture.anatomical import TRACKER_Z_DOWN, AnatomicalConverter, CalibrationError
-from humananim.solver.capture.glove_calibration import GloveCalibration
-from humananim.solver.capture.grasp import FREE_HAND, GRASPING_IN_PROGRESS, SECURE_GRASP, GraspAutomaton
-from humananim.solver.capture.hand_sensors import Box, Sphere, default_hand_sensors, sensor_centres
-from humananim.solver.capture.replay import ReplayDevice
-from humananim.solver.capture.ringbuffer import RingBuffer
-from humananim.solver.capture.session import Session, Take
+from humananim.humananim_addon.devices import cyberglove, fob
+from humananim.solver.anatomical_converter import TRACKER_Z_DOWN, AnatomicalConverter, CalibrationError
+from humananim.humananim_addon.devices.glove_calibration import GloveCalibration
+from humananim.solver.hands.grasp_automaton import FREE_HAND, GRASPING_IN_PROGRESS, SECURE_GRASP, GraspAutomaton
+from humananim.solver.hands.sensors import Box, Sphere, default_hand_sensors, sensor_centres
+from humananim.humananim_addon.devices.replay import ReplayDevice
+from humananim.humananim_addon.devices.ringbuffer import RingBuffer
+from humananim.humananim_addon.devices.session import Session, Take
 from capture_helpers import wait_for
 from capture_rigs import curled_basis, hand_skeleton
 

@@ -7,10 +7,10 @@ import sys
 import numpy as np
 import pytest
 
-from humananim.solver.capture import cyberglove, hidglove
-from humananim.solver.capture.device import DeviceError
-from humananim.solver.capture.gestures import GestureRecognizer, finger_curls
-from humananim.solver.capture.glove_calibration import DIP_COUPLING, FIST_DEGREES, GloveCalibration
+from humananim.humananim_addon.devices import cyberglove, hidglove
+from humananim.humananim_addon.devices.device import DeviceError
+from humananim.humananim_addon.devices.gestures import GestureRecognizer, finger_curls
+from humananim.humananim_addon.devices.glove_calibration import DIP_COUPLING, FIST_DEGREES, GloveCalibration
 from capture_helpers import collect, wait_for
 
 pytest.importorskip("serial")

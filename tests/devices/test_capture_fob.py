@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from humananim.solver import rotations
-from humananim.solver.capture import fob
+from humananim.humananim_addon.devices import fob
 from capture_helpers import collect, wait_for
 
 pytest.importorskip("serial")

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..body_roles import FINGERS
+from ...solver.body_roles import FINGERS
 from .device import DeviceError
 
 # Flexion of a fist, degrees, by (finger, bone index along its chain)
@@ -91,7 +91,7 @@ def joint_rotations(angles, side="R"):
         e[k] += -v if (k == 2 and side == "L") else v
     if not eulers:
         return {}
-    from .. import rotations
+    from ...solver import rotations
     keys = list(eulers)
     quats = rotations.from_euler(np.array([eulers[k] for k in keys]), "XYZ")
     return dict(zip(keys, quats))
