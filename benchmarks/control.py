@@ -11,16 +11,14 @@ feet planted (tracking, constrained legs, dynamic control's early exit), the sam
 real-time factor at 30 Hz (seconds of motion per second of computing, one step per 1/30 s).
 The thesis: 0.8 ms average, 3.1 ms worst per step (C++, 800 MHz Pentium III).
 
-Measured here (2 shared cores, noisy; median ms per step): standing figure 3.3 -> ~2.0-2.8, CMU
-3.9 -> ~6 (slower: with tracking.MIN_HORIZON's 1/15 s floor dynamic control acts on most CMU
-steps, 4.3 ms median, where before it mostly exited early at 0.75 ms). Per stage on the standing figure, before ->
-after: tracking 0.50 -> 0.22 (targets, horizons and feedforward precomputed per input frame),
-planted legs' position re-solve 0.93 -> 0.40 (one forward-kinematics pass for both legs, the
-rotation log from the matrix), velocity projection 0.26 -> 0.10 (foot velocity J v, the
-Jacobians shared with the acceleration constraint), foot targets 0.25 -> 0.15 (desired state on
-the frame grid without interpolation), dynamic control's early exit 0.64 -> ~0.5 (the ground
-wrench's joint forces from the motion subspace instead of a second inverse-dynamics pass, the
-support polygon's hull reused while the feet stay). The issue's 0.5 ms is not reached.
+Measured here (2 shared cores with other jobs running, noisy; median ms per step): standing
+figure 3.3 (first version) -> 2.0-2.8 -> 1.7-2.0 (now: input feet precomputed on the frame grid,
+sole points once per configuration, LAPACK dposv for the planted legs, one Gauss-Newton pass; the
+step makes ~720 Python-level numpy calls, from ~1,650), 15 kg 1.7, CMU 3.5 (dynamic control acts on
+most steps). Real-time factor at 30 Hz: ~20 standing, ~7 on CMU. The issue's 0.5 ms median and
+real-time factor 50 are not reached: at ~2.5 us per numpy call on this machine, 0.5 ms is ~200
+calls per step, which needs the whole step (tracking, legs, inverse dynamics, criteria) fused
+into a few batched array expressions or compiled code.
 """
 
 import argparse
