@@ -9,8 +9,8 @@ _cli_handle = None
 def register():
     global _cli_handle
     import bpy
-    from . import (capture, cli, cloth, flexible, motion_control, overlay, preferences, properties, sequence,
-                   simulation, walking)
+    from . import (capture, cli, cloth, flexible, hands, motion_control, overlay, preferences, properties,
+                   sequence, simulation, synthesis, walking)
     from .. import operators, panels  # they import the bridge: import them after it
     bpy.utils.register_class(preferences.HumanAnimPreferences)
     properties.register()
@@ -21,6 +21,8 @@ def register():
     flexible.register()
     walking.register()
     capture.register()
+    hands.register()
+    synthesis.register()
     operators.register()
     panels.register()
     overlay.register()
@@ -34,8 +36,8 @@ def register():
 def unregister():
     global _cli_handle
     import bpy
-    from . import (capture, cloth, flexible, motion_control, overlay, preferences, properties, sequence,
-                   simulation, walking)
+    from . import (capture, cloth, flexible, hands, motion_control, overlay, preferences, properties, sequence,
+                   simulation, synthesis, walking)
     from .. import operators, panels
     if _cli_handle is not None:
         bpy.utils.unregister_cli_command(_cli_handle)
@@ -43,6 +45,8 @@ def unregister():
     overlay.unregister()
     panels.unregister()
     operators.unregister()
+    synthesis.unregister()
+    hands.unregister()
     capture.unregister()
     walking.unregister()
     flexible.unregister()

@@ -1,0 +1,3 @@
+"""Motion synthesis: transitions and dynamic reactions (issue 5): operators (being built)."""
+
+CLASSES = ()

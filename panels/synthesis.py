@@ -1,0 +1,3 @@
+"""Motion synthesis: transitions and dynamic reactions (issue 5): sidebar panel (being built)."""
+
+CLASSES = ()
