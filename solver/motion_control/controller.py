@@ -8,19 +8,23 @@ One step (dt = frame time / substeps):
   1. tracking acceleration of every DOF towards the input (TrackingController);
   2. constrained legs: a foot that supports the body (support_intervals of the input, with the
      animator's overrides) is planted where it was when it landed and follows the input foot's own
-     motion from there (a heel that rises in the input rises). The supported leg's joint
-     accelerations are the tracking ones corrected by the least change that gives the foot its
-     target acceleration for the pelvis's acceleration (the acceleration form of the limb's
-     inverse kinematics); after the Euler step the leg's positions and velocities are re-solved
-     (two Gauss-Newton iterations of the leg's IK on its own DOFs, then the velocity projection),
-     so the foot cannot drift however balance control moves the pelvis;
+     motion from there (a heel that rises in the input rises), rolling about its contact point
+     without sliding (_rolling_anchor; the capture's foot skate is first removed from the whole
+     input, _foot_skate). The supported leg's joint accelerations are the tracking ones corrected
+     by the least change that gives the foot its target acceleration for the pelvis's acceleration
+     (the acceleration form of the limb's inverse kinematics); the velocities are projected onto
+     the foot's target velocity at the step's end and, after the Euler step, the positions
+     re-solved (a Gauss-Newton pass of the leg's IK on its own DOFs), so the foot cannot drift
+     however balance control moves the pelvis;
   3. dynamic control (dynamic_control: passive, comfort then balance of arms, back and legs),
-     unless tracking_only; external forces (Impulse with a duration, collider contact forces of
-     the previous step) enter its inverse dynamics as known wrenches;
-  4. Euler on the manifold with the second-order position term (v' = v + a dt, q' = q (+) (v + v')
-     dt / 2, which follows a motion sampled by central differences exactly; semi-implicit Euler
-     q' = q (+) v' dt for the fallen body); instant impulses change the velocities through the
-     inertia matrix, dv = H^-1 J' p, before the legs' projection;
+     unless tracking_only, against the strength and support widened by what the input itself
+     needs at that frame (input_allowance); external forces (Impulse with a duration, collider
+     contact forces of the previous step) enter its inverse dynamics as known wrenches; when
+     balance can't be kept the tracking's return is slowed first (_slower_return);
+  4. semi-implicit Euler on the manifold, v' = v + a dt, q' = q (+) v' dt, which with the input's
+     step-consistent velocities (tracking.step_consistent) reproduces an undisturbed input
+     exactly; instant impulses change the velocities through the inertia matrix, dv = H^-1 J' p,
+     before the legs' projection;
   5. colliders: the body's contact spheres (default_contacts) against the collider spheres of
      that instant; an approaching pair gets the impulse that leaves it separating at restitution
      times its approach speed (all pairs at once, projected Gauss-Seidel on J H^-1 J'), friction
@@ -28,7 +32,8 @@ One step (dt = frame time / substeps):
 
 Falling (choice: contact impulses, not a hand-over to closed_loop.iter_simulate): when balance
 control has reported for `fall_time` (0.1 s) that the ZMP cannot be brought inside the support
-polygon (one glitch of a captured motion does not fell the figure), that step's output
+polygon (one glitch of a captured motion does not fell the figure) and the capture point lies
+beyond the feet (_can_stop: the figure could not stop without a step), that step's output
 turns the body about the MMP (Falling.base_acceleration, sec. 2.3.3) and the figure is released:
 from the next step it is a ragdoll (no joint torques but damping, the joint limits as stiff
 springs, both implicit: (H + dt D + dt^2 K) dv = dt (tau - bias)) at `fall_substeps` steps per
@@ -235,7 +240,7 @@ class _Loop:
         self.q = self.tracking.q_d[0].copy()
         self.v = self.tracking.v_d[0].copy()
         self.t = 0.0
-        self.planted = [None, None]  # per side: (world offset (3,), sole centre at landing (2,))
+        self.planted = [None, None]  # per side: (world offset (3,), rolling-anchor offset at landing (3,))
         self.fallen = False
         self._targets_cache = None
         self._legs_cache = None
@@ -587,9 +592,6 @@ class _Loop:
         self._drift[s] = (drift, pts)
         return float(np.linalg.norm(drift))
 
-    def _sole_centre(self, body, q, s):
-        return self._soles(body, q)[s].mean(axis=0)
-
     def _foot_targets(self, body, feet, t):
         key = (t, tuple(feet), tuple(None if p is None else p[0].tobytes() for p in self.planted), id(body))
         if self._targets_cache is not None and self._targets_cache[0] == key:
@@ -654,14 +656,6 @@ class _Loop:
             out[s] = (jac, frame, np.asarray(body.parts.legs[s]))
         self._legs_cache = (key, out)
         return out
-
-    def _foot_jacobian(self, body, q, s):
-        """(6, k) Jacobian of the foot's angular velocity and head velocity on the leg's DOFs, the
-        foot's world frame, and the leg's DOFs."""
-        feet = np.zeros(2, bool)
-        feet[s] = True
-        jac, frame, cols = self._leg_jacobians(body, q, feet)[s]
-        return jac[:, cols], frame, cols
 
     def _dls(self, jac, r):
         """Damped least squares J' (J J' + lambda^2)^-1 r of a (6, k) leg Jacobian."""
