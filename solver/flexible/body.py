@@ -88,7 +88,7 @@ class FlexibleBody:
         if len(self.rest_lattice) != np.prod(self.dims):
             raise FlexibleError(f"lattice of {self.dims} needs {np.prod(self.dims)} points, "
                                 f"got {len(self.rest_lattice)}")
-        self.modes = np.asarray(modes, float).reshape(-1, len(self.rest_lattice), 3)
+        self.modes = np.asarray(modes, float).reshape(len(modes), len(self.rest_lattice), 3)
         self.mode_names = list(mode_names)
         if len(self.mode_names) != len(self.modes):
             raise FlexibleError("one name per deformation mode is needed")
@@ -102,7 +102,7 @@ class FlexibleBody:
         self.weights = lattice_weights(self.uvw, self.dims)            # W (P, N)
         self.X0 = self.weights @ self.rest_lattice                     # (P, 3)
         self.B = np.einsum("pn,dnc->dpc", self.weights, self.modes)    # (D, P, 3)
-        self._B_flat = self.B.reshape(len(self.modes), -1)
+        self._B_flat = self.B.reshape(len(self.modes), 3 * len(self.masses))
 
     @classmethod
     def from_points(cls, dims, rest_lattice, modes, mode_names, points, masses, collides=None):

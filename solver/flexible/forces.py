@@ -12,11 +12,14 @@ GRAVITY = np.array([0.0, 0.0, -9.81])
 @dataclass
 class Plane:
     """A ground plane through `point` with upward `normal`; with `region_direction` it only
-    exists where (x - region_point) . region_direction <= 0 (e.g. the top of a ledge)."""
+    exists where (x - region_point) . region_direction <= 0 (e.g. the top of a ledge), and a
+    finite `thickness` makes it a slab, so a point that falls past its edge and is deep below
+    it is not pushed back up through it."""
     point: tuple = (0.0, 0.0, 0.0)
     normal: tuple = (0.0, 0.0, 1.0)
     region_point: tuple = None
     region_direction: tuple = None
+    thickness: float = float("inf")    # deeper points are beside the plane, not in it (a ledge's side)
 
     def __post_init__(self):
         self.point = np.asarray(self.point, float)
@@ -54,7 +57,8 @@ class Ground:
         """Upper ground at `height` up to `edge` along `axis`, lower ground at 0 everywhere."""
         axis = np.asarray(axis, float)
         point = np.array([0.0, 0.0, height]) + edge * axis
-        return cls(planes=[Plane((0, 0, height), (0, 0, 1), point, axis), Plane((0, 0, 0))], **kw)
+        top = Plane((0, 0, height), (0, 0, 1), point, axis, thickness=min(0.1, 0.5 * height))
+        return cls(planes=[top, Plane((0, 0, 0))], **kw)
 
     def per_point(self, body):
         n = max(int(np.count_nonzero(body.collides)), 1)
@@ -112,7 +116,8 @@ class Contacts:
                                      for p in planes])
         self.region_offsets = np.array([p.region_point @ p.region_direction if p.region_direction is not None
                                         else 1.0 for p in planes])
-        self.single = len(planes) == 1
+        self.thickness = np.array([p.thickness for p in planes])
+        self.single = len(planes) == 1 and not np.isfinite(self.thickness[0])
 
     def reset(self):
         self.anchored[:] = False
@@ -134,6 +139,7 @@ class Contacts:
             s_all = x @ self.normals.T - self.offsets
             if self.bounded:
                 s_all[x @ self.region_dirs.T > self.region_offsets] = np.inf
+            s_all[s_all < -self.thickness] = np.inf
             which = s_all.argmin(axis=1)
             s_min = s_all[np.arange(len(x)), which]
             idx = np.flatnonzero((s_min < 0) & self.collides)

@@ -154,7 +154,7 @@ class Simulator:
         self.P = P = len(self.X0)
         D = body.mode_count
         self.n = n = 6 + D
-        self.Bflat = self.B.reshape(D, -1)
+        self.Bflat = self.B.reshape(D, 3 * P)
         self.Bt = self.B.transpose(1, 2, 0).copy()              # (P, 3, D)
         self.mcol = self.m[:, None]
         self.g = np.asarray(s.gravity, float)
@@ -170,6 +170,13 @@ class Simulator:
         self.M2 = np.einsum("p,kpia,lpib->klab", self.m, G1, G1).reshape(D * D, n * n)
         self.spring_idx = np.arange(len(body.masses), P)
         self.implicit = s.integrator == "implicit"
+        # 10x the stiffest mode or controller, at least a 5 Hz mode of its own modal mass
+        modal = body.modal_masses()
+        floor = modal * (2 * np.pi * 5.0) ** 2
+        top = np.asarray(self.gains.stiffness, float).copy()
+        if self.controller is not None:
+            top[self.controller.active] += self.controller.kp
+        self.limit_stiffness = np.maximum(10 * top, floor)
         self._kd_gamma = -np.asarray(self.gains.stiffness, float)
         self._cd_gamma = -np.asarray(self.gains.damping, float)
         self.K_base = np.zeros((n, n))
@@ -237,10 +244,17 @@ class Simulator:
         if ctl is not None:
             a = ctl.active
             qm[a] += ctl.kp * ctl.target(time) - ctl.kp * gamma[a] - ctl.kd * gdot[a]
+        # amplitudes live in [-1, 1] (thesis §4.3): a stiff one-sided spring beyond
+        over = gamma - np.clip(gamma, -1.0, 1.0)
+        limited = over.any()
+        if limited:
+            qm -= self.limit_stiffness * over
         b[6:] += qm
         K = C = None
         if self.implicit:
             K, C = self.K_base.copy(), self.C_base.copy()
+            if limited:
+                K[self.diag, self.diag] += self.limit_stiffness * (over != 0)
             if touching is not None:
                 self._contact_matrices(touching, y, R, K, C)
         power = float(np.abs(qm * gdot).sum())
