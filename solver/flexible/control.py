@@ -56,7 +56,8 @@ def cost_of(spec, result):
     name = spec.name
     if name == "custom":
         return (spec.w_energy * e - spec.w_distance * d - spec.w_speed * v + spec.w_tilt * m["tilt_rad"]), m
-    bad = d <= 0 or (name == "energy_speed" and d * v <= 0)
+    # standing still (under a millimetre, a millimetre per second) counts as not moving
+    bad = d <= 1e-3 or (name == "energy_speed" and v <= 1e-3)
     if bad:  # "if q_x qdot_x < 0, the cost is set to a high value"; further back is worse still
         return HIGH_COST * (1.0 + max(-d, 0.0)), m
     if name == "distance":
@@ -141,15 +142,23 @@ def anneal(make_simulator, controller, initial_state, cost, settings):
     P, Dur = controller.poses.copy(), controller.durations.copy()
     c, m = evaluate(P, Dur)
     out = AnnealResult(P, Dur, c, m, c, [c], [c], trials=1)
+    # geometric cooling T_k = T0 r^k from T0 to T_frozen over the trials, both relative to the
+    # cost scale: the first cost, or the first one below the "high value" when the start
+    # configuration doesn't move forward at all
+    r = (settings.frozen_temperature / settings.start_temperature) ** (1.0 / max(settings.trials - 1, 1))
+
+    def temperature(trial, scale):
+        return settings.start_temperature * scale * r ** trial
     scale = abs(c) if c != 0 else 1.0
-    T = settings.start_temperature * scale
-    frozen = settings.frozen_temperature * scale
-    r = (frozen / T) ** (1.0 / max(settings.trials - 1, 1))
+    scaled_high = c >= HIGH_COST
     yield 1.0 / settings.trials
     cur_P, cur_D, cur_c = P, Dur, c
     for trial in range(1, settings.trials):
         new_P, new_D = neighbour(rng, cur_P, cur_D, settings)
         new_c, new_m = evaluate(new_P, new_D)
+        if scaled_high and new_c < HIGH_COST:
+            scale, scaled_high = abs(new_c) if new_c != 0 else 1.0, False
+        T = temperature(trial - 1, scale)
         delta = new_c - cur_c
         accept = delta <= 0 or rng.random() < np.exp(-delta / T)
         if accept:
@@ -161,6 +170,5 @@ def anneal(make_simulator, controller, initial_state, cost, settings):
         out.costs.append(new_c)
         out.best_costs.append(out.cost)
         out.trials += 1
-        T *= r
         yield (trial + 1) / settings.trials
     return out
