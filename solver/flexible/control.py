@@ -25,7 +25,7 @@ class CostSpec:
     name: str = "energy_speed"
     direction: tuple = (1.0, 0.0, 0.0)
     scale: float = 1.0                 # the thesis's 1e7 / 5e7 constants, in our units
-    w_energy: float = 0.001            # custom: per joule
+    w_energy: float = 0.0001           # custom: per joule
     w_distance: float = 1.0            # custom: per metre forward
     w_speed: float = 0.0               # custom: per m/s forward at the end
     w_tilt: float = 0.0                # custom: per radian of tilt at the end
