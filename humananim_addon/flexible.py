@@ -20,6 +20,7 @@ from ..solver import rotations
 from ..solver.flexible import FlexibleBody, FlexibleError, Ground, ModeGains, Settings, Simulator
 from ..solver.flexible.control import COSTS, AnnealSettings, CostSpec, anneal, motion_measures
 from ..solver.flexible.demo import TABLE_MODES, table_lattice
+from ..solver.flexible.body import quat_matrix
 from ..solver.flexible.ffd import lattice_params
 from ..solver.flexible.forces import Plane
 from ..solver.flexible.keyframe import animate
@@ -383,6 +384,10 @@ def run(obj, scene):
                "seconds": round(time.perf_counter() - t0, 3)}
     if result is not None:
         summary.update({k: round(v, 4) for k, v in motion_measures(result, _direction(props)).items()})
+        end = result.final
+        pts = body.positions(end.t, quat_matrix(end.quat), end.gamma)
+        ground = settings.ground.planes[0]
+        summary["end_lowest_point_m"] = round(float(((pts - ground.point) @ ground.normal).min()), 5)
     return summary
 
 
