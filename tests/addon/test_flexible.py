@@ -187,6 +187,15 @@ def test_duplicated_modes_are_reported_by_name(empty_scene):
     assert not [a for a in bpy.data.actions if "Flexible" in a.name]
 
 
-def test_panel_draws(empty_scene):
-    from humananim.panels.flexible import VIEW3D_PT_humananim_flexible
-    assert VIEW3D_PT_humananim_flexible.poll(bpy.context)
+def test_panel_draws_every_setting(empty_scene):
+    from test_panels import draw_all
+    log = draw_all(bpy.context)
+    assert ("operator", "humananim.flexible_demo_table") in log
+    bpy.ops.humananim.flexible_demo_table()
+    props = bpy.context.active_object.humananim_flexible
+    props.cost, props.use_hold = "custom", True
+    log = draw_all(bpy.context)
+    for name in ("flexible_simulate", "flexible_optimize", "flexible_pose_add", "flexible_sync_modes"):
+        assert ("operator", f"humananim.{name}") in log
+    for name in ("modes", "poses", "hold_point", "w_energy", "seed", "friction", "ground_slope", "stiffness"):
+        assert ("prop", name) in log
