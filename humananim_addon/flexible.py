@@ -17,7 +17,7 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
 from mathutils import Matrix, Quaternion, Vector
 
 from ..solver import rotations
-from ..solver.flexible import FlexibleBody, FlexibleError, Ground, ModeGains, Settings, Simulator
+from ..solver.flexible import FlexibleBody, FlexibleError, Ground, ModeGains, Settings, Simulator, Spring
 from ..solver.flexible.control import COSTS, AnnealSettings, CostSpec, anneal, motion_measures
 from ..solver.flexible.demo import TABLE_MODES, table_lattice
 from ..solver.flexible.body import quat_matrix
@@ -58,11 +58,24 @@ class HumanAnimFlexPose(bpy.types.PropertyGroup):
                             description="How long this pose stays the target (s)")
 
 
+class HumanAnimFlexSpring(bpy.types.PropertyGroup):
+    # no poll filter: a PointerProperty poll crashes the bpy 4.2 module at exit
+    target: PointerProperty(name="To Object", type=bpy.types.Object,
+                            description="The spring's other end: this object's origin (followed if animated)")
+    point: FloatVectorProperty(name="Lattice Point", size=3, default=(0.5, 0.5, 1.0), min=0.0, max=1.0,
+                               description="Where it holds the character: lattice coordinates u, v, w in 0..1")
+    stiffness: FloatProperty(name="Stiffness", default=500.0, min=0.0, soft_max=1e5, description="N/m")
+    damping: FloatProperty(name="Damping", default=10.0, min=0.0, soft_max=1e4, description="N s/m")
+    rest_length: FloatProperty(name="Rest Length", default=0.0, min=0.0, unit="LENGTH")
+
+
 class HumanAnimFlexible(bpy.types.PropertyGroup):
     lattice: PointerProperty(name="Lattice", type=bpy.types.Object,
                              description="The Lattice deforming the object; empty: its Lattice modifier's")
     modes: CollectionProperty(type=HumanAnimFlexMode)
     mode_index: IntProperty()
+    springs: CollectionProperty(type=HumanAnimFlexSpring)
+    spring_index: IntProperty()
     points: EnumProperty(name="Masses", items=(
         ("SAMPLES", "Object Samples", "Sample points of the object's undeformed mesh"),
         ("LATTICE", "Lattice Points", "The lattice points themselves"),
@@ -137,7 +150,7 @@ class HumanAnimFlexible(bpy.types.PropertyGroup):
     best_energy: FloatProperty(name="Best Energy", default=0.0)
 
 
-CLASSES = (HumanAnimFlexMode, HumanAnimFlexPose, HumanAnimFlexible)
+CLASSES = (HumanAnimFlexMode, HumanAnimFlexPose, HumanAnimFlexSpring, HumanAnimFlexible)
 
 register, unregister = settings_registration(CLASSES, bpy.types.Object, "humananim_flexible", HumanAnimFlexible)
 
@@ -344,7 +357,61 @@ def keyed_amplitudes(lat, names, scene, frames):
 
 def simulation_settings(props, scene, dt, integrator):
     return Settings(dt=dt, integrator=integrator, gravity=tuple(scene.gravity),
-                    ground=ground_of(props, scene.gravity))
+                    ground=ground_of(props, scene.gravity), springs=springs_of(props, scene))
+
+
+def springs_of(props, scene):
+    """Springs to objects: a fixed anchor, or for an animated object its path sampled on the
+    frames from the start (interpolated in between, held after the end)."""
+    out = []
+    fps = scene_fps(scene)
+    for sp in props.springs:
+        if sp.target is None:
+            raise FlexibleError("a spring has no object to hold on to")
+        anchor = tuple(sp.target.matrix_world.translation)
+        if sp.target.animation_data is not None:
+            frames = np.arange(props.frame_start, props.frame_end + 1)
+            path = _object_path(sp.target, scene, frames)
+            times = (frames - props.frame_start) / fps
+            anchor = _PathAnchor(times, path)
+        out.append(Spring(uvw=tuple(sp.point), anchor=anchor, stiffness=sp.stiffness, damping=sp.damping,
+                          rest_length=sp.rest_length, anchor_object=sp.target.name))
+    return out
+
+
+class _PathAnchor:
+    def __init__(self, times, path):
+        self.times, self.path = times, path
+
+    def __call__(self, time):
+        return np.array([np.interp(time, self.times, self.path[:, k]) for k in range(3)])
+
+
+def _object_path(obj, scene, frames):
+    saved = scene.frame_current
+    out = np.empty((len(frames), 3))
+    try:
+        for i, f in enumerate(frames):
+            scene.frame_set(int(f))
+            out[i] = obj.matrix_world.translation
+    finally:
+        scene.frame_set(saved)
+    return out
+
+
+def add_spring(obj, target=None):
+    props = obj.humananim_flexible
+    sp = props.springs.add()
+    sp.target = target
+    props.spring_index = len(props.springs) - 1
+    return sp
+
+
+def remove_spring(obj):
+    props = obj.humananim_flexible
+    if 0 <= props.spring_index < len(props.springs):
+        props.springs.remove(props.spring_index)
+        props.spring_index = min(props.spring_index, len(props.springs) - 1)
 
 
 # -- simulate and bake ----------------------------------------------------------------------------

@@ -106,6 +106,41 @@ class HUMANANIM_OT_flexible_pose_remove(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class HUMANANIM_OT_flexible_spring_add(bpy.types.Operator):
+    """Add a spring from the character to another object (the other selected object, if any)"""
+
+    bl_idname = "humananim.flexible_spring_add"
+    bl_label = "Add Spring"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return flexible_object(context) is not None
+
+    def execute(self, context):
+        obj = flexible_object(context)
+        others = [o for o in context.selected_objects if o != obj and o != obj.humananim_flexible.lattice]
+        flexible.add_spring(obj, others[0] if others else None)
+        return {"FINISHED"}
+
+
+class HUMANANIM_OT_flexible_spring_remove(bpy.types.Operator):
+    """Remove the selected spring"""
+
+    bl_idname = "humananim.flexible_spring_remove"
+    bl_label = "Remove Spring"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        obj = flexible_object(context)
+        return obj is not None and 0 <= obj.humananim_flexible.spring_index < len(obj.humananim_flexible.springs)
+
+    def execute(self, context):
+        flexible.remove_spring(flexible_object(context))
+        return {"FINISHED"}
+
+
 class HUMANANIM_OT_flexible_demo_table(bpy.types.Operator):
     """Add the thesis's table: a mesh in a 4x2x4 lattice with shear, bend, squash and stretch shape keys, set up to hop"""
 
@@ -121,6 +156,7 @@ class HUMANANIM_OT_flexible_demo_table(bpy.types.Operator):
 
 
 CLASSES = (HUMANANIM_OT_flexible_simulate, HUMANANIM_OT_flexible_optimize, HUMANANIM_OT_flexible_sync_modes,
-           HUMANANIM_OT_flexible_pose_add, HUMANANIM_OT_flexible_pose_remove, HUMANANIM_OT_flexible_demo_table)
+           HUMANANIM_OT_flexible_pose_add, HUMANANIM_OT_flexible_pose_remove, HUMANANIM_OT_flexible_spring_add,
+           HUMANANIM_OT_flexible_spring_remove, HUMANANIM_OT_flexible_demo_table)
 
 _ = FlexibleError  # raised by the bridge, reported by JobOperator/run_reporting

@@ -25,6 +25,13 @@ class HUMANANIM_UL_flexible_poses(bpy.types.UIList):
             row.prop(item, "values", index=i, text="")
 
 
+class HUMANANIM_UL_flexible_springs(bpy.types.UIList):
+    def draw_item(self, _context, layout, _data, item, _icon, _active, _prop):
+        row = layout.row(align=True)
+        row.label(text=item.target.name if item.target else "?", icon="FORCE_HARMONIC")
+        row.prop(item, "stiffness", text="")
+
+
 class VIEW3D_PT_humananim_flexible(HumanAnimPanel, bpy.types.Panel):
     bl_label = "Flexible Character"
     bl_options = {"DEFAULT_CLOSED"}
@@ -73,6 +80,16 @@ class VIEW3D_PT_humananim_flexible(HumanAnimPanel, bpy.types.Panel):
         box.prop(props, "ground_stiffness")
         box.prop(props, "ground_damping")
         box.prop(props, "friction_damping")
+        box.label(text="Springs")
+        row = box.row()
+        row.template_list("HUMANANIM_UL_flexible_springs", "", props, "springs", props, "spring_index", rows=2)
+        buttons = row.column(align=True)
+        buttons.operator("humananim.flexible_spring_add", icon="ADD", text="")
+        buttons.operator("humananim.flexible_spring_remove", icon="REMOVE", text="")
+        if 0 <= props.spring_index < len(props.springs):
+            sp = props.springs[props.spring_index]
+            for name in ("target", "point", "stiffness", "damping", "rest_length"):
+                box.prop(sp, name)
         box = layout.box()
         box.use_property_split = True
         box.label(text="Simulation")
@@ -122,4 +139,5 @@ class VIEW3D_PT_humananim_flexible(HumanAnimPanel, bpy.types.Panel):
                            f"{props.best_energy:.0f} J", icon="CHECKMARK")
 
 
-CLASSES = (HUMANANIM_UL_flexible_modes, HUMANANIM_UL_flexible_poses, VIEW3D_PT_humananim_flexible)
+CLASSES = (HUMANANIM_UL_flexible_modes, HUMANANIM_UL_flexible_poses, HUMANANIM_UL_flexible_springs,
+           VIEW3D_PT_humananim_flexible)

@@ -68,8 +68,8 @@ class Ground:
 
 @dataclass
 class Spring:
-    """A spring from a body point (lattice parameters uvw) to a world anchor; `anchor_object`
-    names what the bridge reads the anchor from."""
+    """A spring from a body point (lattice parameters uvw) to a world anchor: a point, or a
+    function of time giving it (an animated object); damping acts on the point's velocity."""
     uvw: tuple
     anchor: tuple
     stiffness: float = 500.0

@@ -250,7 +250,7 @@ class Simulator:
             if touching is not None:
                 z[touching[0]] -= touching[3] @ R
         if self.settings.springs:
-            self._spring_forces(st, y, ydot, wx, R, z)
+            self._spring_forces(st, y, ydot, wx, R, z, time)
         S = y.T @ z
         b = M[:, 0:3] @ uniform
         b[0:3] -= z.sum(axis=0)
@@ -278,11 +278,12 @@ class Simulator:
         power = float(np.abs(qm * gdot).sum())
         return M, b, K, C, power
 
-    def _spring_forces(self, st, y, ydot, wx, R, z):
+    def _spring_forces(self, st, y, ydot, wx, R, z, time):
         x = st.t + y[self.spring_idx] @ R.T
         for j, sp in enumerate(self.settings.springs):
             i = self.spring_idx[j]
-            d = np.asarray(sp.anchor, float) - x[j]
+            anchor = sp.anchor(time) if callable(sp.anchor) else sp.anchor
+            d = np.asarray(anchor, float) - x[j]
             dist = float(np.linalg.norm(d))
             vel = R @ (st.v + wx @ y[i] + ydot[i])
             direction = d / dist if dist > 1e-12 else np.zeros(3)

@@ -199,3 +199,35 @@ def test_panel_draws_every_setting(empty_scene):
         assert ("operator", f"humananim.{name}") in log
     for name in ("modes", "poses", "hold_point", "w_energy", "seed", "friction", "ground_slope", "stiffness"):
         assert ("prop", name) in log
+
+
+def test_spring_to_an_animated_object_carries_the_character(empty_scene):
+    """A spring from the top of the table to an Empty that rises: the table hangs from it and
+    follows it up."""
+    bpy.ops.humananim.flexible_demo_table()
+    obj = bpy.context.active_object
+    props = obj.humananim_flexible
+    props.use_control = False
+    props.frame_start, props.frame_end = 1, 73
+    hook = bpy.data.objects.new("Hook", None)
+    empty_scene.collection.objects.link(hook)
+    hook.location = (0.0, 0.0, 0.6)
+    hook.keyframe_insert("location", frame=1)
+    hook.location = (0.0, 0.0, 2.6)
+    hook.keyframe_insert("location", frame=49)
+    obj.select_set(True)
+    hook.select_set(True)
+    assert bpy.ops.humananim.flexible_spring_add() == {"FINISHED"}
+    sp = props.springs[0]
+    assert sp.target == hook
+    sp.point, sp.stiffness, sp.damping = (0.5, 0.5, 1.0), 3000.0, 150.0
+    summary = run_to_end(flexible.run(obj, empty_scene))
+    lat = props.lattice
+    z = fcurve_map(lat.animation_data.action, lat)[("location", 2)]
+    end = z.evaluate(73)
+    # hanging below the hook by half its height, the spring's stretch under its weight and the
+    # sag of its passive modes
+    stretch = summary["mass_kg"] * 9.81 / 3000.0
+    assert z.evaluate(1) == pytest.approx(0.3, abs=0.01)
+    assert end == pytest.approx(2.6 - 0.3 - stretch, abs=0.1)
+    assert bpy.ops.humananim.flexible_spring_remove() == {"FINISHED"} and not len(props.springs)
