@@ -130,17 +130,23 @@ def anneal(make_simulator, controller, initial_state, cost, settings):
     """Simulated annealing of Fig. 5.2 as a step generator: yields progress, returns an
     AnnealResult. make_simulator(controller) -> Simulator."""
     rng = np.random.default_rng(settings.seed)
+    n = settings.trials
 
-    def evaluate(poses, durations):
+    def evaluate(poses, durations, trial):
+        """A forward simulation, yielding overall progress as it goes (so Esc is quick)."""
         sim = make_simulator(controller.with_parameters(poses, durations))
+        steps = sim.iter_run(initial_state, settings.duration)
         try:
-            result = sim.run(initial_state, settings.duration)
+            while True:
+                yield (trial + next(steps)) / n
+        except StopIteration as done:
+            result = done.value
         except FlexibleError:  # a controller that blows the simulation up is just bad
             return HIGH_COST * 10, {"distance_m": 0.0, "speed_m_s": 0.0, "energy_j": 0.0, "tilt_rad": 0.0}
         return cost_of(cost, result)
 
     P, Dur = controller.poses.copy(), controller.durations.copy()
-    c, m = evaluate(P, Dur)
+    c, m = yield from evaluate(P, Dur, 0)
     out = AnnealResult(P, Dur, c, m, c, [c], [c], trials=1)
     # geometric cooling T_k = T0 r^k from T0 to T_frozen over the trials, both relative to the
     # cost scale: the first cost, or the first one below the "high value" when the start
@@ -155,7 +161,7 @@ def anneal(make_simulator, controller, initial_state, cost, settings):
     cur_P, cur_D, cur_c = P, Dur, c
     for trial in range(1, settings.trials):
         new_P, new_D = neighbour(rng, cur_P, cur_D, settings)
-        new_c, new_m = evaluate(new_P, new_D)
+        new_c, new_m = yield from evaluate(new_P, new_D, trial)
         if scaled_high and new_c < HIGH_COST:
             scale, scaled_high = abs(new_c) if new_c != 0 else 1.0, False
         T = temperature(trial - 1, scale)

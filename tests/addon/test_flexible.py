@@ -150,6 +150,15 @@ def test_cancelled_bake_writes_nothing(empty_scene):
         next(steps)
     steps.close()  # what Esc does
     assert set(bpy.data.actions.keys()) == actions
+    props.use_control, props.trials, props.trial_seconds = True, 3, 1.0
+    flexible.sync_modes(obj)
+    props.modes[0].active = True
+    props.poses.add().values[0] = 0.5
+    steps = flexible.optimize(obj, empty_scene)
+    progress = [next(steps) for _ in range(5)]
+    assert all(0 <= a <= b <= 1 for a, b in zip(progress, progress[1:]))
+    steps.close()
+    assert not len(props.best_poses)
 
 
 def test_demo_table_optimises_and_bakes_the_best_controller(empty_scene):
