@@ -118,6 +118,7 @@ class Contacts:
                                         else 1.0 for p in planes])
         self.thickness = np.array([p.thickness for p in planes])
         self.single = len(planes) == 1 and not np.isfinite(self.thickness[0])
+        self.all_collide = bool(self.collides.all())
 
     def reset(self):
         self.anchored[:] = False
@@ -127,13 +128,11 @@ class Contacts:
         idx. Returns None, or (idx, normals, sliding, forces) of the touching points (normals
         (3,) when there is one plane, else (c, 3); world forces (c, 3))."""
         if self.single:
-            s_all = x @ self.normals[0] - self.offsets[0]
-            idx = np.flatnonzero((s_all < 0) & self.collides)
-            if len(idx) == 0:
-                self.anchored[:] = False
-                return None
-            s = s_all[idx]
             n = self.normals[0]
+            s_all = x @ n - self.offsets[0]
+            touch = s_all < 0
+            if not self.all_collide:
+                touch &= self.collides
         else:
             # the deepest plane a point is under, among the planes that exist where it is
             s_all = x @ self.normals.T - self.offsets
@@ -141,35 +140,43 @@ class Contacts:
                 s_all[x @ self.region_dirs.T > self.region_offsets] = np.inf
             s_all[s_all < -self.thickness] = np.inf
             which = s_all.argmin(axis=1)
-            s_min = s_all[np.arange(len(x)), which]
-            idx = np.flatnonzero((s_min < 0) & self.collides)
-            if len(idx) == 0:
-                self.anchored[:] = False
-                return None
-            s = s_min[idx]
+            s_all = s_all[np.arange(len(x)), which]
+            touch = (s_all < 0) & self.collides
+        idx = touch.nonzero()[0]
+        if not idx.size:
+            self.anchored[:] = False
+            return None
+        if self.single:
+            new = touch & ~self.anchored
+            if new.any():  # the point of entry: where it crossed the plane
+                self.anchor[new] = x[new] - s_all[new, None] * n
+        else:
             n = self.normals[which[idx]]
-        was = self.anchored[idx]
-        self.anchored[:] = False
-        self.anchored[idx] = True
-        proj = x[idx] - s[:, None] * n
-        if not was.all():
-            new = idx[~was]
-            self.anchor[new] = proj[~was]
+            new = touch & ~self.anchored
+            if new.any():
+                self.anchor[new] = x[new] - s_all[new, None] * self.normals[which[new]]
+            # an anchor left on another plane: onto this one
+            a = self.anchor[idx]
+            a -= (((a - x[idx]) * n).sum(axis=1) + s_all[idx])[:, None] * n
+            self.anchor[idx] = a
+        self.anchored = touch
+        # the spring from the anchor (on the plane) is -k (x - anchor): its normal part is the
+        # penetration, its tangential part the stretch since the point of entry
         v = vel_fn(idx)
+        f = -self.k * (x[idx] - self.anchor[idx]) - self.ct * v
         vn = v @ n if n.ndim == 1 else (v * n).sum(axis=1)
-        vt = v - vn[:, None] * n
-        fn = -self.k * s - self.cn * vn
-        np.maximum(fn, 0.0, out=fn)
-        d = proj - self.anchor[idx]
-        if n.ndim > 1:
-            d -= (d * n).sum(axis=1)[:, None] * n   # an anchor left on another plane
-        ft = -self.k * d - self.ct * vt
-        ftn = np.sqrt((ft * ft).sum(axis=1))
+        f -= ((self.cn - self.ct) * vn)[:, None] * n
+        fn = f @ n if n.ndim == 1 else (f * n).sum(axis=1)
+        ft = f - fn[:, None] * n
+        np.maximum(fn, 0.0, out=fn)                 # the ground only pushes
         cap = self.mu * fn
-        sliding = ftn > cap
+        sliding = (ft * ft).sum(axis=1) > cap * cap
         if sliding.any():
-            scale = np.where(sliding, cap / np.maximum(ftn, 1e-300), 1.0)
-            ft *= scale[:, None]
+            ftn = np.sqrt((ft[sliding] ** 2).sum(axis=1))
+            ft[sliding] *= (cap[sliding] / np.maximum(ftn, 1e-300))[:, None]
             # slide the anchor so the spring alone gives the capped force next time
-            self.anchor[idx[sliding]] = (proj + (ft + self.ct * vt) / self.k)[sliding]
+            vt = v[sliding] - (vn[sliding, None] * n if n.ndim == 1 else vn[sliding, None] * n[sliding])
+            nn = n if n.ndim == 1 else n[sliding]
+            proj = x[idx[sliding]] - s_all[idx[sliding], None] * nn
+            self.anchor[idx[sliding]] = proj + (ft[sliding] + self.ct * vt) / self.k
         return idx, n, sliding, fn[:, None] * n + ft
