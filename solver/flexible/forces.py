@@ -103,10 +103,10 @@ class Contacts:
         self.ground = ground
         self.k, self.cn, self.ct = ground.per_point(body)
         self.mu = ground.friction
-        P = len(body.masses)
+        self.collides = np.asarray(body.collides, bool)   # spring points ride along, not colliding
+        P = len(self.collides)
         self.anchor = np.zeros((P, 3))
         self.anchored = np.zeros(P, bool)
-        self.collides = np.asarray(body.collides, bool)
         planes = ground.planes
         self.normals = np.array([p.normal for p in planes])                 # (L, 3)
         self.offsets = np.array([p.point @ p.normal for p in planes])       # (L,)

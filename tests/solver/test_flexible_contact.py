@@ -120,3 +120,14 @@ def test_ground_needs_a_time_step_that_divides_the_frame():
     sim = Simulator(body, settings=Settings(dt=0.003))
     with pytest.raises(FlexibleError, match="divide"):
         _drain(animate(sim, State.rest(4), 1.0, 24))
+
+
+def test_springs_and_ground_together():
+    """Spring attachment points ride along as massless points that don't touch the ground."""
+    body = table_body()
+    spring = Spring(uvw=(0.5, 0.5, 1.0), anchor=lambda t: (0.0, 0.0, 0.6 + 0.5 * min(t, 1.0)),
+                    stiffness=3000.0, damping=100.0)
+    sim = Simulator(body, ModeGains.from_frequency(body, 4.0, 0.5),
+                    Settings(ground=Ground.flat(), springs=[spring]))
+    result = sim.run(State.rest(4, t=(0, 0, 0.3)), 3.0)
+    assert result.final.t[2] > 0.3 + 0.2           # lifted off the ground by the moving anchor
