@@ -240,3 +240,16 @@ def test_spring_to_an_animated_object_carries_the_character(empty_scene):
     assert z.evaluate(1) == pytest.approx(0.3, abs=0.01)
     assert end == pytest.approx(2.6 - 0.3 - stretch, abs=0.1)
     assert bpy.ops.humananim.flexible_spring_remove() == {"FINISHED"} and not len(props.springs)
+
+def test_keyframed_part_holds_the_chosen_point(empty_scene):
+    """Holding the top centre while the animator's 'stretch' grows to 0.8 over frames 1-10: the
+    lattice moves down by the top's rise, 0.8 x 0.4 x 0.6 m."""
+    obj, lat = make_character(empty_scene)
+    props = obj.humananim_flexible
+    flexible.sync_modes(obj)
+    props.frame_start, props.frame_end, props.handover_frame = 1, 12, 10
+    props.use_control, props.use_hold, props.hold_point = False, True, (0.5, 0.5, 1.0)
+    run_to_end(flexible.run(obj, empty_scene))
+    z = fcurve_map(lat.animation_data.action, lat)[("location", 2)]
+    assert z.evaluate(1) == pytest.approx(1.0, abs=1e-5)
+    assert z.evaluate(10) == pytest.approx(1.0 - 0.8 * 0.4 * 0.6, abs=1e-4)
