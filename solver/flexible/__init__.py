@@ -4,3 +4,6 @@ lattice-deformed objects, key-framing, PD pose control and simulated annealing o
 from .body import FlexibleBody, FlexibleError, check_modes
 from .forces import Ground, ModeGains, Plane, Spring
 from .simulate import Controller, Settings, Simulator, State
+
+__all__ = ["FlexibleBody", "FlexibleError", "check_modes", "Ground", "ModeGains", "Plane", "Spring", "Controller",
+           "Settings", "Simulator", "State"]

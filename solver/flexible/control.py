@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .body import FlexibleError
-from .simulate import Controller, Simulator
 
 OPTIMIZE = ("poses", "durations", "both")
 COSTS = {
