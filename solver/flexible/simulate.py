@@ -24,6 +24,7 @@ from scipy.linalg.lapack import dposv as _dposv
 
 from .body import FlexibleError, check_modes, quat_from_rotvec, quat_matrix, quat_multiply, skew
 from .forces import GRAVITY, Contacts, ModeGains
+from .kernel import Kernel
 
 INTEGRATORS = ("implicit", "semi_implicit", "thesis")
 DEFAULT_DT = 0.005
@@ -139,6 +140,7 @@ class Simulator:
             if problems:
                 raise FlexibleError("deformation modes can't be simulated: " + "; ".join(problems))
         self._prepare_points()
+        self._kernel = None
 
     def _prepare_points(self):
         body, s = self.body, self.settings
@@ -331,7 +333,8 @@ class Simulator:
             self._move(st, h * u_new, u_new)
         else:
             # predictor: the linearly implicit trapezoidal step
-            u_star = u + solve_spd(M + (0.5 * h) * C + (0.25 * h * h) * K, h * (b - (0.5 * h) * (K @ u)))
+            A = M + (0.5 * h) * C + (0.25 * h * h) * K
+            u_star = u + solve_spd(A, h * (b - (0.5 * h) * (K @ u)))
             if not self.midpoint:
                 self._move(st, (0.5 * h) * (u + u_star), u_star)
                 if not np.all(np.abs(u_star) < 1e6):
@@ -342,7 +345,7 @@ class Simulator:
             mid = st.copy()
             self._move(mid, (0.25 * h) * (u + u_star), 0.5 * (u + u_star))
             Mp, bp, Kp, Cp, power = self.accelerations(mid, time + 0.5 * h)
-            u_new = u_star + solve_spd(Mp + (0.5 * h) * Cp + (0.25 * h * h) * Kp, h * bp - Mp @ (u_star - u))
+            u_new = u_star + solve_spd(A, h * bp - Mp @ (u_star - u))
             self._move(st, (0.5 * h) * (u + u_new), u_new)
             M = Mp
         if not np.all(np.abs(u_new) < 1e6):  # also NaN; stops before numbers overflow
@@ -388,6 +391,20 @@ class Simulator:
         return _drain(self.iter_run(state, duration, record_every, start_time, track_energy))
 
     def iter_run(self, state, duration, record_every=None, start_time=0.0, track_energy=False):
+        """run() as a step generator (yields progress in [0, 1], returns the Result). The steps
+        are taken by the fused kernel (kernel.py), the same equations as step() in fewer calls."""
+        steps = int(round(duration / self.settings.dt))
+        if self.contacts is not None:
+            self.contacts.reset()
+        if self._kernel is None:
+            self._kernel = Kernel(self)
+        records, consumed, conds, final = yield from self._kernel.run(
+            state, steps, start_time, record_every, self.settings.cond_every,
+            lambda st, time: _snapshot(self, st, time, track_energy))
+        return _result(self, records, consumed, conds, final)
+
+    def reference_run(self, state, duration, record_every=None, start_time=0.0, track_energy=False):
+        """The same run with the readable reference step() (for checking the kernel)."""
         h = self.settings.dt
         steps = int(round(duration / h))
         every = record_every or max(steps, 1)
@@ -397,7 +414,6 @@ class Simulator:
         rec = [_snapshot(self, st, start_time, track_energy)]
         consumed, conds = 0.0, []
         cond_every = self.settings.cond_every
-        chunk = max(steps // 50, 1)
         for i in range(steps):
             time = start_time + i * h
             M, power = self.step(st, time)
@@ -406,8 +422,6 @@ class Simulator:
                 conds.append(np.linalg.cond(M))
             if (i + 1) % every == 0 or i + 1 == steps:
                 rec.append(_snapshot(self, st, start_time + (i + 1) * h, track_energy))
-            if i % chunk == 0:
-                yield i / max(steps, 1)
         return _result(self, rec, consumed, conds, st)
 
 
