@@ -1,29 +1,33 @@
 """The fused time step of the flexible character: the hot loop of Simulator.run.
 
 The reference step (Simulator.accelerations / Simulator.step) is written for reading: 60-110 small
-numpy calls a step. On a 10-coordinate character each call costs about a microsecond, the arithmetic
-almost nothing, so a step's time is its number of calls. Here the same equations are laid out so a
-step is a few dozen calls on preallocated buffers:
+numpy calls a step. On a 10-coordinate character each call costs about a microsecond and the
+arithmetic almost nothing, so a step's time is its number of calls. Here the same equations are laid
+out so a step is about 35 calls on preallocated buffers, all in the ground plane's frame (the world
+frame when there is no ground or several planes):
 
-- The point Jacobians in body velocities, G = [I, -[y]x, B] (3P x n), and the body-frame points y are
-  linear in gamma: one product [1, gamma] . GY gives both, written straight into a buffer.
-- M, the ground's stiffness and damping are all sums of G_p^T w G_p and Gn_p^T w Gn_p (Gn_p the
-  normal row of a point): the system matrix of the implicit step is one product S^T (W S) of the
-  stacked rows S = [Gn; G] with their weights (mass, plus the touching points' spring and damper).
-- The point velocities are G u (one product); positions and velocities are rotated into the ground
-  plane's frame together (one product); the penalty forces of all points come from one 3x9 matrix
-  times the stacked rows (positions, velocities, anchors, 1) with masks, not index lists.
-- The velocity terms (w x v + w x (w x y) + 2 w x ydot) and gravity are one product of the
-  velocities with a 4x3 matrix; the mode forces (passive, PD, predictor terms) one product with
-  the state vector z = [1, gamma, v, w, gamma_dot].
-- The rigid motion (quaternion and translation) is a few dozen float operations in plain Python,
-  cheaper than numpy calls on 3- and 4-vectors.
+- The point Jacobians in body velocities, G = [I, -[y]x, B] (3P x n), and the body points y are
+  linear in gamma: one product [1, gamma] . GY gives both, one more rotates them into the plane
+  frame (Gq = R' G, R' = R_plane R), coordinate by coordinate: rows (x of all points, y of all, z).
+- One product of [u, u with gamma_dot doubled, the y column] with Gq gives the points' velocities,
+  positions and v + y_dot (the velocity terms are w x (v_point + y_dot)) as rows of one table.
+- One 6 x 12 matrix times that table (plus anchors and a row of ones) gives the penalty springs and
+  dampers of all points (masks, not index lists) and w x (v_point + y_dot) - g.
+- b = Gq^T F + Q z is one product of the stacked [F, z] with the stacked [Gq; Q^T], z = [1, gamma,
+  v, w, gamma_dot] (Q: the passive, PD and predictor mode forces; the PD targets in its 1-column).
+- The system matrix M + h/2 C + h^2/4 K is Gq^T (W Gq) + modes: in the plane frame the ground's
+  stiffness and damping are diagonal per point (tangential, normal), so they are per-row weights W
+  next to the masses; W itself is one 6 x 3 product of (sticking, sliding, mass).
+- The new state and the rigid motion's increment are one product of [z, du]; the rigid motion
+  (quaternion, translation) is a few dozen float operations in plain Python, cheaper than numpy
+  calls on 3- and 4-vectors.
 - One LAPACK Cholesky solve (dposv) a step; the implicit corrector reuses its factor (dpotrs).
 
-Everything that doesn't change during a run (the gamma polynomials of G and y, the plane frame, the
-mode gains, the pose schedule of the controller) is prepared once."""
+Everything constant during a run (the gamma polynomial of G and y, the plane frame, the mode gains,
+the pose schedule of the controller) is prepared once."""
 
 import math
+from operator import mul
 
 import numpy as np
 from scipy.linalg.lapack import dposv, dpotrs
@@ -81,23 +85,22 @@ class Kernel:
         body = sim.body
         P, D, n = sim.P, body.mode_count, sim.n
         self.P, self.D, self.n = P, D, n
-        # G = G0 + sum_k gamma_k G1_k and y = X0 + sum_k gamma_k B_k: rows [1, gamma] of GY
-        G0 = sim._rows(sim.X0, np.arange(P))
+        self.nz = nz = 1 + D + n
+        h = s.dt
+        # G = G0 + sum_k gamma_k G1_k and y = X0 + sum_k gamma_k B_k, coordinate-major (3, P, n + 1):
+        # [row i of G_p | y_p,i]
+        G0 = sim._rows(sim.X0, np.arange(P))                   # (P, 3, n)
         G1 = np.zeros((D, P, 3, n))
         for k in range(D):
             G1[k, :, :, 3:6] = -skew(sim.B[k])
-        GY = np.zeros((1 + D, 3 * P * n + 3 * P))
-        GY[0, :3 * P * n] = G0.ravel()
-        GY[1:, :3 * P * n] = G1.reshape(D, 3 * P * n)
-        GY[0, 3 * P * n:] = sim.X0.ravel()
-        GY[1:, 3 * P * n:] = sim.B.reshape(D, 3 * P)
-        self.GY = GY
-        self.Bflat = np.ascontiguousarray(sim.Bflat)
+        GY = np.zeros((1 + D, 3, P, n + 1))
+        GY[0, :, :, :n] = G0.transpose(1, 0, 2)
+        GY[1:, :, :, :n] = G1.transpose(0, 2, 1, 3)
+        GY[0, :, :, n] = sim.X0.T
+        GY[1:, :, :, n] = sim.B.transpose(0, 2, 1)
+        self.GY = GY.reshape(1 + D, -1)
         self.m = sim.m.copy()
-        self.m3 = np.repeat(sim.m, 3)[:, None]                 # per row of G
-        self.mcol = sim.m[:, None]
-        self.g = [float(c) for c in sim.g]
-        # mode forces qm = Q z, z = [1, gamma, v, w, gamma_dot]; column 0 holds the PD targets
+        # mode forces: Q z = passive springs and dampers, PD (targets in column 0), limits aside
         stiff = np.asarray(sim.gains.stiffness, float).copy()
         damp = np.asarray(sim.gains.damping, float).copy()
         ctl = sim.controller
@@ -106,57 +109,67 @@ class Kernel:
             np.add.at(stiff, ctl.active, ctl.kp)
             np.add.at(damp, ctl.active, ctl.kd)
             np.add.at(self.kp, ctl.active, ctl.kp)
-        self.stiff, self.damp = stiff, damp
-        h = s.dt
-        Q = np.zeros((2 * D, 1 + D + n))
         ar = np.arange(D)
+        Q = np.zeros((D, nz))
         Q[ar, 1 + ar] = -stiff
         Q[ar, 7 + D + ar] = -damp
-        # the predictor's right side b - h/2 K u: the mode springs' share of K u
-        Q[D + ar, 1 + ar] = -stiff
-        Q[D + ar, 7 + D + ar] = -damp - 0.5 * h * stiff
         self.Q = Q
-        # M + h/2 C + h^2/4 K: the modes' (constant) share
+        # the predictor's right side is b - h/2 K u: the mode springs' share of K u, folded into Q
+        Qp = Q.copy()
+        Qp[ar, 7 + D + ar] -= 0.5 * h * stiff
+        self.Qp = Qp
+        self.half_h_stiff = 0.5 * h * stiff                      # Q z = Qp z + this * gamma_dot
+        # (M + h/2 C + h^2/4 K) / h: the modes' (constant) share
         A0 = np.zeros((n, n))
-        A0[6 + ar, 6 + ar] = 0.5 * h * damp + 0.25 * h * h * stiff
+        A0[6 + ar, 6 + ar] = 0.5 * damp + 0.25 * h * stiff
         self.A0 = A0
         self.limit = sim.limit_stiffness
-        self.passive_stiffness = np.asarray(sim.gains.stiffness, float)
-        # the ground: one plane (any slope) in its own frame, fast; several planes (a ledge) through
-        # forces.Contacts, general
-        self.plane = None
+        # the state update [z, du] -> [z_new, translation and rotation increments (6)]
+        self.T_step = self._update_map(h, 0.5 * h, 1.0)            # trapezoidal / midpoint step
+        self.T_thesis = self._update_map(h, h * h, h)               # du = h x: u += h x, q += h u_new
+        self.T_mid = self._update_map(0.5 * h, 0.25 * h, 0.5)       # the implicit midpoint's half step
+        # the plane frame: the ground plane's (e1, e2, normal) when there is one plane, else the world
         self.contacts = sim.contacts
-        if self.contacts is not None and self.contacts.single:
-            c = self.contacts
-            nrm = c.normals[0]
+        self.single = self.contacts is not None and self.contacts.single
+        self.Rp = np.eye(3)
+        self.origin = [0.0, 0.0, 0.0]
+        if self.single:
+            nrm = self.contacts.normals[0]
             e1 = np.cross([0.0, 1.0, 0.0], nrm) if abs(nrm[0]) < 0.9 else np.cross(nrm, [0.0, 0.0, 1.0])
             e1 /= np.linalg.norm(e1)
-            e2 = np.cross(nrm, e1)
-            Rp = np.array([e1, e2, nrm])                        # world -> plane frame
-            self.plane = {"Rp": Rp, "flat": bool(np.allclose(Rp, np.eye(3))),
-                          "Rp_list": Rp.ravel().tolist(), "origin": (c.offsets[0] * nrm).tolist(),
-                          "k": c.k, "cn": c.cn, "ct": c.ct, "mu": c.mu, "collides": c.collides.copy(),
-                          "all": bool(c.collides.all())}
+            self.Rp = np.array([e1, np.cross(nrm, e1), nrm])
+            self.origin = (self.contacts.offsets[0] * nrm).tolist()
+        self.flat = bool(np.allclose(self.Rp, np.eye(3), rtol=0, atol=0))
+        self.g_plane = self.Rp @ sim.g
         self.springs = list(s.springs)
         self.spring_idx = sim.spring_idx
+
+    def _update_map(self, a, b, c):
+        """[z, du] -> [z_new, mv]: gamma += a gamma_dot + b du_gamma, u += c du, and the rigid
+        increment mv = a u[:6] + b du[:6]."""
+        D, n, nz = self.D, self.n, self.nz
+        T = np.zeros((nz + 6, nz + n))
+        T[:nz, :nz] = np.eye(nz)
+        ar = np.arange(D)
+        T[1 + ar, 7 + D + ar] = a
+        T[1 + ar, nz + 6 + ar] = b
+        T[1 + D + np.arange(n), nz + np.arange(n)] = c
+        T[nz + np.arange(6), 1 + D + np.arange(6)] = a
+        T[nz + np.arange(6), nz + np.arange(6)] = b
+        return T
 
     # -- the controller's targets, prepared for the whole run -----------------------------------------
     def schedule(self, times):
         """Pose index at each time (the controller's pose_index, vectorised)."""
-        ctl = self.sim.controller
-        ends = ctl._ends
+        ends = self.sim.controller._ends
         phase = np.asarray(times, float) % ends[-1]
         return np.minimum(np.searchsorted(ends, phase, side="right"), len(ends) - 1).tolist()
 
     def targets(self):
-        """Column 0 of Q for each pose: kp * target on the active modes."""
+        """kp * target on the active modes, for each pose."""
         ctl = self.sim.controller
-        out = np.zeros((len(ctl.poses), 2 * self.D))
-        for i, pose in enumerate(ctl.poses):
-            t = np.zeros(self.D)
-            t[ctl.active] = pose
-            out[i, :self.D] = self.kp * t
-            out[i, self.D:] = self.kp * t
+        out = np.zeros((len(ctl.poses), self.D))
+        out[:, ctl.active] = self.kp[ctl.active] * ctl.poses
         return out
 
     # -- the run ------------------------------------------------------------------------------------
@@ -167,204 +180,218 @@ class Kernel:
         the end."""
         from .simulate import State
         sim = self.sim
-        P, D, n = self.P, self.D, self.n
+        P, D, n, nz = self.P, self.D, self.n, self.nz
+        P3 = 3 * P
         h = sim.settings.dt
         integrator = sim.settings.integrator
         thesis, midpoint = integrator == "thesis", integrator == "implicit"
-        GY, Bflat, Q, A0 = self.GY, self.Bflat, self.Q.copy(), self.A0
-        m3, mcol, negm = self.m3, self.mcol, -self.mcol
-        m3G = np.empty((3 * P, n))
-        gx, gy, gz = self.g
-        limit = self.limit
-        # the state: z = [1, gamma, v, w, gamma_dot] (u = z[1 + D:]), the rigid frame in Python floats
-        z = np.empty(1 + D + n)
+        GY, Q, A0, limit = self.GY, self.Q.copy(), self.A0, self.limit
+        half_h_stiff = self.half_h_stiff
+        T_upd = self.T_thesis if thesis else self.T_step
+        T_mid = self.T_mid
+        # [F (3P, plane frame, coordinate-major) | z (nz) | b, then x (n + 1)]
+        ALL = np.zeros(P3 + nz + n + 1)
+        Fq = ALL[:P3].reshape(3, P)
+        Fz = ALL[:P3 + nz]
+        z = ALL[P3:P3 + nz]
+        ZX = ALL[P3:P3 + nz + n]
+        bx = ALL[P3 + nz:]
+        x = ALL[P3 + nz:P3 + nz + n]
         z[0] = 1.0
-        g1, gam, u = z[:1 + D], z[1:1 + D], z[1 + D:]
-        gd = z[7 + D:]
+        g1, gam, u, gd = z[:1 + D], z[1:1 + D], z[1 + D:], z[7 + D:]
         gam[:] = state.gamma
         u[0:3], u[3:6], gd[:] = state.v, state.w, state.gdot
         t = [float(c) for c in state.t]
         q = [float(c) for c in state.quat]
         Rl = rot_list(*q)
-        # buffers: [Gn (P x n) | G (3P x n) | y (P x 3) | point velocities (P x 3)]
-        buf = np.zeros(4 * P * n + 6 * P)
-        S = buf[:4 * P * n].reshape(4 * P, n)                   # stacked [Gn; G]
-        Gn = buf[:P * n].reshape(P, n)
-        G = buf[P * n:4 * P * n].reshape(3 * P, n)
-        G3 = G.reshape(P, 3, n)
-        GYout = buf[P * n:4 * P * n + 3 * P]
-        y = buf[4 * P * n:4 * P * n + 3 * P].reshape(P, 3)
-        vel = buf[4 * P * n + 3 * P:]
-        vel3 = vel.reshape(P, 3)
-        YVt = buf[4 * P * n:].reshape(2 * P, 3).T               # (3, 2P): positions then velocities
-        c4 = np.ones((P, 4))                                    # [velocity + y_dot, 1]
-        c3 = c4[:, :3]
-        W43 = np.zeros((4, 3))
-        W4 = np.empty((4 * P, 1))
-        W4G = W4[P:].reshape(P, 3)
-        ydot = np.empty(3 * P)
-        ydot3 = ydot.reshape(P, 3)
-        # the ground plane (fast path)
-        pl = self.plane
-        if pl is not None:
-            Rp, flat, Rpl, org = pl["Rp"], pl["flat"], pl["Rp_list"], pl["origin"]
-            k, cn, ct, mu = pl["k"], pl["cn"], pl["ct"], pl["mu"]
-            collides, all_collide = pl["collides"], pl["all"]
-            C9 = np.zeros((9, P))                               # x0 v0 x1 v1 x2 v2 a0 a1 1
-            C9[8] = 1.0
-            XV = C9[:6].reshape(3, 2 * P)
-            Xt, Vt, Vall, anchor = C9[0:3:2], C9[1:4:2], C9[1:6:2], C9[6:8]
-            Fm = np.zeros((3, 9))
-            Fm[0, [0, 1, 6]] = -k, -ct, k
-            Fm[1, [2, 3, 7]] = -k, -ct, k
-            Fm[2, [4, 5]] = -k, -cn
-            tp01 = np.empty((2, 1))
-            anchored = np.zeros(P, bool)
-            touch = np.empty(P, bool)
-            sliding = np.empty(P, bool)
-            stick = np.empty(P, bool)
-            scale = np.empty(P)
-            corr = np.empty((3, P))
-            a_stick = 0.5 * h * ct + 0.25 * h * h * k             # weights of G^T G and Gn^T Gn
-            n_stick = 0.5 * h * (cn - ct)
-            n_slide = 0.5 * h * cn + 0.25 * h * h * k
+        # G and y in the body frame, then [Gq; Q^T] (plane frame) stacked for b = [F, z] . GQ
+        Gb = np.empty(3 * P * (n + 1))
+        Gb2 = Gb.reshape(3, P * (n + 1))
+        GQ = np.zeros((P3 + nz, n + 1))
+        GQ[P3:, 6:n] = self.Qp.T
+        Gqe = GQ[:P3].reshape(3, P * (n + 1))
+        Gq2 = GQ[:P3, :n]
+        Gq3 = Gq2.reshape(3, P, n)
+        WG = np.empty((3, P, n))
+        # the table: rows v (3), y (3), v + y_dot (3), 1, anchors (2), contact force (3), the
+        # plane's distance s, a' = w x (v + y_dot) - g (3); all in the plane frame
+        BIG = np.zeros((19, P))
+        BIG[9] = 1.0
+        VYC = BIG[:9].reshape(3, P3)
+        U3T = np.zeros((3, n + 1))
+        U3T[1, n] = 1.0
+        twos = np.ones(n)
+        twos[6:] = 2.0
+        Vq, Yq = BIG[0:3], BIG[3:6]
+        anchor, f, dist, acc = BIG[10:12], BIG[12:15], BIG[15], BIG[16:19]
+        FW = np.zeros((4, 12))                                   # contact forces and s from BIG[:12]
+        FW[3, 5] = 1.0
+        g0, g1_, g2 = (-self.g_plane).tolist()
+        zP = np.zeros(P)
+        mrow = self.m[None, :]
+        negm = -mrow
+        mq_step = (self.m / h)[None, :, None]                 # the masses' weights in A / h
+        mq_thesis = self.m[None, :, None]
+        Rp, flat, org = self.Rp, self.flat, self.origin
+        Rpl = Rp.ravel().tolist()
+        contact = self.single
+        if contact:
+            c = self.contacts
+            k, cn, ct, mu = c.k, c.cn, c.ct, c.mu
+            collidesf = c.collides.astype(float)
+            all_collide = bool(c.collides.all())
+            for i, damping in enumerate((ct, ct, cn)):
+                FW[i, i] = -damping
+                FW[i, 3 + i] = -k
+            FW[0, 10] = FW[1, 11] = k
+            MV = np.zeros((2, 19))                             # a slid anchor: x_t + (f_t + ct v_t) / k
+            MV[0, [3, 12, 0]] = 1.0, 1.0 / k, ct / k
+            MV[1, [4, 13, 1]] = 1.0, 1.0 / k, ct / k
+            muP = np.full(P, mu)
+            cap = np.empty(P)
+            moved = np.empty((2, P))
             hk = 0.5 * h * k
-        general = self.contacts is not None and pl is None
+            a_stick = 0.5 * ct + 0.25 * h * k                  # per h: (h/2 ct + h^2/4 k) / h
+            n_stick = 0.5 * (cn - ct)
+            n_slide = 0.5 * cn + 0.25 * h * k
+            # (stick, slide, mass) -> the -h/2 K u multipliers (3 rows) and the weights of A / h (3)
+            CW = np.array([[-hk, 0, 0], [-hk, 0, 0], [-hk, -hk, 0],
+                           [a_stick, 0, 1 / h], [a_stick, 0, 1 / h], [a_stick + n_stick, n_slide, 1 / h]])
+            SB = np.zeros((3, P))
+            SB[2] = self.m
+            stickf, slidef = SB[0], SB[1]
+            MW = np.empty((6, P))
+            KU, W3 = MW[:3], MW[3:]
+            touchf = np.zeros(P)
+            anchoredf = np.zeros(P)
+            newb = np.empty(P, bool)
+            slideb = np.empty(P, bool)
+            scale = np.empty(P)
+            tp01 = np.empty((2, 1))
+            kv = np.empty((3, P))
+        general = self.contacts is not None and not contact
         springs = self.springs
         ctl = sim.controller
+        current = -1
         if ctl is not None:
             times = start_time + np.arange(steps) * h
             pose_now = self.schedule(times)
             pose_mid = self.schedule(times + 0.5 * h) if midpoint else None
-            qcols = self.targets()
-            current = -1
+            kpt = self.targets()
 
         def set_pose(index):
-            Q[:, 0] = qcols[index]
+            GQ[P3, 6:n] = kpt[index]
+            Q[:, 0] = kpt[index]
             return index
 
         def evaluate(Rl, time, kind, du=None):
-            """The right side at the current z and rigid frame: kind 0 = b (thesis), 1 = the
-            predictor's h (b - h/2 K u) with the system matrix A, 2 = the corrector's
-            h b - M du. Returns (rhs, A or None, power)."""
-            np.dot(g1, GY, out=GYout)                     # G and y
-            np.dot(G, u, out=vel)                         # point velocities, body frame
-            R = np.array(Rl).reshape(3, 3)
-            touching = False
-            fb = None
-            if pl is not None:
+            """b at the current z and rigid frame into bx, for kind 0 (thesis: b), 1 (predictor:
+            (b - h/2 K u), with the system matrix (M + h/2 C + h^2/4 K) / h returned) or 2
+            (corrector: b - M du / h). Returns (A or None, power)."""
+            # the rotation into the plane frame, the body origin in it, w in it
+            if flat:
+                Rql = Rl
                 tx, ty, tz = t[0] - org[0], t[1] - org[1], t[2] - org[2]
-                if flat:
-                    Rq = R
-                    tp0, tp1, tp2 = tx, ty, tz
-                else:
-                    Rq = Rp.dot(R)
-                    tp0 = Rpl[0] * tx + Rpl[1] * ty + Rpl[2] * tz
-                    tp1 = Rpl[3] * tx + Rpl[4] * ty + Rpl[5] * tz
-                    tp2 = Rpl[6] * tx + Rpl[7] * ty + Rpl[8] * tz
-                np.dot(Rq, YVt, out=XV)                   # plane-frame positions and velocities
-                np.less(C9[4], -tp2, out=touch)
+            else:
+                Rql = [Rpl[3 * i] * Rl[j] + Rpl[3 * i + 1] * Rl[3 + j] + Rpl[3 * i + 2] * Rl[6 + j]
+                       for i in range(3) for j in range(3)]
+                ox, oy, oz = t[0] - org[0], t[1] - org[1], t[2] - org[2]
+                tx = Rpl[0] * ox + Rpl[1] * oy + Rpl[2] * oz
+                ty = Rpl[3] * ox + Rpl[4] * oy + Rpl[5] * oz
+                tz = Rpl[6] * ox + Rpl[7] * oy + Rpl[8] * oz
+            zl = z.tolist()
+            w0, w1, w2 = zl[4 + D:7 + D]
+            a0 = Rql[0] * w0 + Rql[1] * w1 + Rql[2] * w2      # w in the plane frame
+            a1 = Rql[3] * w0 + Rql[4] * w1 + Rql[5] * w2
+            a2 = Rql[6] * w0 + Rql[7] * w1 + Rql[8] * w2
+            # R' and [w x | -g] (plane frame) in one array
+            RW = np.array(Rql + [0.0, -a2, a1, g0, a2, 0.0, -a0, g1_, -a1, a0, 0.0, g2])
+            Rq = RW[:9].reshape(3, 3)
+            # G, y (body), then plane frame; velocities, positions, v + y_dot
+            g1.dot(GY, out=Gb)
+            Rq.dot(Gb2, out=Gqe)
+            U3T[0, :n] = u
+            np.multiply(u, twos, out=U3T[2, :n])
+            U3T.dot(Gqe.reshape(P3, n + 1).T, out=VYC)
+            RW[9:].reshape(3, 4).dot(BIG[6:10], out=acc)        # w x (v + y_dot) - g
+            touching = False
+            if contact:
+                FW[:, 9] = (-k * tx, -k * ty, -k * tz, tz)
+                FW.dot(BIG[:12], out=BIG[12:16])              # springs and dampers from the anchors; s
+                np.less(dist, zP, out=touchf)
                 if not all_collide:
-                    np.logical_and(touch, collides, out=touch)
-                if np.count_nonzero(touch):
-                    touching = True
-                    tp01[0, 0], tp01[1, 0] = tp0, tp1
-                    new = np.greater(touch, anchored)
-                    if np.count_nonzero(new):            # the point of entry: where it crossed the plane
-                        np.copyto(anchor, Xt + tp01, where=new)
-                    Fm[:, 8] = -k * tp0, -k * tp1, -k * tp2
-                    f = Fm.dot(C9)                        # -k (x - anchor) - damping v, plane frame
-                    fn = f[2]
-                    np.maximum(fn, 0.0, out=fn)           # the ground only pushes
-                    f *= touch
-                    ftn = np.hypot(f[0], f[1])
-                    cap = fn * mu
-                    np.greater(ftn, cap, out=sliding)
-                    slides = np.count_nonzero(sliding)
-                    if slides:                            # Coulomb: cap the friction force
-                        scale.fill(1.0)
-                        np.divide(cap, ftn, out=scale, where=sliding)
-                        f[0:2] *= scale
-                        # slide the anchor so the spring alone gives the capped force next time
-                        moved = (Xt + tp01) + (f[0:2] + ct * Vt) * (1.0 / k)
-                        np.copyto(anchor, moved, where=sliding)
-                    anchored[:] = touch
-                    if kind == 1:
-                        # - h/2 K u: sticking points' springs in all directions, sliding ones' along n
-                        np.greater(touch, sliding, out=stick)
-                        np.multiply(Vall, -hk, out=corr)
-                        corr[0:2] *= stick
-                        corr[2] *= touch
-                        f += corr
-                    fb = f.T.dot(Rq)                      # body frame
-                elif np.count_nonzero(anchored):
-                    anchored[:] = False
-            elif general:
-                fb, cinfo = self._general_contacts(R, t, y, vel3, kind == 1, h)
-                touching = cinfo is not None
-            # velocity terms and gravity: m (g_body - w x (v_point + y_dot))
-            np.dot(gd, Bflat, out=ydot)
-            np.add(vel3, ydot3, out=c3)
-            w0, w1, w2 = u[3:6].tolist()
-            W43[0, 1], W43[0, 2] = w2, -w1
-            W43[1, 0], W43[1, 2] = -w2, w0
-            W43[2, 0], W43[2, 1] = w1, -w0
-            W43[3] = (-(Rl[0] * gx + Rl[3] * gy + Rl[6] * gz), -(Rl[1] * gx + Rl[4] * gy + Rl[7] * gz),
-                      -(Rl[2] * gx + Rl[5] * gy + Rl[8] * gz))
-            F = c4.dot(W43)
-            F *= negm
-            if fb is not None:
-                F += fb
+                    np.multiply(touchf, collidesf, out=touchf)
+                touching = np.count_nonzero(touchf) > 0
+            if touching:
+                np.greater(touchf, anchoredf, out=newb)
+                if np.count_nonzero(newb):                   # the point of entry: where it crossed the plane
+                    tp01[0, 0], tp01[1, 0] = tx, ty
+                    np.copyto(anchor, Yq[0:2] + tp01, where=newb)
+                    FW[0:2].dot(BIG[:12], out=BIG[12:14])
+                np.maximum(f[2], zP, out=f[2])                  # the ground only pushes
+                np.multiply(f, touchf, out=f)
+                ftn = np.hypot(f[0], f[1])
+                np.multiply(f[2], muP, out=cap)
+                np.greater(ftn, cap, out=slidef)
+                if np.count_nonzero(slidef):                  # Coulomb: cap the friction force
+                    np.greater(slidef, 0.0, out=slideb)
+                    scale.fill(1.0)
+                    np.divide(cap, ftn, out=scale, where=slideb)
+                    f[0:2] *= scale
+                    # slide the anchor so the spring alone gives the capped force next time
+                    MV[0, 9], MV[1, 9] = tx, ty
+                    MV.dot(BIG, out=moved)
+                    np.copyto(anchor, moved, where=slideb)
+                anchoredf[:] = touchf
+                np.multiply(acc, negm, out=Fq)                 # m (g - w x (v + y_dot))
+                np.add(Fq, f, out=Fq)
+                if kind == 1:
+                    np.subtract(touchf, slidef, out=stickf)
+                    CW.dot(SB, out=MW)
+                    np.multiply(Vq, KU, out=kv)                # - h/2 K u of the ground springs
+                    np.add(Fq, kv, out=Fq)
+            else:
+                if contact and anchoredf.any():
+                    anchoredf.fill(0.0)
+                np.multiply(acc, negm, out=Fq)
+                if general:
+                    touching = self._general_contacts(Rq, t, Yq, Vq, Fq, kind == 1, h)
             if springs:
-                F[self.spring_idx] += self._spring_forces(R, t, y, vel3, time)
-            if kind == 2:
-                F *= h
-                F -= mcol * G.dot(du).reshape(P, 3)       # - M du = - G^T m G du
-            b = F.reshape(-1).dot(G)
-            qm2 = Q.dot(z)
-            qm = qm2[:D]
+                Fq[:, self.spring_idx] += self._spring_forces(t, Yq, Vq, time)
+            if kind == 2:                                       # - M du / h = - Gq^T m Gq du / h
+                np.subtract(Fq, (mrow / h) * Gq2.dot(du).reshape(3, P), out=Fq)
+            Fz.dot(GQ, out=bx)                                  # Gq^T F + Qp z
+            qm = Q.dot(z)
+            power = sum(map(abs, map(mul, qm.tolist(), zl[7 + D:])))
+            if kind != 1:                                       # Q z, not Qp z
+                bx[6:n] += half_h_stiff * gd
+            gl = zl[1:1 + D]
             lim = None
-            gl = gam.tolist()
             if gl and (max(gl) > 1.0 or min(gl) < -1.0):
                 # amplitudes live in [-1, 1] (thesis 4.3): a stiff one-sided spring beyond
                 over = gam - np.clip(gam, -1.0, 1.0)
                 lim = limit * (over != 0)
-                qm = qm - limit * over
-                qm2 = qm2 - np.concatenate([limit * over, limit * over + 0.5 * h * lim * gd])
-            power = 0.0
-            for a_, b_ in zip(qm.tolist(), gd.tolist()):
-                power += abs(a_ * b_)
-            if kind == 0:
-                b[6:] += qm
-                return b, None, power
-            if kind == 2:
-                b[6:] += h * qm
-                return b, None, power
-            b[6:] += qm2[D:]
-            b *= h
-            # the system matrix M + h/2 C + h^2/4 K = S^T W S + modes
-            if touching and pl is not None:
-                np.dot(Rq[2], G3, out=Gn)                 # normal rows n_body^T G_p
-                W4[:P, 0] = stick * n_stick + sliding * n_slide
-                W4G[:] = (mcol + a_stick * stick[:, None])
-                A = S.T.dot(S * W4)
-            elif touching:
-                A = self._general_matrix(S, Gn, G3, W4, W4G, cinfo, h)
+                bx[6:n] -= limit * over
+                power = float(np.abs((qm - limit * over) * gd).sum())
+                if kind == 1:
+                    bx[6:n] -= 0.5 * h * lim * gd
+            if kind != 1:
+                return None, power
+            if touching and contact:
+                np.multiply(Gq3, W3[:, :, None], out=WG)
             else:
-                np.multiply(G, m3, out=m3G)
-                A = G.T.dot(m3G)
+                np.multiply(Gq3, mq_step, out=WG)
+            A = Gq2.T.dot(WG.reshape(P3, n))
             A += A0
+            if touching and general:
+                A += self._general_matrix(Gq3, h)
             if lim is not None:
-                A[6 + np.arange(D), 6 + np.arange(D)] += 0.25 * h * h * lim
-            return b, A, power
+                A[6 + np.arange(D), 6 + np.arange(D)] += 0.25 * h * lim
+            return A, power
 
         def mass_matrix():
-            np.multiply(G, m3, out=m3G)
-            return G.T.dot(m3G)
-
-        def diverged(time):
-            raise FlexibleError(f"the simulation diverged at {time:.3f} s: try a smaller time step, "
-                                f"the implicit integrator, or softer ground/modes")
+            np.multiply(Gq3, mq_thesis, out=WG)
+            return Gq2.T.dot(WG.reshape(P3, n))
 
         def current_state():
             return State(np.array(t), np.array(q), gam.copy(), u[0:3].copy(), u[3:6].copy(), gd.copy())
@@ -373,50 +400,44 @@ class Kernel:
         chunk = max(steps // 50, 1)
         records = [snapshot(current_state(), start_time)]
         consumed, conds = 0.0, []
+        xv = x
         for i in range(steps):
             time = start_time + i * h
             if ctl is not None and pose_now[i] != current:
                 current = set_pose(pose_now[i])
             if thesis:
-                b, _, power = evaluate(Rl, time, 0)
-                M = mass_matrix()
-                c, x, info = dposv(M, b, lower=0, overwrite_a=1, overwrite_b=0)
+                _, power = evaluate(Rl, time, 0)
+                cf, xs, info = dposv(mass_matrix(), x, lower=0, overwrite_a=1, overwrite_b=0)
                 if info:
-                    x = np.linalg.solve(mass_matrix(), b)
-                x *= h
-                u += x                                     # u_new = u + h M^-1 b
-                mv = u.tolist()
-                gam += h * gd
-                Rl = rigid_move(q, t, [h * c_ for c_ in mv[:6]])
+                    xs = np.linalg.solve(mass_matrix(), x)
+                x[:] = xs                                      # u += h M^-1 b (T_thesis scales by h)
             else:
-                b, A, power = evaluate(Rl, time, 1)
-                c, du, info = dposv(A, b, lower=0, overwrite_a=1, overwrite_b=1)
+                A, power = evaluate(Rl, time, 1)
+                cf, xs, info = dposv(A, x, lower=0, overwrite_a=1, overwrite_b=1)
                 if info:
                     raise FlexibleError(f"the system matrix lost positive definiteness at {time:.3f} s")
+                if xs is not xv:
+                    x[:] = xs
                 if midpoint:
                     # predictor u* = u + du; the implicit midpoint rule's corrector: one Newton step
                     # about the midpoint, with the predictor's matrix (its Cholesky factor reused)
-                    z0, t0, q0 = z.copy(), t[:], q[:]
-                    half = du * 0.5
-                    half += u                              # (u + u*) / 2
-                    gam += (0.5 * h) * half[6:]
-                    mv = (0.5 * h * half[:6]).tolist()
-                    u[:] = half
-                    Rm = rigid_move(q, t, mv)
+                    z0, du0, t0, q0 = z.copy(), x.copy(), t[:], q[:]
+                    zm = T_mid.dot(ZX)
+                    z[:] = zm[:nz]
+                    Rm = rigid_move(q, t, zm[nz:].tolist())
                     if ctl is not None and pose_mid[i] != current:
                         current = set_pose(pose_mid[i])
-                    bp, _, power = evaluate(Rm, time + 0.5 * h, 2, du)
-                    fix, info = dpotrs(c, bp, lower=0, overwrite_b=1)
-                    du += fix                              # u_new - u
+                    _, power = evaluate(Rm, time + 0.5 * h, 2, du0)
+                    fix, info = dpotrs(cf, x, lower=0, overwrite_b=0)
+                    np.add(du0, fix, out=x)                    # u_new - u
                     z[:] = z0
                     t[:], q[:] = t0, q0
-                half = du * 0.5
-                half += u
-                gam += h * half[6:]
-                u += du
-                Rl = rigid_move(q, t, (h * half[:6]).tolist())
-            if not u.dot(u) < 1e12:                        # also NaN: stops before numbers overflow
-                diverged(time)
+            zm = T_upd.dot(ZX)
+            z[:] = zm[:nz]
+            Rl = rigid_move(q, t, zm[nz:].tolist())
+            if not u.dot(u) < 1e12:                            # also NaN: stops before numbers overflow
+                raise FlexibleError(f"the simulation diverged at {time:.3f} s: try a smaller time step, "
+                                    f"the implicit integrator, or softer ground/modes")
             consumed += power * h
             if cond_every and i % cond_every == 0:
                 conds.append(np.linalg.cond(mass_matrix()))
@@ -426,40 +447,41 @@ class Kernel:
                 yield i / max(steps, 1)
         return records, consumed, conds, current_state()
 
-    # -- general (slower) paths: several ground planes, springs ---------------------------------------
-    def _general_contacts(self, R, t, y, vel3, predictor, h):
+    # -- general (slower) paths: several ground planes, springs (plane frame = world here) ------------
+    def _general_contacts(self, Rq, t, Yq, Vq, Fq, predictor, h):
         c = self.contacts
-        x = np.asarray(t) + y @ R.T
-        vw = vel3 @ R.T
+        x = np.asarray(t) + Yq.T
+        vw = Vq.T.copy()
         touching = c.forces(x, lambda idx: vw[idx])
         if touching is None:
-            return None, None
+            self._touching = None
+            return False
         idx, normals, sliding, f = touching
-        fb = np.zeros((self.P, 3))
         if predictor:
             v = vw[idx]
             vn = (v * normals).sum(axis=1)
-            stick = ~sliding
-            f = f - 0.5 * h * c.k * np.where(stick[:, None], v, vn[:, None] * normals)
-        fb[idx] = f @ R
-        return fb, (idx, normals @ R, sliding)
+            f = f - 0.5 * h * c.k * np.where(sliding[:, None], vn[:, None] * normals, v)
+        Fq[:, idx] += f.T
+        self._touching = (idx, normals, sliding)
+        return True
 
-    def _general_matrix(self, S, Gn, G3, W4, W4G, cinfo, h):
+    def _general_matrix(self, Gq3, h):
+        """The touching points' share of (h/2 C + h^2/4 K) / h with a normal per point."""
         c = self.contacts
-        idx, nb, sliding = cinfo
-        Gn[:] = 0.0
-        Gn[idx] = (G3[idx] * nb[:, :, None]).sum(axis=1)
-        W4[:] = 0.0
+        idx, normals, sliding = self._touching
+        Gc = Gq3[:, idx, :]                                   # (3, c, n)
+        Gn = np.einsum("ci,icn->cn", normals, Gc)
         stick = ~sliding
-        W4[idx, 0] = np.where(stick, 0.5 * h * (c.cn - c.ct), 0.5 * h * c.cn + 0.25 * h * h * c.k)
-        W4G[:] = self.mcol
-        W4G[idx] += np.where(stick, 0.5 * h * c.ct + 0.25 * h * h * c.k, 0.0)[:, None]
-        return S.T.dot(S * W4)
+        a = np.where(stick, 0.5 * c.ct + 0.25 * h * c.k, 0.0)
+        wn = np.where(stick, 0.5 * (c.cn - c.ct), 0.5 * c.cn + 0.25 * h * c.k)
+        return np.einsum("c,icn,icm->nm", a, Gc, Gc) + (Gn * wn[:, None]).T @ Gn
 
-    def _spring_forces(self, R, t, y, vel3, time):
+    def _spring_forces(self, t, Yq, Vq, time):
+        """Springs to anchors (world), as plane-frame forces (3, S) on the spring points."""
         idx = self.spring_idx
-        x = np.asarray(t) + y[idx] @ R.T
-        v = vel3[idx] @ R.T
+        Rp = self.Rp
+        x = np.asarray(t) + Yq[:, idx].T @ Rp                   # world = Rp^T plane
+        v = Vq[:, idx].T @ Rp
         out = np.empty((len(idx), 3))
         for j, sp in enumerate(self.springs):
             anchor = sp.anchor(time) if callable(sp.anchor) else sp.anchor
@@ -467,4 +489,4 @@ class Kernel:
             dist = float(np.linalg.norm(d))
             direction = d / dist if dist > 1e-12 else np.zeros(3)
             out[j] = sp.stiffness * (dist - sp.rest_length) * direction - sp.damping * v[j]
-        return out @ R
+        return Rp @ out.T
