@@ -136,7 +136,7 @@ class Simulator:
         self.gains = gains or ModeGains(np.zeros(D), np.zeros(D))
         self.controller = controller
         if self.settings.check_modes:
-            problems = check_modes(body)
+            problems = _mode_problems(body)
             if problems:
                 raise FlexibleError("deformation modes can't be simulated: " + "; ".join(problems))
         self._prepare_points()
@@ -163,6 +163,17 @@ class Simulator:
         self.Bt = self.B.transpose(1, 2, 0).copy()              # (P, 3, D)
         self.mcol = self.m[:, None]
         self.g = np.asarray(s.gravity, float)
+        self.spring_idx = np.arange(len(body.masses), P)
+        self._polys = None
+        self._finish_prepare(collides)
+
+    def _polynomials(self):
+        """M(gamma) and the per-point G^T G as polynomials in gamma, for the reference step and
+        energy(): made on first use (the fused kernel needs neither, and annealing makes a
+        Simulator per trial)."""
+        if self._polys is not None:
+            return self._polys
+        P, D, n = self.P, self.body.mode_count, self.n
         # M(gamma) as a quadratic polynomial: G = G0 + sum gamma_k G1_k
         G0 = self._rows(self.X0, np.arange(P))
         G1 = np.zeros((D, P, 3, n))
@@ -173,17 +184,30 @@ class Simulator:
         N = np.einsum("pia,kpib->kab", mG0, G1)
         M1 = (N + N.transpose(0, 2, 1)).reshape(D, n * n)
         M2 = np.einsum("p,kpia,lpib->klab", self.m, G1, G1).reshape(D * D, n * n)
-        self.M_poly = np.vstack([M0.reshape(1, n * n), M1, M2])         # rows: 1, gamma, gamma gamma
+        M_poly = np.vstack([M0.reshape(1, n * n), M1, M2])         # rows: 1, gamma, gamma gamma
         # the same polynomial per point with unit mass, for the contact stiffness sum G^T G
         # (kept when small: P (1 + D + D^2) n^2 numbers)
-        self.G_poly = None
+        G_poly = None
         if P * (1 + D + D * D) * n * n <= 400_000:
             g0 = np.einsum("pia,pib->pab", G0, G0).reshape(P, 1, n * n)
             N = np.einsum("pia,kpib->pkab", G0, G1)
             g1 = (N + N.transpose(0, 1, 3, 2)).reshape(P, D, n * n)
             g2 = np.einsum("kpia,lpib->pklab", G1, G1).reshape(P, D * D, n * n)
-            self.G_poly = np.concatenate([g0, g1, g2], axis=1)
-        self.spring_idx = np.arange(len(body.masses), P)
+            G_poly = np.concatenate([g0, g1, g2], axis=1)
+        self._polys = (M_poly, G_poly)
+        return self._polys
+
+    @property
+    def M_poly(self):
+        return self._polynomials()[0]
+
+    @property
+    def G_poly(self):
+        return self._polynomials()[1]
+
+    def _finish_prepare(self, collides):
+        body, s = self.body, self.settings
+        n = self.n
         self.implicit = s.integrator in ("implicit", "semi_implicit")
         self.midpoint = s.integrator == "implicit"
         # 10x the stiffest mode or controller, at least a 5 Hz mode of its own modal mass
@@ -423,6 +447,16 @@ class Simulator:
             if (i + 1) % every == 0 or i + 1 == steps:
                 rec.append(_snapshot(self, st, start_time + (i + 1) * h, track_energy))
         return _result(self, rec, consumed, conds, st)
+
+
+def _mode_problems(body):
+    """check_modes once per body (annealing builds a Simulator per trial of the same body)."""
+    key = (body.modes.tobytes(), body.masses.tobytes(), body.uvw.tobytes())
+    cached = getattr(body, "_mode_check", None)
+    if cached is None or cached[0] != key:
+        cached = (key, check_modes(body))
+        body._mode_check = cached
+    return cached[1]
 
 
 def _drain(gen):
