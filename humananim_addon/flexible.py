@@ -33,7 +33,7 @@ log = logging.getLogger(__name__)
 
 MAX_ACTIVE = 8          # amplitudes a pose holds: up to 8 active modes
 INTEGRATOR_ITEMS = (
-    ("implicit", "Implicit Midpoint", "Stable with stiff modes and ground, keeps energy (two evaluations a step)"),
+    ("implicit", "Implicit Midpoint", "Stable with stiff modes and ground, keeps energy (two force evaluations and one factorisation a step)"),
     ("semi_implicit", "Semi-Implicit", "Linearly implicit: as stable, half the cost, a tumbling body gains a little energy"),
     ("thesis", "Thesis (Explicit)", "The thesis's finite-difference scheme (eq. 4.22-4.23): needs small steps"),
 )
