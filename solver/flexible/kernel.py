@@ -99,6 +99,13 @@ class Kernel:
         GY[0, :, :, n] = sim.X0.T
         GY[1:, :, :, n] = sim.B.transpose(0, 2, 1)
         self.GY = GY.reshape(1 + D, -1)
+        # many points: products past OpenBLAS's threading threshold (m n > 9216 for a matrix-vector
+        # product) go to two threads and cost several times more on small data; then G is updated
+        # column-wise from y instead (only its rotation columns -[y]x and y change with gamma) and
+        # b is taken in two parts
+        self.big = (1 + D) * 3 * P * (n + 1) > 9000 or (3 * P + self.nz) * (n + 1) > 9000
+        self.G_const = GY[0].reshape(-1).copy()
+        self.Yp = np.vstack([sim.X0.T.reshape(1, 3 * P), sim.B.transpose(0, 2, 1).reshape(D, 3 * P)])
         self.m = sim.m.copy()
         # mode forces: Q z = passive springs and dampers, PD (targets in column 0), limits aside
         stiff = np.asarray(sim.gains.stiffness, float).copy()
@@ -186,6 +193,7 @@ class Kernel:
         integrator = sim.settings.integrator
         thesis, midpoint = integrator == "thesis", integrator == "implicit"
         GY, Q, A0, limit = self.GY, self.Q.copy(), self.A0, self.limit
+        big, Yp = self.big, self.Yp
         half_h_stiff = self.half_h_stiff
         T_upd = self.T_thesis if thesis else self.T_step
         T_mid = self.T_mid
@@ -205,8 +213,10 @@ class Kernel:
         q = [float(c) for c in state.quat]
         Rl = rot_list(*q)
         # G and y in the body frame, then [Gq; Q^T] (plane frame) stacked for b = [F, z] . GQ
-        Gb = np.empty(3 * P * (n + 1))
+        Gb = self.G_const.copy()
         Gb2 = Gb.reshape(3, P * (n + 1))
+        Gb3 = Gb.reshape(3, P, n + 1)
+        yb = np.empty((3, P))
         GQ = np.zeros((P3 + nz, n + 1))
         GQ[P3:, 6:n] = self.Qp.T
         Gqe = GQ[:P3].reshape(3, P * (n + 1))
@@ -308,7 +318,17 @@ class Kernel:
             RW = np.array(Rql + [0.0, -a2, a1, g0, a2, 0.0, -a0, g1_, -a1, a0, 0.0, g2])
             Rq = RW[:9].reshape(3, 3)
             # G, y (body), then plane frame; velocities, positions, v + y_dot
-            g1.dot(GY, out=Gb)
+            if big:                                            # y, then the columns -[y]x and y of G
+                g1.dot(Yp, out=yb.reshape(-1))
+                Gb3[:, :, n] = yb
+                Gb3[0, :, 4] = yb[2]
+                np.negative(yb[1], out=Gb3[0, :, 5])
+                np.negative(yb[2], out=Gb3[1, :, 3])
+                Gb3[1, :, 5] = yb[0]
+                Gb3[2, :, 3] = yb[1]
+                np.negative(yb[0], out=Gb3[2, :, 4])
+            else:
+                g1.dot(GY, out=Gb)
             Rq.dot(Gb2, out=Gqe)
             U3T[0, :n] = u
             np.multiply(u, twos, out=U3T[2, :n])
@@ -360,7 +380,10 @@ class Kernel:
                 Fq[:, self.spring_idx] += self._spring_forces(t, Yq, Vq, time)
             if kind == 2:                                       # - M du / h = - Gq^T m Gq du / h
                 np.subtract(Fq, (mrow / h) * Gq2.dot(du).reshape(3, P), out=Fq)
-            Fz.dot(GQ, out=bx)                                  # Gq^T F + Qp z
+            if big:
+                np.add(Fq.reshape(-1).dot(GQ[:P3]), z.dot(GQ[P3:]), out=bx)
+            else:
+                Fz.dot(GQ, out=bx)                              # Gq^T F + Qp z
             qm = Q.dot(z)
             power = sum(map(abs, map(mul, qm.tolist(), zl[7 + D:])))
             if kind != 1:                                       # Q z, not Qp z
