@@ -14,14 +14,14 @@ possible) of
 and CPU seconds of 60 annealing trials of 12 s each (the thesis's experiment, Fig. 5.3), with
 microseconds per step alongside.
 
-Measured on the shared 2-CPU machine (load 3-6 from other jobs, so +-30 %), before -> after the
-fused kernel (solver/flexible/kernel.py):
-    thesis workload, semi-implicit     215-460 us/step (260-550 ms) -> 40-50 us/step (48-60 ms)
-    thesis workload, implicit          500-810 us/step (600-970 ms) -> 85-105 us/step (100-125 ms)
+Measured on the shared 2-CPU machine (load 2.5-6 from other jobs: the spread below is that load),
+before -> after the fused kernel (solver/flexible/kernel.py), same runs of this script:
+    thesis workload, semi-implicit     215-460 us/step (260-550 ms) -> 40-80 us/step (48-96 ms)
+    thesis workload, implicit          500-1000 us/step (0.6-1.2 s) -> 85-110 us/step (100-131 ms)
     thesis workload, thesis scheme     140-160 us/step (170-190 ms) -> 37-47 us/step (45-56 ms)
-    200 points, 8 modes, semi-implicit  550-620 us/step              -> 150 us/step
-    200 points, 8 modes, implicit       900-1320 us/step             -> 300 us/step
-    60 annealing trials                 13.5 s                       -> 1.9 s
+    200 points, 8 modes, semi-implicit  550-660 us/step (0.66-0.79 s) -> 150-180 us/step (0.18-0.22 s)
+    200 points, 8 modes, implicit       900-1320 us/step (1.1-1.6 s)  -> 270-325 us/step (0.33-0.39 s)
+    60 annealing trials                 13.7 s                        -> 1.9-2.9 s (same result)
 The aim of 20 ms (16 us a step) is not reached with numpy alone: a step is still about 35 numpy
 calls of ~1 us each (overhead, not arithmetic, on arrays of 11 points), plus a Cholesky solve
 through LAPACK (~4 us) and the rigid motion in plain Python (~4 us).
