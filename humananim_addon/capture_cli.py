@@ -65,7 +65,7 @@ def cmd_capture(args):
             live.session.pump()
             time.sleep(0.01)
         if live.attach:
-            live.calibrate()  # the performer starts in the rig's rest pose
+            _calibrate_when_every_sensor_reads(live, deadline)  # the performer starts in the rest pose
         live.start_recording(scene)
         period, end = 1.0 / args.display_rate, time.perf_counter() + args.seconds
         steps = 0
@@ -99,3 +99,17 @@ def cmd_capture(args):
     lines += [f"  wrote {out}", f"  took {summary['seconds']:.2f} s"]
     summary["summary"] = "\n".join(lines)
     return summary
+
+
+def _calibrate_when_every_sensor_reads(live, deadline):
+    """Calibrate once every sensor has sent a reading (the birds of one Flock in group mode come in
+    one by one at start-up); after the deadline the calibration's own error says which is silent."""
+    from ..solver.anatomical_converter import CalibrationError
+    while True:
+        try:
+            return live.calibrate()
+        except CalibrationError:
+            if time.perf_counter() >= deadline:
+                raise
+            live.session.pump()
+            time.sleep(0.01)
