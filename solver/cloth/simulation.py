@@ -1,0 +1,78 @@
+"""A garment over a frame range: dynamics, collisions and smoothing per frame, with timings."""
+
+import time
+
+import numpy as np
+
+from .collision import penetration, resolve_contacts
+from .dynamics import ClothDynamics
+from .mesh import ClothError, edge_lengths
+from .smoothing import Smoother
+
+
+class ClothSimulation:
+    """Advance with `step(pin_targets, dt)` after setting the bodies' motion for the frame
+    (`body.set_motion(start pose, end pose, dt)`); `surface()` gives the smoothed fine mesh."""
+
+    def __init__(self, mesh, params, pinned=(), bodies=(), level=2, fps=30.0, positions=None,
+                 normal_control=True, edge_control=True):
+        self.mesh, self.params = mesh, params
+        self.dynamics = ClothDynamics(mesh, params, pinned)
+        self.pins = np.flatnonzero(self.dynamics.pinned)
+        self.movable = self.dynamics.free
+        self.bodies = list(bodies)
+        self.substeps = max(1, int(params.substeps))
+        self.dynamics.limit_stiffness(1.0 / (fps * self.substeps))
+        self.x = np.array(mesh.rest if positions is None else positions, dtype=float)
+        self.v = np.zeros_like(self.x)
+        self.smoother = Smoother(mesh, level, params.stretch, normal_control, edge_control)
+        self.timing = {"integration": 0.0, "collision": 0.0, "smoothing": 0.0}
+        self.frames = 0
+        self.contacts = {"particles": 0, "faces": 0}
+        self.corrected_edges = 0
+
+    def step(self, pin_targets=None, dt=1.0 / 30.0):
+        """One frame of length dt: pinned particles reach `pin_targets` (K, 3) at its end."""
+        dyn, n = self.dynamics, self.substeps
+        h = dt / n
+        start = self.x[self.pins].copy()
+        end = start if pin_targets is None else np.asarray(pin_targets, float)
+        x, v = self.x, self.v
+        for k in range(n):
+            t0 = time.perf_counter()
+            pa, pb = start + (end - start) * (k / n), start + (end - start) * ((k + 1) / n)
+            x, v = dyn.rk4_step(x, v, h, pa, pb)
+            x, v, corrected = dyn.limit_elongation(x, v)
+            t1 = time.perf_counter()
+            n_p, n_f = resolve_contacts(x, v, self.mesh.faces, self.bodies, (k + 1) / n, self.params.thickness,
+                                        self.movable, self.params.friction)
+            t2 = time.perf_counter()
+            self.timing["integration"] += t1 - t0
+            self.timing["collision"] += t2 - t1
+            self.corrected_edges += corrected
+            self.contacts["particles"] += n_p
+            self.contacts["faces"] += n_f
+        if not (np.isfinite(x).all() and np.isfinite(v).all()):
+            raise ClothError("the cloth simulation became unstable: use more substeps or softer settings")
+        self.x, self.v = x, v
+        self.frames += 1
+        return x
+
+    def surface(self):
+        t0 = time.perf_counter()
+        out = self.smoother.surface(self.x)
+        self.timing["smoothing"] += time.perf_counter() - t0
+        return out
+
+    def stretch(self):
+        """Mean edge length over rest length, minus 1 (elongation handled: ~0)."""
+        return float(np.mean(edge_lengths(self.mesh, self.x) / self.mesh.rest_length) - 1.0)
+
+    def depth_inside(self, points=None):
+        return penetration(self.x if points is None else points, self.bodies, 1.0)
+
+    def ms_per_frame(self):
+        f = max(self.frames, 1)
+        out = {k + "_ms": 1000.0 * t / f for k, t in self.timing.items()}
+        out["total_ms"] = sum(out.values())
+        return out
