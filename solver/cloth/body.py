@@ -82,8 +82,9 @@ def fit_radii(specs, world, points, weights, quantile=0.75):
     return np.array(out)
 
 
-def capsule_mesh(a, b, radius, segments=16, spacing=0.03):
-    """A closed triangle mesh of a capsule (outward normals): (vertices (V, 3), triangles)."""
+def capsule_mesh(a, b, radius, segments=16, spacing=0.03, rings=None):
+    """A closed triangle mesh of a capsule (outward normals): (vertices (V, 3), triangles). Rings
+    along the straight part every `spacing`, or exactly `rings` of them (a fixed topology)."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     axis = b - a
     length = np.linalg.norm(axis)
@@ -97,7 +98,7 @@ def capsule_mesh(a, b, radius, segments=16, spacing=0.03):
     for k in range(1, cap_rings + 1):
         t = -np.pi / 2 + k * (np.pi / 2) / cap_rings
         profile.append((radius * np.sin(t), radius * np.cos(t)))
-    body = max(1, int(np.ceil(length / spacing)))
+    body = rings if rings else max(1, int(np.ceil(length / spacing)))
     profile += [(length * k / body, radius) for k in range(1, body + 1)]
     for k in range(1, cap_rings):
         t = k * (np.pi / 2) / cap_rings

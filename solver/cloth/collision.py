@@ -6,11 +6,12 @@ linearly from its pose at the frame's start to its pose at the frame's end):
 
 - CapsuleBody: capsules fitted to bones. Queries are dense (points x capsules) in numpy, which
   for a body's 10-20 capsules is faster than any tree.
-- MeshBody: the character's skinned triangle mesh. A scipy cKDTree over the triangle centroids
-  (built once per frame) gives each point its K nearest triangles within reach; the exact
-  point-triangle distances are then computed vectorised. The mesh may be several closed parts
-  (e.g. one per limb): the body is their union, each part judged by its own nearest triangle,
-  inside/outside by the angle of the offset to the (pseudo-)normal there.
+- MeshBody: the character's skinned triangle mesh. Per closed part of the mesh (one for a
+  single skin, one per limb for a body made of pieces), a scipy cKDTree over the triangle
+  centroids, built once per substep at the body's pose then, gives each point near the part's
+  bounding box its K nearest triangles within reach; exact point-triangle distances follow,
+  vectorised, and the side from the (pseudo-)normal at the nearest point. The body is the union
+  of its parts (the smallest signed distance).
 
 `resolve_contacts` applies the thesis's two cases: a particle inside (or closer than the
 thickness) is moved to the surface; a face whose corners are outside but whose interior cuts
@@ -105,21 +106,34 @@ class MeshBody:
         cols = t[:, 1:].ravel()
         graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(vertex_count, vertex_count))
         _, label = connected_components(graph, directed=False)
-        self.part = label[t[:, 0]]  # part of each triangle
+        part = label[t[:, 0]]
+        self.parts = [np.flatnonzero(part == p) for p in np.unique(part)]
+        self.part_vertices = [np.unique(t[p]) for p in self.parts]
         self.v0 = self.v1 = None
-        self.tree = None
+        self._trees_at = None
 
     def set_motion(self, v0, v1=None, dt=1.0):
+        """The pose at the frame's start and end."""
         self.v0 = np.asarray(v0, float)
         self.v1 = self.v0 if v1 is None else np.asarray(v1, float)
         self.dt = dt
-        mid = 0.5 * (self.v0 + self.v1)
-        tri = mid[self.triangles]
-        centroids = tri.mean(axis=1)
-        self.tree = cKDTree(centroids)
-        # a triangle can hold the closest point while its centroid is this far from it
-        self.reach = float(np.linalg.norm(tri - centroids[:, None], axis=2).max())
-        self.reach += float(np.linalg.norm(self.v1 - self.v0, axis=1).max())  # moved within the frame
+        self._trees_at = None
+
+    def trees_at(self, s):
+        """One tree per part over its triangles' centroids at time s (built once per substep:
+        the body moves several centimetres within a frame)."""
+        if self._trees_at is not None and self._trees_at[0] == s:
+            return self._trees_at[1:]
+        v = self.v0 + s * (self.v1 - self.v0)
+        trees = []
+        for tris, verts in zip(self.parts, self.part_vertices):
+            tri = v[self.triangles[tris]]
+            centroids = tri.mean(axis=1)
+            # a triangle can hold the closest point while its centroid is this far from it
+            reach = float(np.linalg.norm(tri - centroids[:, None], axis=2).max())
+            trees.append((tris, cKDTree(centroids), reach, v[verts].min(axis=0), v[verts].max(axis=0)))
+        self._trees_at = (s, v, trees)
+        return v, trees
 
     def query(self, points, s=1.0, max_distance=0.05):
         """As CapsuleBody.query; points with no triangle within max_distance report phi =
@@ -129,46 +143,48 @@ class MeshBody:
         normal = np.zeros((n, 3))
         normal[:, 2] = 1.0
         velocity = np.zeros((n, 3))
-        dist_c, idx = self.tree.query(points, k=self.k, distance_upper_bound=max_distance + self.reach)
-        idx = idx.reshape(n, -1)
-        near = np.isfinite(dist_c.reshape(n, -1)[:, 0])
-        if not near.any():
-            return phi, normal, velocity
-        rows = np.flatnonzero(near)
-        cand = idx[rows]
-        valid = cand < len(self.triangles)
-        cand = np.where(valid, cand, 0)
-        v = self.v0 + s * (self.v1 - self.v0)
-        tri = self.triangles[cand]  # (M, K, 3)
-        a, b, c = v[tri[..., 0]], v[tri[..., 1]], v[tri[..., 2]]
-        p = points[rows][:, None, :]
-        q, bary = closest_on_triangles(p, a, b, c)
-        d = p - q
-        dist = np.sqrt(np.einsum("ijk,ijk->ij", d, d))
-        dist = np.where(valid, dist, np.inf)
-        fn = np.cross(b - a, c - a)
-        fn /= np.maximum(np.linalg.norm(fn, axis=-1), 1e-18)[..., None]
-        part = np.where(valid, self.part[cand], -1)
-        same = (part[:, :, None] == part[:, None, :]) & valid[:, :, None] & valid[:, None, :]
-        part_best = np.where(same, dist[:, None, :], np.inf).min(axis=2)  # per candidate: its part's nearest
-        tol = 1e-7 + 1e-4 * part_best
-        tie = valid & (dist - part_best <= tol)
-        # pseudo-normal: the normals of all candidates of the part that share the nearest point
-        pseudo = np.einsum("ijk,ikl->ijl", (same & tie[:, None, :]).astype(float), fn)
-        side = np.einsum("ijk,ijk->ij", d, pseudo)
-        sign = np.where(side < 0.0, -1.0, 1.0)
-        signed = np.where(tie, sign * dist, np.inf)
-        k = np.argmin(signed, axis=1)  # union of parts: the smallest signed distance
-        r = np.arange(len(rows))
-        phi[rows] = signed[r, k]
-        dk, distk = d[r, k], dist[r, k]
-        pk = pseudo[r, k]
-        pk = pk / np.maximum(np.linalg.norm(pk, axis=1), 1e-18)[:, None]
-        out = np.where(distk[:, None] > 1e-9, sign[r, k][:, None] * dk / np.maximum(distk, 1e-12)[:, None], pk)
-        normal[rows] = out
+        v, trees = self.trees_at(s)
         vel = (self.v1 - self.v0) / self.dt
-        tk = tri[r, k]
-        velocity[rows] = np.einsum("ij,ijk->ik", bary[r, k], vel[tk])
+        for tris, tree, reach, lo, hi in trees:
+            near = np.all((points >= lo - max_distance) & (points <= hi + max_distance), axis=1)
+            if not near.any():
+                continue
+            rows = np.flatnonzero(near)
+            k = min(self.k, len(tris))
+            dist_c, idx = tree.query(points[rows], k=k, distance_upper_bound=max_distance + reach)
+            idx = idx.reshape(len(rows), k)
+            valid = idx < len(tris)
+            found = valid[:, 0]
+            if not found.any():
+                continue
+            rows, idx, valid = rows[found], idx[found], valid[found]
+            tri = self.triangles[tris[np.where(valid, idx, 0)]]  # (M, K, 3)
+            a, b, c = v[tri[..., 0]], v[tri[..., 1]], v[tri[..., 2]]
+            p = points[rows][:, None, :]
+            q, bary = closest_on_triangles(p, a, b, c)
+            d = p - q
+            dist = np.where(valid, np.sqrt(np.einsum("ijk,ijk->ij", d, d)), np.inf)
+            fn = np.cross(b - a, c - a)
+            fn /= np.maximum(np.linalg.norm(fn, axis=-1), 1e-18)[..., None]
+            nearest = np.argmin(dist, axis=1)
+            r = np.arange(len(rows))
+            best = dist[r, nearest]
+            # pseudo-normal: the normals of all candidates sharing the nearest point (an edge or a
+            # vertex), so the side is right where faces meet
+            tie = valid & (dist <= best[:, None] + 1e-7 + 1e-4 * best[:, None])
+            pseudo = np.einsum("ij,ijk->ik", tie.astype(float), fn)
+            dk = d[r, nearest]
+            sign = np.where(np.einsum("ij,ij->i", dk, pseudo) < 0.0, -1.0, 1.0)
+            signed = sign * best
+            take = signed < phi[rows]
+            if not take.any():
+                continue
+            rows, r, nearest = rows[take], r[take], nearest[take]
+            phi[rows] = signed[take]
+            pk = pseudo[take] / np.maximum(np.linalg.norm(pseudo[take], axis=1), 1e-18)[:, None]
+            far = best[take][:, None] > 1e-9
+            normal[rows] = np.where(far, sign[take][:, None] * dk[take] / np.maximum(best[take], 1e-12)[:, None], pk)
+            velocity[rows] = np.einsum("ij,ijk->ik", bary[r, nearest], vel[tri[r, nearest]])
         return phi, normal, velocity
 
 
@@ -201,15 +217,24 @@ def _keep_tangential(v, hit, normal, surface_velocity, friction):
     v[hit] = surface_velocity + (1.0 - friction) * (rel - rel_n)
 
 
-def resolve_particles(x, v, bodies, s, thickness, movable, friction=0.0):
+def resolve_particles(x, v, bodies, s, thickness, movable, friction=0.0, passes=4):
     """Vertex case (Fig. 4.6 a, c): particles inside the body (or within the thickness) move to
-    the surface; the number moved."""
+    the surface; the number moved and every particle's phi before. A particle pushed out of one
+    part of the body into an overlapping part is pushed again (up to `passes` times)."""
     phi, normal, vs = query_bodies(bodies, x, s)
     hit = (phi < thickness) & movable
-    if hit.any():
-        x[hit] += (thickness - phi[hit])[:, None] * normal[hit]
-        _keep_tangential(v, hit, normal[hit], vs[hit], friction)
-    return int(hit.sum()), phi
+    moved = hit.copy()
+    rows = np.flatnonzero(hit)
+    ph, n, vel = phi[rows], normal[rows], vs[rows]
+    for _ in range(passes):
+        if len(rows) == 0:
+            break
+        x[rows] += (thickness - ph)[:, None] * n
+        _keep_tangential(v, rows, n, vel, friction)
+        ph, n, vel = query_bodies(bodies, x[rows], s)
+        again = ph < thickness - 1e-9
+        rows, ph, n, vel = rows[again], ph[again], n[again], vel[again]
+    return int(moved.sum()), phi
 
 
 def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, friction=0.0):
