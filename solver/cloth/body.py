@@ -31,8 +31,9 @@ def _limb(name, j, length, radius):
     return CapsuleSpec(name, j, np.zeros(3), j, np.array([0.0, length, 0.0]), radius, j)
 
 
-def capsules_from_roles(names, lengths, roles):
-    """Capsule specs for the body parts a garment can touch. Needs pelvis and both thighs."""
+def capsules_from_roles(names, lengths, roles, unit=1.0):
+    """Capsule specs for the body parts a garment can touch. Needs pelvis and both thighs.
+    `lengths` are the bones' lengths in their own units, `unit` metres per such unit."""
     index = {n: i for i, n in enumerate(names)}
 
     def bone(role):
@@ -42,7 +43,7 @@ def capsules_from_roles(names, lengths, roles):
     pelvis, thighs = bone("pelvis"), [bone(sided("thigh", s)) for s in "LR"]
     if pelvis is None or None in thighs:
         raise ClothError("the rig needs pelvis and thigh roles (set them in the Rig panel) for body colliders")
-    ref = float(np.mean([lengths[t] for t in thighs]))
+    ref = float(np.mean([lengths[t] for t in thighs])) * unit
     specs = [CapsuleSpec("hips", thighs[0], np.zeros(3), thighs[1], np.zeros(3), RADIUS_OF["hips"] * ref, pelvis)]
     top = bone("chest") or bone("neck")
     spine = roles.chain("spine")

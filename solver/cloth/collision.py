@@ -48,26 +48,40 @@ class CapsuleBody:
         self.b1 = self.b0 if b1 is None else np.asarray(b1, float)
         self.dt = dt
 
-    def query(self, points, s=1.0):
-        """(phi (N,), outward unit normal (N, 3), surface velocity (N, 3))."""
+    def query(self, points, s=1.0, max_distance=0.05):
+        """(phi (N,), outward unit normal (N, 3), surface velocity (N, 3)). Only capsules whose
+        box comes within max_distance of the points' box are tested; points beyond them all
+        report phi = max_distance (a lower bound)."""
         a = self.a0 + s * (self.a1 - self.a0)
         b = self.b0 + s * (self.b1 - self.b0)
+        lo, hi = points.min(axis=0) - max_distance, points.max(axis=0) + max_distance
+        r = self.radius[:, None]
+        near = np.all((np.minimum(a, b) - r <= hi) & (np.maximum(a, b) + r >= lo), axis=1)
+        n = len(points)
+        if not near.any():
+            normal = np.zeros((n, 3))
+            normal[:, 2] = 1.0
+            return np.full(n, float(max_distance)), normal, np.zeros((n, 3))
+        idx = np.flatnonzero(near)
+        a, b = a[idx], b[idx]
         q, t = closest_on_segments(points[:, None, :], a[None], b[None])  # (N, C, 3)
         d = points[:, None, :] - q
         dist = np.sqrt(np.einsum("ijk,ijk->ij", d, d))
-        phi = dist - self.radius[None]
+        phi = dist - self.radius[idx][None]
         k = np.argmin(phi, axis=1)
-        rows = np.arange(len(points))
+        rows = np.arange(n)
         dk, distk = d[rows, k], dist[rows, k]
-        axis = (b - a)[k]
-        fallback = np.cross(axis, [0.0, 0.0, 1.0])  # a point on the axis: any direction across it
-        fallback[np.linalg.norm(fallback, axis=1) < 1e-9] = (1.0, 0.0, 0.0)
-        normal = np.where(distk[:, None] > 1e-9, dk / np.maximum(distk, 1e-12)[:, None], fallback)
-        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        normal = dk / np.maximum(distk, 1e-12)[:, None]
+        on_axis = distk <= 1e-9
+        if on_axis.any():  # a point on the axis: any direction across it
+            across = np.cross((b - a)[k[on_axis]], [0.0, 0.0, 1.0])
+            across[np.linalg.norm(across, axis=1) < 1e-9] = (1.0, 0.0, 0.0)
+            normal[on_axis] = across / np.linalg.norm(across, axis=1)[:, None]
         tk = t[rows, k][:, None]
+        ck = idx[k]
         va, vb = (self.a1 - self.a0) / self.dt, (self.b1 - self.b0) / self.dt
-        velocity = va[k] + tk * (vb[k] - va[k])
-        return phi[rows, k], normal, velocity
+        velocity = va[ck] + tk * (vb[ck] - va[ck])
+        return np.minimum(phi[rows, k], max_distance), normal, velocity
 
 
 def closest_on_triangles(p, a, b, c):
@@ -207,7 +221,6 @@ FACE_SAMPLES = np.array([
     [1 / 3, 1 / 3, 1 / 3],
     [0.5, 0.5, 0.0], [0.0, 0.5, 0.5], [0.5, 0.0, 0.5],
     [2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3],
-    [0.25, 0.75, 0.0], [0.75, 0.25, 0.0], [0.0, 0.25, 0.75], [0.0, 0.75, 0.25], [0.75, 0.0, 0.25], [0.25, 0.0, 0.75],
 ])
 
 

@@ -6,7 +6,6 @@ import numpy as np
 from scipy import sparse
 
 from .materials import AIR_DENSITY, as_vector
-from .mesh import face_normals
 
 # explicit RK4 is stable for |lambda dt| up to about 2.8 on the imaginary axis: keep a margin
 STABLE_OMEGA_DT = 2.2
@@ -31,42 +30,16 @@ class ClothDynamics:
         self._b0, self._b1 = mesh.bend_pairs[:, 0], mesh.bend_pairs[:, 1]
         self.stretch, self.bend, self.damping = params.stretch, params.bend, params.damping
         self.capped = False
-        self.relax, self.avg_power = 1.0, 1.0
-        p_count, b = len(self.mass), len(self._b0)
-        self._bend_incidence = sparse.csr_matrix(
-            (np.r_[np.ones(b), -np.ones(b)], (np.r_[self._b0, self._b1], np.r_[np.arange(b), np.arange(b)])),
-            shape=(p_count, b))
-        e = len(self._e0)
-        self._at0 = sparse.csr_matrix((np.ones(e), (self._e0, np.arange(e))), shape=(p_count, e))
-        self._at1 = sparse.csr_matrix((np.ones(e), (self._e1, np.arange(e))), shape=(p_count, e))
-        self._colours = self._edge_colouring()
+        p_count = len(self.mass)
+        self._limit = mesh.rest_length * (1.0 + params.stretch_limit)
+        self._movable_edge = (self.inv_mass[e0] + self.inv_mass[e1]) > 0.0
+        wsum = np.where(self._movable_edge, self.inv_mass[e0] + self.inv_mass[e1], 1.0)
+        self._share0, self._share1 = self.inv_mass[e0] / wsum, self.inv_mass[e1] / wsum
+        self._colour_of = self._edge_colouring()
         f = len(mesh.faces)
         self._face_incidence = sparse.csr_matrix(
             (np.ones(3 * f), (mesh.faces.ravel(), np.repeat(np.arange(f), 3))), shape=(p_count, f))
-
-    def _edge_colouring(self):
-        """Groups of edges with no particle in common (greedy colouring), with each end's share
-        of a correction (inverse mass; pinned ends take none) and the length limit."""
-        e0, e1, w = self._e0, self._e1, self.inv_mass
-        wsum = w[e0] + w[e1]
-        movable = wsum > 0.0
-        self._share0 = np.where(movable, w[e0] / np.where(movable, wsum, 1.0), 0.0)
-        self._share1 = np.where(movable, w[e1] / np.where(movable, wsum, 1.0), 0.0)
-        limit = self.mesh.rest_length * (1.0 + self.params.stretch_limit)
-        colour = np.full(len(e0), -1)
-        used = [set() for _ in range(len(w))]
-        for e in np.flatnonzero(movable):
-            c = 0
-            while c in used[e0[e]] or c in used[e1[e]]:
-                c += 1
-            colour[e] = c
-            used[e0[e]].add(c)
-            used[e1[e]].add(c)
-        groups = []
-        for c in range(colour.max() + 1):
-            g = np.flatnonzero(colour == c)
-            groups.append((g, e0[g], e1[g], self._share0[g][:, None], self._share1[g][:, None], limit[g]))
-        return groups
+        self._prepare()
 
     def unit_stiffness_eigenvalue(self, pairs, rest_length):
         """Largest eigenvalue of M^-1/2 K M^-1/2 for springs of unit stiffness on `pairs` at rest
@@ -107,9 +80,27 @@ class ClothDynamics:
         self.stretch, self.bend = p.stretch * scale, p.bend * scale
         self.damping = min(p.damping, STABLE_DAMPING_DT / (dt * lam_e))
         self.capped = scale < 1.0 or self.damping < p.damping
+        self._prepare()
         return self.capped
 
     # ---- forces -------------------------------------------------------------------------
+    def _prepare(self):
+        """Edges and bending pairs as one set of springs, scaled by the inverse masses, so an
+        evaluation is a handful of vectorised operations and one sparse product."""
+        mesh, p = self.mesh, self.params
+        e, b = len(self._e0), len(self._b0)
+        self._s0, self._s1 = np.r_[self._e0, self._b0], np.r_[self._e1, self._b1]
+        self._srest = np.r_[mesh.rest_length, mesh.bend_rest]
+        self._sk = np.r_[np.full(e, self.stretch), np.full(b, self.bend)] / self._srest  # k / L of eq. 4.1
+        s = e + b
+        incidence = sparse.csr_matrix((np.r_[np.ones(s), -np.ones(s)], (np.r_[self._s0, self._s1],
+                                                                        np.r_[np.arange(s), np.arange(s)])),
+                                      shape=(len(self.mass), s))
+        self._acc_of = (sparse.diags(self.inv_mass) @ incidence).tocsr()  # zero rows for pinned particles
+        self._free_f = self.free.astype(float)[:, None]
+        self._drag_of = 0.5 * AIR_DENSITY * p.drag * mesh.area * self.inv_mass
+        self._edges = e
+
     def spring_forces(self, x, v):
         """Per-edge forces on the first particle, eq. 4.1 with a dashpot: (E, 3)."""
         mesh = self.mesh
@@ -120,91 +111,115 @@ class ClothDynamics:
         along = np.einsum("ij,ij->i", dv, d) / np.maximum(length * length, 1e-18)
         return (self.stretch * stretch + self.damping * along)[:, None] * d
 
-    def accelerations(self, x, v):
-        mesh, p = self.mesh, self.params
-        f_edge = self.spring_forces(x, v)
-        force = mesh.incidence @ f_edge
-        if len(self._b0):
-            d = x[self._b1] - x[self._b0]
-            length = np.sqrt(np.einsum("ij,ij->i", d, d))
-            fb = (self.bend * (length - mesh.bend_rest) / mesh.bend_rest)[:, None] * d
-            force += self._bend_incidence @ fb
-        rel = v - self.wind
+    def accelerations(self, x, v, normals=None):
+        """Accelerations of all particles (zero for pinned ones). `normals` (for the air drag) may
+        be given: they change little within a step."""
+        p = self.params
+        d = x[self._s1] - x[self._s0]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        coef = self._sk * (length - self._srest)  # eq. 4.1 (bending springs alike)
+        e = self._edges
+        if self.damping > 0.0:
+            dv = v[self._e1] - v[self._e0]
+            coef[:e] += self.damping * np.einsum("ij,ij->i", dv, d[:e]) / np.maximum(length[:e] ** 2, 1e-18)
+        acc = self._acc_of @ (coef[:, None] * d)
+        acc += self._free_f * (self.gravity - p.air_damping * v)
         if p.drag > 0.0:  # air pushes against the motion across the cloth: 1/2 rho Cd A |vn| vn
-            n = self.particle_normals(x)
-            vn = np.einsum("ij,ij->i", rel, n)
-            force -= (0.5 * AIR_DENSITY * p.drag * mesh.area * np.abs(vn) * vn)[:, None] * n
-        acc = force * self.inv_mass[:, None] + self.gravity - p.air_damping * v
-        acc[self.pinned] = 0.0
+            n = self.particle_normals(x) if normals is None else normals
+            vn = np.einsum("ij,ij->i", v - self.wind, n)
+            acc -= (self._drag_of * np.abs(vn) * vn)[:, None] * n
         return acc
 
     def particle_normals(self, x):
-        n, area = face_normals(x, self.mesh.faces)
-        out = self._face_incidence @ (n * area[:, None])
-        return out / np.maximum(np.linalg.norm(out, axis=1), 1e-12)[:, None]
+        f = self.mesh.faces
+        a = x[f[:, 0]]
+        u, w = x[f[:, 1]] - a, x[f[:, 2]] - a
+        n = np.column_stack([u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1], u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2],
+                             u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]])  # area-weighted face normals
+        out = self._face_incidence @ n
+        return out / np.maximum(np.sqrt(np.einsum("ij,ij->i", out, out)), 1e-12)[:, None]
 
     # ---- integration ----------------------------------------------------------------------
     def rk4_step(self, x, v, dt, pin_x0, pin_x1):
         """One RK4 step of length dt; pinned particles move linearly from pin_x0 to pin_x1."""
         pins = self.pinned
         pin_v = (pin_x1 - pin_x0) / dt
-
-        def state_at(xs, vs, s):
-            xs, vs = xs.copy(), vs.copy()
-            xs[pins] = pin_x0 + s * (pin_x1 - pin_x0)
-            vs[pins] = pin_v
-            return xs, vs
-
-        x0, v0 = state_at(x, v, 0.0)
-        a1 = self.accelerations(x0, v0)
-        x2, v2 = state_at(x0 + 0.5 * dt * v0, v0 + 0.5 * dt * a1, 0.5)
-        a2 = self.accelerations(x2, v2)
-        x3, v3 = state_at(x0 + 0.5 * dt * v2, v0 + 0.5 * dt * a2, 0.5)
-        a3 = self.accelerations(x3, v3)
-        x4, v4 = state_at(x0 + dt * v3, v0 + dt * a3, 1.0)
-        a4 = self.accelerations(x4, v4)
+        pin_mid = 0.5 * (pin_x0 + pin_x1)
+        x0, v0 = x.copy(), v.copy()
+        x0[pins], v0[pins] = pin_x0, pin_v
+        n = self.particle_normals(x0) if self.params.drag > 0.0 else None
+        h = 0.5 * dt
+        a1 = self.accelerations(x0, v0, n)
+        x2, v2 = x0 + h * v0, v0 + h * a1
+        x2[pins] = pin_mid
+        a2 = self.accelerations(x2, v2, n)
+        x3, v3 = x0 + h * v2, v0 + h * a2
+        x3[pins] = pin_mid
+        a3 = self.accelerations(x3, v3, n)
+        x4, v4 = x0 + dt * v3, v0 + dt * a3
+        x4[pins] = pin_x1
+        a4 = self.accelerations(x4, v4, n)
         x_new = x0 + dt / 6.0 * (v0 + 2.0 * v2 + 2.0 * v3 + v4)
         v_new = v0 + dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
         x_new[pins], v_new[pins] = pin_x1, pin_v
         return x_new, v_new
 
-    def limit_elongation(self, x, v):
-        """Provot's correction (§4.4.3): an edge longer than (1 + limit) L has its particles moved
-        towards each other (inverse-mass weighted; pinned ones stay), and the part of their
-        relative velocity that stretches it further is removed. Shortened edges are left alone:
-        the smoothing keeps their curves at length. Gauss-Seidel over groups of edges that share
-        no particle (an edge colouring), so each group is one vectorised pass; sweeps stop when
-        no edge is over the limit. Returns (x, v, number of edges corrected)."""
+    def limit_elongation(self, x, v, iterations=None):
+        """Provot's correction (§4.4.3): the particles of an edge longer than (1 + limit) L are
+        moved towards each other (inverse-mass weighted, pinned ones stay) back to that length,
+        and the part of their relative velocity that stretches the edge further is removed.
+        Shortened edges are left alone: the smoothing keeps their curves at length.
+
+        Gauss-Seidel in vectorised groups: the stretched edges are split by a fixed edge
+        colouring (no two edges of a colour share a particle), each colour corrected in one
+        pass, for up to `constraint_iterations` sweeps. Returns (x, v, edges corrected)."""
         p = self.params
         x, v = x.copy(), v.copy()
         e0, e1 = self._e0, self._e1
-        limit = self.mesh.rest_length * (1.0 + p.stretch_limit)
+        limit, colour = self._limit, self._colour_of
         corrected = np.zeros(len(e0), dtype=bool)
-        for _ in range(max(1, p.constraint_iterations)):
+        for _ in range(max(1, iterations or p.constraint_iterations)):
             d = x[e1] - x[e0]
-            over = np.einsum("ij,ij->i", d, d) > limit * limit
+            over = (np.einsum("ij,ij->i", d, d) > limit * limit) & self._movable_edge
             if not over.any():
                 break
             corrected |= over
-            for group, a, b, s0, s1, lim in self._colours:
-                d = x[b] - x[a]
-                length = np.sqrt(np.einsum("ij,ij->i", d, d))
-                excess = np.maximum(length - lim, 0.0) / np.maximum(length, 1e-12)
-                dx = excess[:, None] * d
-                x[a] += s0 * dx
-                x[b] -= s1 * dx
-        if corrected.any():  # one sweep: no corrected edge keeps stretching
-            for group, a, b, s0, s1, lim in self._colours:
-                on = corrected[group]
-                if not on.any():
-                    continue
-                d = x[b] - x[a]
-                unit = d / np.maximum(np.sqrt(np.einsum("ij,ij->i", d, d)), 1e-12)[:, None]
-                rate = np.where(on, np.maximum(np.einsum("ij,ij->i", v[b] - v[a], unit), 0.0), 0.0)
-                dv = rate[:, None] * unit
-                v[a] += s0 * dv
-                v[b] -= s1 * dv
+            k = np.flatnonzero(over)
+            kc = colour[k]
+            for c in np.unique(kc):
+                g = k[kc == c]
+                a, b = e0[g], e1[g]
+                dg = x[b] - x[a]
+                length = np.sqrt(np.einsum("ij,ij->i", dg, dg))
+                dx = ((length - limit[g]) / length)[:, None] * dg
+                x[a] += self._share0[g, None] * dx
+                x[b] -= self._share1[g, None] * dx
+        if corrected.any():  # one sweep over the corrected edges: none keeps stretching
+            k = np.flatnonzero(corrected)
+            kc = colour[k]
+            for c in np.unique(kc):
+                g = k[kc == c]
+                a, b = e0[g], e1[g]
+                dg = x[b] - x[a]
+                u = dg / np.sqrt(np.einsum("ij,ij->i", dg, dg))[:, None]
+                dv = np.maximum(np.einsum("ij,ij->i", v[b] - v[a], u), 0.0)[:, None] * u
+                v[a] += self._share0[g, None] * dv
+                v[b] -= self._share1[g, None] * dv
         return x, v, int(corrected.sum())
+
+    def _edge_colouring(self):
+        """A colour per edge such that no two edges of a colour share a particle (greedy)."""
+        e0, e1 = self._e0, self._e1
+        colour = np.full(len(e0), -1)
+        used = [set() for _ in range(len(self.mass))]
+        for e in range(len(e0)):
+            c = 0
+            while c in used[e0[e]] or c in used[e1[e]]:
+                c += 1
+            colour[e] = c
+            used[e0[e]].add(c)
+            used[e1[e]].add(c)
+        return colour
 
     # ---- energy (for tests and diagnostics) -------------------------------------------------
     def energy(self, x, v):

@@ -42,7 +42,7 @@ class ClothSimulation:
             t0 = time.perf_counter()
             pa, pb = start + (end - start) * (k / n), start + (end - start) * ((k + 1) / n)
             x, v = dyn.rk4_step(x, v, h, pa, pb)
-            x, v, corrected = dyn.limit_elongation(x, v)
+            x, v, corrected = dyn.limit_elongation(x, v, self.params.final_iterations if k == n - 1 else None)
             t1 = time.perf_counter()
             n_p, n_f = resolve_contacts(x, v, self.mesh.faces, self.bodies, (k + 1) / n, self.params.thickness,
                                         self.movable, self.params.friction)
