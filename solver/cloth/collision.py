@@ -294,15 +294,18 @@ def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, fricti
     return len(f_idx)
 
 
-def resolve_contacts(x, v, faces, bodies, s, thickness, movable, friction=0.0):
+def resolve_contacts(x, v, faces, bodies, s, thickness, movable, friction=0.0, pushable=None):
     """Both cases, then the vertex case again (a face push may carry a corner into another part);
-    returns (particles moved, faces moved)."""
+    returns (particles moved, faces moved). `pushable` (default: `movable`) are the particles the
+    vertex case may move: pinned ones too, so a hand pressing on a waistband pushes it aside for
+    that step rather than sinking into it (the pin takes it back when the hand leaves)."""
     if not bodies:
         return 0, 0
-    n_p, phi = resolve_particles(x, v, bodies, s, thickness, movable, friction)
+    pushable = movable if pushable is None else pushable
+    n_p, phi = resolve_particles(x, v, bodies, s, thickness, pushable, friction)
     n_f = resolve_faces(x, v, faces, bodies, s, thickness, movable, phi, friction)
     if n_f:
-        n_p += resolve_particles(x, v, bodies, s, thickness, movable, friction)[0]
+        n_p += resolve_particles(x, v, bodies, s, thickness, pushable, friction)[0]
     return n_p, n_f
 
 

@@ -20,6 +20,7 @@ class ClothSimulation:
         self.dynamics = ClothDynamics(mesh, params, pinned)
         self.pins = np.flatnonzero(self.dynamics.pinned)
         self.movable = self.dynamics.free
+        self._everyone = np.ones(len(self.movable), dtype=bool)
         self.bodies = list(bodies)
         self.substeps = max(1, int(params.substeps))
         self.dynamics.limit_stiffness(1.0 / (fps * self.substeps))
@@ -45,7 +46,7 @@ class ClothSimulation:
             x, v, corrected = dyn.limit_elongation(x, v, self.params.final_iterations if k == n - 1 else None)
             t1 = time.perf_counter()
             n_p, n_f = resolve_contacts(x, v, self.mesh.faces, self.bodies, (k + 1) / n, self.params.thickness,
-                                        self.movable, self.params.friction)
+                                        self.movable, self.params.friction, self._everyone)
             t2 = time.perf_counter()
             self.timing["integration"] += t1 - t0
             self.timing["collision"] += t2 - t1
