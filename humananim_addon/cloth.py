@@ -29,13 +29,6 @@ _RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) els
 PHYSICAL = ("density", "stretch", "bend", "damping", "drag", "air_damping")
 
 
-def _apply_preset(props, _context):
-    if props.preset in PRESETS:
-        p = PRESETS[props.preset]
-        for name in PHYSICAL:
-            setattr(props, name, getattr(p, name))
-
-
 class HumanAnimCloth(bpy.types.PropertyGroup):
     garment: PointerProperty(name="Garment", type=bpy.types.Object,
                              description="The coarse garment mesh (tens to a few hundred vertices)")
@@ -64,7 +57,7 @@ class HumanAnimCloth(bpy.types.PropertyGroup):
         ("DENIM", "Denim", "Heavier, stiffer in bending"),
         ("LEATHER", "Leather", "Heavy and stiff"),
         ("CUSTOM", "Custom", "The values below"),
-    ), default="COTTON", update=_apply_preset)
+    ), default="COTTON")  # no update callback: one on an EnumProperty crashes the bpy 4.2 module at exit
     density: FloatProperty(name="Density", default=PRESETS["COTTON"].density, min=0.01, soft_max=2.0,
                            description="kg per square metre")
     stretch: FloatProperty(name="Stretch Stiffness", default=PRESETS["COTTON"].stretch, min=0.0, soft_max=1000.0,
@@ -79,6 +72,10 @@ class HumanAnimCloth(bpy.types.PropertyGroup):
     wind: FloatVectorProperty(name="Wind", size=3, subtype="VELOCITY", unit="VELOCITY", default=(0.0, 0.0, 0.0))
     thickness: FloatProperty(name="Thickness", default=0.008, min=0.0, soft_max=0.05, unit="LENGTH",
                              description="Distance kept between the cloth and the body")
+    compress_limit: FloatProperty(name="Compression Limit", default=0.05, min=0.0, max=0.5, subtype="FACTOR",
+                                  description="Shortening of an edge beyond this share is undone in the simulation; "
+                                              "up to it the smoothing folds the edge (0: all left to the smoothing, "
+                                              "as in the thesis)")
     friction: FloatProperty(name="Friction", default=0.0, min=0.0, max=1.0,
                             description="Share of the sliding speed lost in a contact")
     substeps: IntProperty(name="Substeps", default=4, min=1, max=64, description="RK4 steps per simulated frame")
@@ -98,10 +95,17 @@ CLASSES = (HumanAnimCloth,)
 register, unregister = settings_registration(CLASSES, bpy.types.Scene, "humananim_cloth", HumanAnimCloth)
 
 
+def material(props):
+    """The physical values: the preset's, or the custom ones."""
+    if props.preset in PRESETS:
+        p = PRESETS[props.preset]
+        return {name: getattr(p, name) for name in PHYSICAL}
+    return {name: getattr(props, name) for name in PHYSICAL}
+
+
 def params_of(props):
-    return ClothParams(density=props.density, stretch=props.stretch, bend=props.bend, damping=props.damping,
-                       drag=props.drag, air_damping=props.air_damping, wind=tuple(props.wind),
-                       thickness=props.thickness, substeps=props.substeps, friction=props.friction)
+    return ClothParams(**material(props), wind=tuple(props.wind), thickness=props.thickness,
+                       substeps=props.substeps, friction=props.friction, compress_limit=props.compress_limit)
 
 
 # ---- reading Blender data --------------------------------------------------------------------

@@ -2,6 +2,7 @@
 
 import bpy
 
+from ..humananim_addon import cloth
 from .rig import HumanAnimPanel
 
 
@@ -36,12 +37,17 @@ class VIEW3D_PT_humananim_cloth(HumanAnimPanel, bpy.types.Panel):
         col.separator()
         col.prop(props, "preset")
         sub = col.column(align=True)
-        sub.enabled = props.preset == "CUSTOM"
-        for name in ("density", "stretch", "bend", "damping", "drag", "air_damping"):
-            sub.prop(props, name)
+        if props.preset == "CUSTOM":
+            for name in cloth.PHYSICAL:
+                sub.prop(props, name)
+        else:
+            values = cloth.material(props)
+            sub.label(text=f"{values['density']:g} kg/m², stretch {values['stretch']:g} N/m, "
+                           f"bend {values['bend']:g} N/m")
         col.prop(props, "wind")
         col.prop(props, "thickness")
         col.prop(props, "friction")
+        col.prop(props, "compress_limit")
         col.separator()
         col.prop(props, "level")
         col.prop(props, "normal_control")

@@ -32,6 +32,8 @@ class ClothDynamics:
         self.capped = False
         p_count = len(self.mass)
         self._limit = mesh.rest_length * (1.0 + params.stretch_limit)
+        self._floor = mesh.rest_length * (1.0 - params.compress_limit) if params.compress_limit > 0 else \
+            np.zeros(len(e0))
         self._movable_edge = (self.inv_mass[e0] + self.inv_mass[e1]) > 0.0
         wsum = np.where(self._movable_edge, self.inv_mass[e0] + self.inv_mass[e1], 1.0)
         self._share0, self._share1 = self.inv_mass[e0] / wsum, self.inv_mass[e1] / wsum
@@ -180,7 +182,8 @@ class ClothDynamics:
         corrected = np.zeros(len(e0), dtype=bool)
         for _ in range(max(1, iterations or p.constraint_iterations)):
             d = x[e1] - x[e0]
-            over = (np.einsum("ij,ij->i", d, d) > limit * limit) & self._movable_edge
+            l2 = np.einsum("ij,ij->i", d, d)
+            over = ((l2 > limit * limit) | (l2 < self._floor * self._floor)) & self._movable_edge
             if not over.any():
                 break
             corrected |= over
@@ -191,18 +194,23 @@ class ClothDynamics:
                 a, b = e0[g], e1[g]
                 dg = x[b] - x[a]
                 length = np.sqrt(np.einsum("ij,ij->i", dg, dg))
-                dx = ((length - limit[g]) / length)[:, None] * dg
+                target = np.clip(length, self._floor[g], limit[g])
+                dx = ((length - target) / np.maximum(length, 1e-12))[:, None] * dg
                 x[a] += self._share0[g, None] * dx
                 x[b] -= self._share1[g, None] * dx
-        if corrected.any():  # one sweep over the corrected edges: none keeps stretching
+        if corrected.any():  # one sweep over the corrected edges: none keeps stretching (squeezing)
             k = np.flatnonzero(corrected)
             kc = colour[k]
             for c in np.unique(kc):
                 g = k[kc == c]
                 a, b = e0[g], e1[g]
                 dg = x[b] - x[a]
-                u = dg / np.sqrt(np.einsum("ij,ij->i", dg, dg))[:, None]
-                dv = np.maximum(np.einsum("ij,ij->i", v[b] - v[a], u), 0.0)[:, None] * u
+                length = np.sqrt(np.einsum("ij,ij->i", dg, dg))
+                u = dg / np.maximum(length, 1e-12)[:, None]
+                rate = np.einsum("ij,ij->i", v[b] - v[a], u)
+                # a stretched edge stops lengthening, a squeezed one (compress_limit) shortening
+                dv = np.where(length > self.mesh.rest_length[g], np.maximum(rate, 0.0), np.minimum(rate, 0.0))
+                dv = dv[:, None] * u
                 v[a] += self._share0[g, None] * dv
                 v[b] -= self._share1[g, None] * dv
         return x, v, int(corrected.sum())

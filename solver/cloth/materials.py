@@ -20,6 +20,9 @@ class ClothParams:
     thickness: float = 0.008  # m kept between the cloth and the body
     substeps: int = 4  # RK4 steps per frame
     stretch_limit: float = 0.01  # elongation allowed before the Provot correction moves particles
+    # shortening beyond this is pushed back in the simulation too; up to it the smoothing turns
+    # shortened edges into folds (0: all of it left to the smoothing, as in the thesis)
+    compress_limit: float = 0.05
     constraint_iterations: int = 3  # Gauss-Seidel sweeps per substep
     final_iterations: int = 12  # ... and after a frame's last substep (the frame that is shown)
     friction: float = 0.0  # share of the tangential relative speed lost in a contact (0: keep it all)

@@ -169,9 +169,13 @@ def test_pinned_waist_follows_the_pelvis(simulated):
 def test_presets_set_the_physical_values(empty_scene):
     props = empty_scene.humananim_cloth
     props.preset = "LEATHER"
-    assert props.density == pytest.approx(0.9) and props.bend == pytest.approx(12.0)
+    p = cloth.params_of(props)
+    assert p.density == pytest.approx(0.9) and p.bend == pytest.approx(12.0)
     props.preset = "COTTON"
-    assert props.density == pytest.approx(0.12)
+    assert cloth.params_of(props).density == pytest.approx(0.12)
+    props.preset, props.density, props.wind = "CUSTOM", 0.5, (1.0, 0.0, 0.0)
+    p = cloth.params_of(props)
+    assert p.density == pytest.approx(0.5) and p.wind == pytest.approx((1.0, 0.0, 0.0))
 
 
 def test_operators_add_a_skirt_and_simulate_and_errors_are_reported():
