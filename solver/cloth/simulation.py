@@ -4,7 +4,7 @@ import time
 
 import numpy as np
 
-from .collision import penetration, resolve_contacts
+from .collision import penetration, resolve_contacts, resolve_particles
 from .dynamics import ClothDynamics
 from .mesh import ClothError, edge_lengths
 from .smoothing import Smoother
@@ -43,7 +43,7 @@ class ClothSimulation:
             t0 = time.perf_counter()
             pa, pb = start + (end - start) * (k / n), start + (end - start) * ((k + 1) / n)
             x, v = dyn.rk4_step(x, v, h, pa, pb)
-            x, v, corrected = dyn.limit_elongation(x, v, self.params.final_iterations if k == n - 1 else None)
+            x, v, corrected = dyn.limit_elongation(x, v)
             t1 = time.perf_counter()
             n_p, n_f = resolve_contacts(x, v, self.mesh.faces, self.bodies, (k + 1) / n, self.params.thickness,
                                         self.movable, self.params.friction, self._everyone)
@@ -53,6 +53,15 @@ class ClothSimulation:
             self.corrected_edges += corrected
             self.contacts["particles"] += n_p
             self.contacts["faces"] += n_f
+        # the frame that is shown: the body's pushes may have stretched or squeezed edges, so
+        # restore the lengths thoroughly, then keep the particles out of the body once more
+        t0 = time.perf_counter()
+        x, v, corrected = dyn.limit_elongation(x, v, self.params.final_iterations)
+        t1 = time.perf_counter()
+        if self.bodies:
+            resolve_particles(x, v, self.bodies, 1.0, self.params.thickness, self._everyone, self.params.friction)
+        self.timing["integration"] += t1 - t0
+        self.timing["collision"] += time.perf_counter() - t1
         if not (np.isfinite(x).all() and np.isfinite(v).all()):
             raise ClothError("the cloth simulation became unstable: use more substeps or softer settings")
         self.x, self.v = x, v

@@ -40,7 +40,8 @@ def skirt_mesh(centre, lateral, up, heights, radii, columns=11, depth_ratio=0.85
 
 
 def needed_radius(centre, lateral, up, height, bodies, clearance, columns, depth_ratio, r_min, r_max=1.5):
-    """Smallest ring radius (5 mm steps) whose points are all `clearance` outside the bodies."""
+    """Smallest ring radius (5 mm steps) from which on every wider ring is `clearance` outside
+    the bodies (so a ring goes round the legs, never between them)."""
     radii = np.arange(r_min, r_max, 0.005)
     up = np.asarray(up, float) / np.linalg.norm(up)
     lat = np.asarray(lateral, float) - np.dot(lateral, up) * up
@@ -51,7 +52,10 @@ def needed_radius(centre, lateral, up, height, bodies, clearance, columns, depth
     pts = (np.asarray(centre, float) + height * up)[None, None] + radii[:, None, None] * ring[None]
     phi, _, _ = query_bodies(bodies, pts.reshape(-1, 3), 1.0)
     ok = (phi.reshape(len(radii), columns) >= clearance).all(axis=1)
-    return float(radii[np.argmax(ok)]) if ok.any() else float(r_max)
+    if ok.all():
+        return float(r_min)
+    last_bad = len(ok) - 1 - np.argmax(~ok[::-1])
+    return float(radii[last_bad + 1]) if last_bad + 1 < len(radii) else float(r_max)
 
 
 def fit_skirt(thigh_heads, knees, up=(0.0, 0.0, 1.0), bodies=(), rings=6, columns=11, length=0.9,
@@ -68,10 +72,10 @@ def fit_skirt(thigh_heads, knees, up=(0.0, 0.0, 1.0), bodies=(), rings=6, column
         lateral = np.cross(up, [0.0, 1.0, 0.0]) if abs(up[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
     heights = np.linspace(waist * thigh, -length * thigh, rings)
     half_hips = 0.5 * np.linalg.norm(thigh_heads[0] - thigh_heads[1])
-    base = max(half_hips + 0.3 * thigh * 0.5, 0.05)
+    base = max(half_hips + 0.15 * thigh, 0.05)  # never narrower than the hips
     radii = np.empty(rings)
     for r, h in enumerate(heights):
-        radii[r] = (needed_radius(centre, lateral, up, h, bodies, clearance, columns, depth_ratio, 0.02)
+        radii[r] = (needed_radius(centre, lateral, up, h, bodies, clearance, columns, depth_ratio, base)
                     if bodies else base)
     waist_r = radii[0]
     hem_r = max(radii[-1], waist_r) * flare
