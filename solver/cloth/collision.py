@@ -64,24 +64,31 @@ class CapsuleBody:
             return np.full(n, float(max_distance)), normal, np.zeros((n, 3))
         idx = np.flatnonzero(near)
         a, b = a[idx], b[idx]
-        q, t = closest_on_segments(points[:, None, :], a[None], b[None])  # (N, C, 3)
-        d = points[:, None, :] - q
-        dist = np.sqrt(np.einsum("ijk,ijk->ij", d, d))
-        phi = dist - self.radius[idx][None]
+        ab = b - a
+        ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
+        # distances to all segments from (N, C) products: |p - a - t ab|^2 expanded
+        pa = points @ ab.T - np.einsum("ij,ij->i", a, ab)[None]  # (p - a) . ab
+        t = np.clip(pa / ab2[None], 0.0, 1.0)
+        pp = np.einsum("ij,ij->i", points, points)[:, None] - 2.0 * points @ a.T + np.einsum("ij,ij->i", a, a)[None]
+        dist2 = np.maximum(pp - 2.0 * t * pa + t * t * ab2[None], 0.0)
+        phi = np.sqrt(dist2) - self.radius[idx][None]
         k = np.argmin(phi, axis=1)
         rows = np.arange(n)
-        dk, distk = d[rows, k], dist[rows, k]
+        tk = t[rows, k]
+        dk = points - (a[k] + tk[:, None] * ab[k])
+        distk = np.sqrt(np.einsum("ij,ij->i", dk, dk))
         normal = dk / np.maximum(distk, 1e-12)[:, None]
         on_axis = distk <= 1e-9
         if on_axis.any():  # a point on the axis: any direction across it
-            across = np.cross((b - a)[k[on_axis]], [0.0, 0.0, 1.0])
+            across = np.cross(ab[k[on_axis]], [0.0, 0.0, 1.0])
             across[np.linalg.norm(across, axis=1) < 1e-9] = (1.0, 0.0, 0.0)
             normal[on_axis] = across / np.linalg.norm(across, axis=1)[:, None]
-        tk = t[rows, k][:, None]
+        tk = tk[:, None]
         ck = idx[k]
         va, vb = (self.a1 - self.a0) / self.dt, (self.b1 - self.b0) / self.dt
         velocity = va[ck] + tk * (vb[ck] - va[ck])
-        return np.minimum(phi[rows, k], max_distance), normal, velocity
+        phi_k = distk - self.radius[ck]
+        return np.minimum(phi_k, max_distance), normal, velocity
 
 
 def closest_on_triangles(p, a, b, c):
@@ -260,9 +267,23 @@ def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, fricti
     if not near.any():
         return 0
     f_idx = np.flatnonzero(near)
-    pts = np.einsum("sk,fkj->fsj", FACE_SAMPLES, tri[f_idx]).reshape(-1, 3)
-    phi, normal, vs = query_bodies(bodies, pts, s)
+    samples = np.einsum("sk,fkj->fsj", FACE_SAMPLES, tri[f_idx])  # (F', S, 3)
+    # ... and a sample farther out than that from any corner can't be inside either
+    gap = np.linalg.norm(samples[:, :, None, :] - tri[f_idx][:, None, :, :], axis=3)  # (F', S, 3)
+    bound = (corner_phi[faces[f_idx]][:, None, :] - gap).max(axis=2)
+    test = bound < thickness
+    if not test.any():
+        return 0
+    pts = samples[test]
+    ph, nrm, vel = query_bodies(bodies, pts, s)
     ns = len(FACE_SAMPLES)
+    phi = np.full(test.shape, np.inf)
+    phi[test] = ph
+    normal = np.zeros(test.shape + (3,))
+    normal[test] = nrm
+    vs = np.zeros(test.shape + (3,))
+    vs[test] = vel
+    phi, normal, vs = phi.reshape(-1), normal.reshape(-1, 3), vs.reshape(-1, 3)
     depth = (thickness - phi).reshape(-1, ns)
     deepest = np.argmax(depth, axis=1)
     rows = np.arange(len(f_idx))

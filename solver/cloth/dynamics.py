@@ -9,6 +9,9 @@ from .materials import AIR_DENSITY, as_vector
 
 # explicit RK4 is stable for |lambda dt| up to about 2.8 on the imaginary axis: keep a margin
 STABLE_OMEGA_DT = 2.2
+VELOCITY_SWEEPS = 3
+SLACK = 2e-3  # relative overshoot of a length limit the correction tolerates
+RELAX = 1.5  # over-relaxation of the averaged (Jacobi) length corrections
 STABLE_DAMPING_DT = 1.0  # damping shares the step's stability budget with the springs
 
 
@@ -37,7 +40,12 @@ class ClothDynamics:
         self._movable_edge = (self.inv_mass[e0] + self.inv_mass[e1]) > 0.0
         wsum = np.where(self._movable_edge, self.inv_mass[e0] + self.inv_mass[e1], 1.0)
         self._share0, self._share1 = self.inv_mass[e0] / wsum, self.inv_mass[e1] / wsum
-        self._colour_of = self._edge_colouring()
+        # a correction along each edge, shared by the inverse masses: +share0 at the first
+        # particle, -share1 at the second; `reach` counts the edges that move a particle
+        rows, cols = np.r_[e0, e1], np.r_[np.arange(len(e0)), np.arange(len(e0))]
+        self._spread = sparse.csr_matrix((np.r_[self._share0, -self._share1], (rows, cols)), shape=(p_count, len(e0)))
+        self._reach = sparse.csr_matrix(((np.r_[self._share0, self._share1] > 0).astype(float), (rows, cols)),
+                                        shape=(p_count, len(e0)))
         f = len(mesh.faces)
         self._face_incidence = sparse.csr_matrix(
             (np.ones(3 * f), (mesh.faces.ravel(), np.repeat(np.arange(f), 3))), shape=(p_count, f))
@@ -117,13 +125,13 @@ class ClothDynamics:
         """Accelerations of all particles (zero for pinned ones). `normals` (for the air drag) may
         be given: they change little within a step."""
         p = self.params
-        d = x[self._s1] - x[self._s0]
+        d = np.take(x, self._s1, axis=0) - np.take(x, self._s0, axis=0)
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         coef = self._sk * (length - self._srest)  # eq. 4.1 (bending springs alike)
         e = self._edges
         if self.damping > 0.0:
-            dv = v[self._e1] - v[self._e0]
-            coef[:e] += self.damping * np.einsum("ij,ij->i", dv, d[:e]) / np.maximum(length[:e] ** 2, 1e-18)
+            dv = np.take(v, self._e1, axis=0) - np.take(v, self._e0, axis=0)
+            coef[:e] += self.damping * np.einsum("ij,ij->i", dv, d[:e]) / (length[:e] * length[:e] + 1e-18)
         acc = self._acc_of @ (coef[:, None] * d)
         acc += self._free_f * (self.gravity - p.air_damping * v)
         if p.drag > 0.0:  # air pushes against the motion across the cloth: 1/2 rho Cd A |vn| vn
@@ -170,64 +178,39 @@ class ClothDynamics:
         """Provot's correction (§4.4.3): the particles of an edge longer than (1 + limit) L are
         moved towards each other (inverse-mass weighted, pinned ones stay) back to that length,
         and the part of their relative velocity that stretches the edge further is removed.
-        Shortened edges are left alone: the smoothing keeps their curves at length.
+        Shortened edges are left to the smoothing, unless shorter than (1 - compress_limit) L.
 
-        Gauss-Seidel in vectorised groups: the stretched edges are split by a fixed edge
-        colouring (no two edges of a colour share a particle), each colour corrected in one
-        pass, for up to `constraint_iterations` sweeps. Returns (x, v, edges corrected)."""
+        All edges beyond a limit are corrected together (Jacobi): each particle takes the mean
+        of its edges' corrections, over-relaxed by RELAX, for up to `iterations` sweeps (until
+        none is beyond). Returns (x, v, number of edges corrected)."""
         p = self.params
         x, v = x.copy(), v.copy()
         e0, e1 = self._e0, self._e1
-        limit, colour = self._limit, self._colour_of
+        limit, floor = self._limit, self._floor
+        spread, reach = self._spread, self._reach
         corrected = np.zeros(len(e0), dtype=bool)
         for _ in range(max(1, iterations or p.constraint_iterations)):
-            d = x[e1] - x[e0]
-            l2 = np.einsum("ij,ij->i", d, d)
-            over = ((l2 > limit * limit) | (l2 < self._floor * self._floor)) & self._movable_edge
-            if not over.any():
+            d = np.take(x, e1, axis=0) - np.take(x, e0, axis=0)
+            length = np.sqrt(np.einsum("ij,ij->i", d, d))
+            target = np.clip(length, floor, limit)
+            off = (np.abs(target - length) > SLACK * target) & self._movable_edge
+            if not off.any():
                 break
-            corrected |= over
-            k = np.flatnonzero(over)
-            kc = colour[k]
-            for c in np.unique(kc):
-                g = k[kc == c]
-                a, b = e0[g], e1[g]
-                dg = x[b] - x[a]
-                length = np.sqrt(np.einsum("ij,ij->i", dg, dg))
-                target = np.clip(length, self._floor[g], limit[g])
-                dx = ((length - target) / np.maximum(length, 1e-12))[:, None] * dg
-                x[a] += self._share0[g, None] * dx
-                x[b] -= self._share1[g, None] * dx
-        if corrected.any():  # one sweep over the corrected edges: none keeps stretching (squeezing)
-            k = np.flatnonzero(corrected)
-            kc = colour[k]
-            for c in np.unique(kc):
-                g = k[kc == c]
-                a, b = e0[g], e1[g]
-                dg = x[b] - x[a]
-                length = np.sqrt(np.einsum("ij,ij->i", dg, dg))
-                u = dg / np.maximum(length, 1e-12)[:, None]
-                rate = np.einsum("ij,ij->i", v[b] - v[a], u)
-                # a stretched edge stops lengthening, a squeezed one (compress_limit) shortening
-                dv = np.where(length > self.mesh.rest_length[g], np.maximum(rate, 0.0), np.minimum(rate, 0.0))
-                dv = dv[:, None] * u
-                v[a] += self._share0[g, None] * dv
-                v[b] -= self._share1[g, None] * dv
+            corrected |= off
+            dx = np.where(off, (length - target) / length, 0.0)[:, None] * d
+            count = reach @ off.astype(float)
+            x += (RELAX / np.maximum(count, 1.0))[:, None] * (spread @ dx)
+        if corrected.any():  # corrected edges stop stretching (squeezed ones stop shortening)
+            d = np.take(x, e1, axis=0) - np.take(x, e0, axis=0)
+            length = np.sqrt(np.einsum("ij,ij->i", d, d))
+            u = d / np.maximum(length, 1e-12)[:, None]
+            longer = length > self.mesh.rest_length
+            scale = (RELAX / np.maximum(reach @ corrected.astype(float), 1.0))[:, None]
+            for _ in range(VELOCITY_SWEEPS):
+                rate = np.einsum("ij,ij->i", np.take(v, e1, axis=0) - np.take(v, e0, axis=0), u)
+                rate = np.where(corrected, np.where(longer, np.maximum(rate, 0.0), np.minimum(rate, 0.0)), 0.0)
+                v += scale * (spread @ (rate[:, None] * u))
         return x, v, int(corrected.sum())
-
-    def _edge_colouring(self):
-        """A colour per edge such that no two edges of a colour share a particle (greedy)."""
-        e0, e1 = self._e0, self._e1
-        colour = np.full(len(e0), -1)
-        used = [set() for _ in range(len(self.mass))]
-        for e in range(len(e0)):
-            c = 0
-            while c in used[e0[e]] or c in used[e1[e]]:
-                c += 1
-            colour[e] = c
-            used[e0[e]].add(c)
-            used[e1[e]].add(c)
-        return colour
 
     # ---- energy (for tests and diagnostics) -------------------------------------------------
     def energy(self, x, v):

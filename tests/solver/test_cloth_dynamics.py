@@ -97,7 +97,7 @@ def test_provot_limits_elongated_edges_and_leaves_shortened_ones():
     v[:, 1] = x[:, 1]  # everything moving apart along y
     x2, v2, corrected = dyn.limit_elongation(x, v)
     ratio = edge_lengths(mesh, x2) / mesh.rest_length
-    assert corrected > 0 and ratio.max() < 1.0 + 0.01 + 1e-3
+    assert corrected > 0 and ratio.max() < 1.0 + 0.01 + 2e-3
     assert np.allclose(x2[[0, 5]], x[[0, 5]])  # pinned particles stay
     # a cloth with only shortened edges is left exactly as it is (the smoothing handles those)
     shrunk = 0.8 * pos
@@ -115,14 +115,15 @@ def test_provot_limits_elongated_edges_and_leaves_shortened_ones():
 def test_stiff_material_is_capped_to_the_stable_step_and_does_not_explode(compress_limit):
     pos, faces = sheet(7, 7, 0.6)
     mesh = build_mesh(pos, faces)
-    params = ClothParams(stretch=5000.0, bend=200.0, damping=5.0, substeps=2, compress_limit=compress_limit)
+    params = ClothParams(stretch=5000.0, bend=200.0, damping=5.0, substeps=2, compress_limit=compress_limit,
+                         final_iterations=100)
     sim = ClothSimulation(mesh, params, pinned=[0, 6], fps=30)
     assert sim.dynamics.capped and sim.dynamics.stretch < 5000.0
     for _ in range(150):
         sim.step(None, 1 / 30)
     assert np.isfinite(sim.x).all() and np.abs(sim.v).max() < 10.0
-    # hanging from two corners, the whole weight on a few edges: Gauss-Seidel leaves some over
-    # the limit, but the sheet keeps its size on average
+    # hanging from two corners, the whole weight on a few edges: the averaged corrections leave
+    # some over the limit, but the sheet keeps its size on average
     assert abs(sim.stretch()) < 0.03
 
 
@@ -133,10 +134,10 @@ def test_compression_limit_pushes_squeezed_edges_back_and_zero_leaves_them():
     v = np.zeros_like(pos)
     thesis = ClothDynamics(mesh, ClothParams(compress_limit=0.0))
     assert np.array_equal(thesis.limit_elongation(shrunk, v)[0], shrunk)
-    limited = ClothDynamics(mesh, ClothParams(compress_limit=0.05, constraint_iterations=100), pinned=[0])
+    limited = ClothDynamics(mesh, ClothParams(compress_limit=0.05, constraint_iterations=400), pinned=[0])
     x, _, n = limited.limit_elongation(shrunk, v)
     ratio = edge_lengths(mesh, x) / mesh.rest_length
-    assert n > 0 and ratio.min() > 0.92 and ratio.max() < 1.03  # from 0.8 towards [0.95, 1.01] (Gauss-Seidel)
+    assert n > 0 and ratio.min() > 0.92 and ratio.max() < 1.03  # from 0.8 towards [0.95, 1.01]
 
 
 def test_air_drag_slows_a_falling_sheet_and_wind_carries_it():
