@@ -78,7 +78,7 @@ class HumanAnimCloth(bpy.types.PropertyGroup):
                                               "as in the thesis)")
     friction: FloatProperty(name="Friction", default=0.0, min=0.0, max=1.0,
                             description="Share of the sliding speed lost in a contact")
-    substeps: IntProperty(name="Substeps", default=4, min=1, max=64, description="RK4 steps per simulated frame")
+    substeps: IntProperty(name="Substeps", default=2, min=1, max=64, description="RK4 steps per simulated frame")
     frame_start: IntProperty(name="Start", default=0, description="0: the scene's start")
     frame_end: IntProperty(name="End", default=0, description="0: the scene's end")
     frame_step: IntProperty(name="Step", default=0, min=0, max=16,

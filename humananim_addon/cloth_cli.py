@@ -28,7 +28,7 @@ def add_commands(sub, add_common_options):
                    help="auto: the body mesh if any, else capsules on the bones")
     c.add_argument("--preset", choices=PRESET_NAMES, default="cotton", help="material (default cotton)")
     c.add_argument("--level", type=int, default=2, help="smoothing level: 4 x level^2 triangles per face")
-    c.add_argument("--substeps", type=int, default=4, help="RK4 steps per simulated frame (default 4)")
+    c.add_argument("--substeps", type=int, default=2, help="RK4 steps per simulated frame (default 2)")
     c.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
     c.add_argument("--step", type=int, default=0, help="simulate every Nth frame (default: about 30 per second)")
     c.add_argument("--wind", help="wind velocity X,Y,Z in m/s")

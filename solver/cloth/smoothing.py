@@ -19,7 +19,7 @@ import numpy as np
 from .mesh import face_normals
 
 # Gauss-Legendre nodes and weights on [0, 1] for the length of a cubic curve
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(6)
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
 GL_T, GL_W = 0.5 * (_GL_X + 1.0), 0.5 * _GL_W
 
 
@@ -33,39 +33,45 @@ def _dot(a, b):
 
 # ---- particle normals -------------------------------------------------------------------------
 
+def _corner_tables(mesh):
+    """Per face corner: the particle, the next and previous ones, the rest lengths of the two
+    sides at the corner, and the (P, 3F) sum over corners (cached on the mesh)."""
+    tables = getattr(mesh, "_corner_tables", None)
+    if tables is None:
+        from scipy import sparse
+        f = mesh.faces
+        la = mesh.rest_length[mesh.face_edges]  # side (corner, next)
+        lc = np.roll(la, 1, axis=1)  # side (previous, corner)
+        gather = sparse.csr_matrix((np.ones(f.size), (f.ravel(), np.arange(f.size))), shape=(len(mesh.rest), f.size))
+        tables = (f, np.roll(f, -1, axis=1), np.roll(f, 1, axis=1), la, lc, gather)
+        mesh._corner_tables = tables
+    return tables
+
+
 def elastic_face_forces(mesh, x, k_elastic):
     """|f_i^j| (F, 3): magnitude of the elastic force face j applies to each of its corners,
     f_i^j = f_ia + f_ib (eq. 4.4), each spring force from eq. 4.1."""
-    f = mesh.faces
-    pa = x[f]  # (F, 3, 3)
-    pb = x[np.roll(f, -1, axis=1)]
-    pc = x[np.roll(f, 1, axis=1)]
-    la = mesh.rest_length[mesh.face_edges]  # rest of side (corner, next)
-    lc = np.roll(la, 1, axis=1)  # rest of side (previous, corner)
-
-    def spring(p, q, rest):  # force on p from the spring p-q: k (|d| - L)/L d
-        d = q - p
-        length = np.linalg.norm(d, axis=-1)
-        return (k_elastic * (length - rest) / rest)[..., None] * d
-
-    return np.linalg.norm(spring(pa, pb, la) + spring(pa, pc, lc), axis=-1)
+    f, nxt, prv, la, lc, _ = _corner_tables(mesh)
+    pa = x[f]
+    db, dc = x[nxt] - pa, x[prv] - pa
+    lb, lcc = np.sqrt(np.einsum("fcj,fcj->fc", db, db)), np.sqrt(np.einsum("fcj,fcj->fc", dc, dc))
+    force = ((lb - la) / la)[..., None] * db + ((lcc - lc) / lc)[..., None] * dc
+    return k_elastic * np.sqrt(np.einsum("fcj,fcj->fc", force, force))
 
 
 def controlled_normals(mesh, x, k_elastic=1.0, control=True):
     """Particle normals (P, 3): eq. 4.3 with the weights of eq. 4.2-4.4 (control=True), or the
     plain average of the adjacent face normals (Gouraud, control=False). A particle under no
-    elastic force at all takes the plain average (the weights carry a tiny uniform part)."""
+    elastic force at all takes the plain average (the weights carry a tiny uniform part). The
+    division by the sum of the weights in eq. 4.3 cancels in the unit vector."""
     n, _ = face_normals(x, mesh.faces)
+    gather = _corner_tables(mesh)[-1]
     if control:
         w = elastic_face_forces(mesh, x, k_elastic)
         w = w + 1e-9 * (1.0 + w.max())
-        w = w / (np.bincount(mesh.faces.ravel(), w.ravel(), minlength=len(x))[mesh.faces])
+        out = gather @ (w.reshape(-1, 1) * np.repeat(n, 3, axis=0))
     else:
-        w = np.ones(mesh.faces.shape)
-    out = np.zeros_like(x)
-    for c in range(3):
-        for axis in range(3):
-            out[:, axis] += np.bincount(mesh.faces[:, c], w[:, c] * n[:, axis], minlength=len(x))
+        out = gather @ np.repeat(n, 3, axis=0)
     return _unit(out)
 
 
@@ -119,7 +125,7 @@ DERIV = 3.0 * np.hstack([-(1 - _T) ** 2, (1 - _T) ** 2 - 2 * (1 - _T) * _T, 2 * 
 
 
 def cubic_length(p0, c1, c2, p1):
-    """Length of cubic Bezier curves (..., 3) by 6-point Gauss-Legendre on |B'(t)|."""
+    """Length of cubic Bezier curves (..., 3) by 5-point Gauss-Legendre on |B'(t)|."""
     ctrl = np.stack([p0, c1, c2, p1], axis=-2)  # (..., 4, 3)
     return _speed_length(np.einsum("tk,...kj->...tj", DERIV, ctrl))
 
@@ -153,7 +159,7 @@ def _split_speed(p0, n0, m, nm, p1, n1):
 
 # ---- edge length control ------------------------------------------------------------------
 
-def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=12):
+def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
     """Midpoints (E, 3), their normals, h (E,) and whether each edge was shortened: §4.3.3.
 
     The midpoint of the PN edge curve moves along its normal by h >= 0 so that the two halves'
@@ -170,10 +176,14 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=12):
     i = np.flatnonzero(short)
     a0, b0, a1, b1, m, n, target = p0[i], n0[i], p1[i], n1[i], mid[i], nm[i], rest[i]
     v0, v1 = _split_speed(a0, b0, m, n, a1, b1)
+    # |v0 + h v1|^2 = A + h (B + h C) at every quadrature node: each bisection step is one pass
+    qa, qb, qc = (np.einsum("ahtj,ahtj->aht", v0, v0), 2.0 * np.einsum("ahtj,ahtj->aht", v0, v1),
+                  np.einsum("ahtj,ahtj->aht", v1, v1))
+    weights = np.concatenate([GL_W, GL_W])
 
     def length(hh):
-        v = v0 + hh[:, None, None, None] * v1
-        return (np.sqrt(np.einsum("ahtj,ahtj->aht", v, v)) @ GL_W).sum(axis=1)
+        hh = hh[:, None, None]
+        return np.sqrt(np.maximum(qa + hh * (qb + hh * qc), 0.0)).reshape(len(hh), -1) @ weights
 
     chord = np.linalg.norm(a1 - a0, axis=1)
     h0 = np.maximum(k_guess * (target - chord), 1e-6 * target)  # eq. 4.6
@@ -207,6 +217,7 @@ class Tessellation:
     patch_of: np.ndarray  # (G,) sub-patch 0..3 of each grid point
     weights: np.ndarray  # (G, 10) Bernstein weights of each grid point in its sub-patch
     edge_vertices: np.ndarray  # (E, n + 1) fine vertices along each coarse edge, first to second particle
+    full_weights: np.ndarray = None  # (G, 40): each grid point's weights on the 4 x 10 control points
 
 
 def _grid(n):
@@ -261,15 +272,19 @@ def tessellation(mesh, level):
     tris = np.array(tris)
     faces = vertex_of[:, tris].reshape(-1, 3)
     del bary
+    weights = bernstein(np.array(local))
+    full = np.zeros((len(grid), 40))
+    for g, k in enumerate(patch):
+        full[g, 10 * k:10 * k + 10] = weights[g]
     return Tessellation(level, base_inner + f_count * len(inner), faces, vertex_of, np.array(patch),
-                        bernstein(np.array(local)), edge_vertices)
+                        weights, edge_vertices, full)
 
 
 class Smoother:
     """The fine cloth surface from the particles: `surface(x)` -> fine vertices (V, 3)."""
 
     def __init__(self, mesh, level=2, k_elastic=1.0, normal_control=True, edge_control=True, k_guess=1.0,
-                 iterations=12):
+                 iterations=10):
         self.mesh, self.k_elastic = mesh, k_elastic
         self.normal_control, self.edge_control = normal_control, edge_control
         self.k_guess, self.iterations = k_guess, iterations
@@ -296,8 +311,8 @@ class Smoother:
         pts = np.concatenate([x[f], mid[mesh.face_edges]], axis=1)  # (F, 6, 3)
         nrm = np.concatenate([normals[f], mid_n[mesh.face_edges]], axis=1)
         sub = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]])  # corner a, b, c patches, middle
-        cp = pn_patch(pts[:, sub], nrm[:, sub])  # (F, 4, 10, 3)
-        fine = np.einsum("gc,fgcj->fgj", t.weights, cp[:, t.patch_of])
+        cp = pn_patch(pts[:, sub], nrm[:, sub]).reshape(len(f), 40, 3)  # (F, 4 x 10, 3)
+        fine = t.full_weights @ cp  # (F, G, 3)
         out = np.empty((self.vertex_count, 3))
         out[t.vertex_of.ravel()] = fine.reshape(-1, 3)
         out[np.arange(len(x))] = x  # exactly through the particles

@@ -121,7 +121,7 @@ def test_smoothed_surface_passes_through_particles_and_keeps_shortened_curves(si
 
 def test_nothing_explodes_at_30_fps_with_default_substeps(simulated):
     job, s = simulated["job"], simulated["summary"]
-    assert s["substeps"] == 4 and s["complete"]
+    assert s["substeps"] == 2 and s["complete"]
     speeds = np.linalg.norm(np.diff(np.array(job.coarse), axis=0), axis=2) * 30.0  # m/s between frames
     assert np.isfinite(speeds).all() and speeds.max() < 15.0
 
