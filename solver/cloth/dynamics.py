@@ -46,6 +46,7 @@ class ClothDynamics:
         self._spread = sparse.csr_matrix((np.r_[self._share0, -self._share1], (rows, cols)), shape=(p_count, len(e0)))
         self._reach = sparse.csr_matrix(((np.r_[self._share0, self._share1] > 0).astype(float), (rows, cols)),
                                         shape=(p_count, len(e0)))
+        self._tether_data = self._tethers()
         f = len(mesh.faces)
         self._face_incidence = sparse.csr_matrix(
             (np.ones(3 * f), (mesh.faces.ravel(), np.repeat(np.arange(f), 3))), shape=(p_count, f))
@@ -182,13 +183,16 @@ class ClothDynamics:
 
         All edges beyond a limit are corrected together (Jacobi): each particle takes the mean
         of its edges' corrections, over-relaxed by RELAX, for up to `iterations` sweeps (until
-        none is beyond). Returns (x, v, number of edges corrected)."""
+        none is beyond). Before that, tethers to the pins remove the stretch that accumulates
+        along a hanging garment (which local corrections undo only slowly). Returns (x, v,
+        number of edges corrected)."""
         p = self.params
         x, v = x.copy(), v.copy()
         e0, e1 = self._e0, self._e1
         limit, floor = self._limit, self._floor
         spread, reach = self._spread, self._reach
         corrected = np.zeros(len(e0), dtype=bool)
+        self._tether(x, v)
         for _ in range(max(1, iterations or p.constraint_iterations)):
             d = np.take(x, e1, axis=0) - np.take(x, e0, axis=0)
             length = np.sqrt(np.einsum("ij,ij->i", d, d))
@@ -211,6 +215,37 @@ class ClothDynamics:
                 rate = np.where(corrected, np.where(longer, np.maximum(rate, 0.0), np.minimum(rate, 0.0)), 0.0)
                 v += scale * (spread @ (rate[:, None] * u))
         return x, v, int(corrected.sum())
+
+    def _tethers(self):
+        """Each free particle's nearest pin along the mesh and the rest length of that path
+        (scipy's Dijkstra over the edges); empty without pins."""
+        from scipy.sparse.csgraph import dijkstra
+        pins = np.flatnonzero(self.pinned)
+        if len(pins) == 0:
+            return None
+        n = len(self.mass)
+        graph = sparse.csr_matrix((self.mesh.rest_length, (self._e0, self._e1)), shape=(n, n))
+        dist, _, source = dijkstra(graph, directed=False, indices=pins, return_predecessors=True, min_only=True)
+        free = np.flatnonzero(self.free & np.isfinite(dist) & (source >= 0))
+        return free, source[free], dist[free] * (1.0 + self.params.stretch_limit)
+
+    def _tether(self, x, v):
+        """Accumulated stretch along a hanging garment, which the local corrections remove only
+        slowly: no particle may be farther from its pin than the rest length of the path to it
+        along the mesh (in place; the outward velocity is removed too)."""
+        if self._tether_data is None:
+            return
+        i, anchor, reach = self._tether_data
+        d = x[i] - x[anchor]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        over = length > reach
+        if not over.any():
+            return
+        i, d, length, reach = i[over], d[over], length[over], reach[over]
+        u = d / length[:, None]
+        x[i] -= ((length - reach)[:, None]) * u
+        out = np.maximum(np.einsum("ij,ij->i", v[i] - v[anchor[over]], u), 0.0)
+        v[i] -= out[:, None] * u
 
     # ---- energy (for tests and diagnostics) -------------------------------------------------
     def energy(self, x, v):
