@@ -15,7 +15,7 @@ class ClothSimulation:
     (`body.set_motion(start pose, end pose, dt)`); `surface()` gives the smoothed fine mesh."""
 
     def __init__(self, mesh, params, pinned=(), bodies=(), level=2, fps=30.0, positions=None,
-                 normal_control=True, edge_control=True):
+                 normal_control=True, edge_control=True, surface_collision=True):
         self.mesh, self.params = mesh, params
         self.dynamics = ClothDynamics(mesh, params, pinned)
         self.pins = np.flatnonzero(self.dynamics.pinned)
@@ -31,6 +31,9 @@ class ClothSimulation:
         self.frames = 0
         self.contacts = {"particles": 0, "faces": 0}
         self.corrected_edges = 0
+        self.surface_collision = surface_collision
+        self.surface_pushed = 0
+        self._fine_mask = None
 
     def step(self, pin_targets=None, dt=1.0 / 30.0):
         """One frame of length dt: pinned particles reach `pin_targets` (K, 3) at its end."""
@@ -69,9 +72,21 @@ class ClothSimulation:
         return x
 
     def surface(self):
+        """The smoothed fine surface of the current particles. Its curved patches can bulge into
+        the body between particles that are all outside (the thesis notes it); with
+        `surface_collision` such fine vertices are pushed back out to the thickness."""
         t0 = time.perf_counter()
         out = self.smoother.surface(self.x)
-        self.timing["smoothing"] += time.perf_counter() - t0
+        t1 = time.perf_counter()
+        self.timing["smoothing"] += t1 - t0
+        if self.bodies and self.surface_collision:
+            if self._fine_mask is None:
+                self._fine_mask = np.ones(len(out), dtype=bool)
+                self._fine_mask[:self.mesh.particle_count] = False  # the particles are already out
+            pushed, _ = resolve_particles(out, np.zeros_like(out), self.bodies, 1.0, self.params.thickness,
+                                          self._fine_mask)
+            self.surface_pushed += pushed
+            self.timing["collision"] += time.perf_counter() - t1
         return out
 
     def stretch(self):
