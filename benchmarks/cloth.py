@@ -133,7 +133,6 @@ def step_frames(scene, last):
 
 def blender_cloth_ms(arm, scene, job, body, last, name):
     """Blender's cloth: ms per frame of stepping the frames with the cloth minus without it."""
-    import bpy
     scene.frame_set(1)
     obj, armature_mod, cloth = blender_garment(job, arm, name)
     # the Armature modifier deforms from the rest pose: keep the pinned ring where it is at

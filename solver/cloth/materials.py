@@ -1,6 +1,6 @@
 """Cloth materials: what the animator picks (light cotton, denim, leather) in SI units."""
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 

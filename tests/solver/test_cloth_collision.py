@@ -2,10 +2,9 @@
 and the face case, tangential velocity only; a skirt on a walking body stays outside."""
 
 import numpy as np
-import pytest
 
 from cloth_scenes import RADII, legs, walking_skirt
-from humananim.solver.cloth import (CapsuleBody, ClothSimulation, MeshBody, build_mesh, capsule_mesh, preset,
+from humananim.solver.cloth import (CapsuleBody, ClothSimulation, MeshBody, capsule_mesh, preset,
                                     resolve_contacts)
 from humananim.solver.cloth.collision import closest_on_segments, closest_on_triangles
 

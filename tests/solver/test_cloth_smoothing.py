@@ -6,8 +6,7 @@ import pytest
 
 from cloth_scenes import legs, sheet, walking_skirt
 from humananim.solver.cloth import (ClothSimulation, Smoother, build_mesh, controlled_normals, edge_midpoints,
-                                    fit_skirt, preset, read_pc2, skirt_mesh, tessellation, write_pc2)
-from humananim.solver.cloth.collision import CapsuleBody
+                                    preset, read_pc2, skirt_mesh, tessellation, write_pc2)
 from humananim.solver.cloth.smoothing import edge_controls, pn_curve_length
 
 
