@@ -4,7 +4,7 @@ import time
 
 import numpy as np
 
-from .collision import penetration, resolve_contacts, resolve_particles
+from .collision import penetration, query_bodies, resolve_contacts, resolve_particles
 from .dynamics import ClothDynamics
 from .mesh import ClothError, edge_lengths
 from .smoothing import Smoother
@@ -33,7 +33,6 @@ class ClothSimulation:
         self.corrected_edges = 0
         self.surface_collision = surface_collision
         self.surface_pushed = 0
-        self._fine_mask = None
 
     def step(self, pin_targets=None, dt=1.0 / 30.0):
         """One frame of length dt: pinned particles reach `pin_targets` (K, 3) at its end."""
@@ -80,14 +79,28 @@ class ClothSimulation:
         t1 = time.perf_counter()
         self.timing["smoothing"] += t1 - t0
         if self.bodies and self.surface_collision:
-            if self._fine_mask is None:
-                self._fine_mask = np.ones(len(out), dtype=bool)
-                self._fine_mask[:self.mesh.particle_count] = False  # the particles are already out
-            pushed, _ = resolve_particles(out, np.zeros_like(out), self.bodies, 1.0, self.params.thickness,
-                                          self._fine_mask)
-            self.surface_pushed += pushed
+            self._push_surface_out(out)
             self.timing["collision"] += time.perf_counter() - t1
         return out
+
+    def _push_surface_out(self, fine):
+        """Fine vertices inside the body go back out to the thickness; only those of coarse faces
+        that can reach the body are tested (phi is 1-Lipschitz and a patch stays within about
+        its longest edge of its corners)."""
+        mesh, tess = self.mesh, self.smoother.tess
+        phi = query_bodies(self.bodies, self.x, 1.0)[0]
+        tri = self.x[mesh.faces]
+        edge = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+        near = phi[mesh.faces].max(axis=1) - edge < self.params.thickness
+        if not near.any():
+            return
+        idx = np.unique(tess.vertex_of[near])
+        idx = idx[idx >= mesh.particle_count]  # the particles are already out
+        pts = fine[idx]
+        pushed, _ = resolve_particles(pts, np.zeros_like(pts), self.bodies, 1.0, self.params.thickness,
+                                      np.ones(len(idx), dtype=bool))
+        fine[idx] = pts
+        self.surface_pushed += pushed
 
     def stretch(self):
         """Mean edge length over rest length, minus 1 (elongation handled: ~0)."""
