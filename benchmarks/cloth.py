@@ -22,16 +22,18 @@ constraints), collision (including pushing the rendered surface out of the body)
 cloth's ms per frame, and the speed-ups. Also the cost of a trivial numpy operation on this
 machine, to tell how loaded it was (an unloaded desktop does ~0.3-0.6 us).
 
-Measured here (2 shared cores, numpy a+b 0.61 us, 4 s of the walk, 120 frames):
-  skirt, capsules    66 -> 1,760 faces: simulation 3.6, collision 4.9, smoothing 1.8 = 10.4 ms/frame
-  skirt, body mesh   66 -> 1,760 faces: 7.0 + 110.8 + 3.2 = 121 ms/frame
-  skirt, PN only (capsules): 18.1 ms/frame (same run; noise between runs is ~2x on this machine)
-  coat, capsules    300 -> 8,800 faces: 11.1 + 21.1 + 8.6 = 40.7 ms/frame; body mesh 247 ms/frame
-  Blender cloth: skirt 1,760 faces 217 ms/frame, coat 8,800 faces 642 ms/frame
-  speed-up over Blender's cloth: 21x (skirt) and 16x (coat) with capsules, 1.8x and 2.6x with
-  the skinned mesh as collider. The issue's 3 ms per frame for the thesis skirt is not reached
-  (10 ms with capsules); the skinned-mesh queries (a cKDTree per mesh part per substep, exact
-  point-triangle distances) are the slow part.
+Measured here (2 shared cores, load 2.5-6, numpy a+b ~0.6 us; 4 s of the walk, 120 frames; two
+runs, the second more loaded):
+  skirt, capsules    66 -> 1,760 faces: simulation 3.6-5.1, collision 4.9-7.3, smoothing
+                     1.8-2.5 = 10.4-14.9 ms/frame
+  skirt, body mesh   66 -> 1,760 faces: 98-121 ms/frame (collision 90-111)
+  skirt, PN only (capsules): 17-18 ms/frame (run-to-run noise here exceeds the smoothing's cost)
+  coat, capsules    300 -> 8,800 faces: 40.7-42.8 ms/frame; body mesh 247-293 ms/frame
+  Blender cloth: skirt 1,760 faces 217-264 ms/frame, coat 8,800 faces 642-835 ms/frame
+  speed-up over Blender's cloth: 18-21x (skirt) and 16-20x (coat) with capsules, 1.8-2.7x and
+  2.6-2.9x with the skinned mesh as collider. The issue's 3 ms per frame for the thesis skirt is
+  not reached (10-15 ms with capsules on this machine); the skinned-mesh queries (a cKDTree per
+  mesh part per substep, exact point-triangle distances) are the slow part.
 """
 
 import argparse
