@@ -1,9 +1,503 @@
-"""Fast plausible cloth (issue 7): the bridge between Blender data and the solver (being built)."""
+"""Fast plausible cloth in Blender (Oshita 2003, ch. 4): the settings, the garment and its pins,
+the body per frame (skinned mesh or capsules on the bones), the simulation over a frame range,
+and the result as a NEW mesh object whose vertices come from a PC2 point cache through a Mesh
+Cache modifier (the coarse simulation optionally too); plus a skirt generator for any rig."""
+
+import logging
+import os
+import re
+import tempfile
+import time
+
+import bpy
+import numpy as np
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, PointerProperty, \
+    StringProperty
+
+from ..solver.cloth import (CapsuleBody, ClothParams, ClothSimulation, MeshBody, PRESETS, build_mesh, capsule_ends,
+                            capsule_mesh, capsules_from_roles, fit_radii, fit_skirt, write_pc2)
+from ..solver.cloth.mesh import ClothError
+from .actions import scene_fps
+from .armature import detect
+from .properties import role_overrides, settings_registration
+
+log = logging.getLogger(__name__)
+
+# Blender 4.5+ warns about a '//' path unless the property says it takes one (4.2 has no such option)
+_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
+
+PHYSICAL = ("density", "stretch", "bend", "damping", "drag", "air_damping")
 
 
-def register():
-    pass
+class HumanAnimCloth(bpy.types.PropertyGroup):
+    garment: PointerProperty(name="Garment", type=bpy.types.Object,
+                             description="The coarse garment mesh (tens to a few hundred vertices)")
+    pin_group: StringProperty(name="Pinned Group", default="waist",
+                              description="Vertex group of the garment that follows the body (e.g. a waistband)")
+    armature: PointerProperty(name="Armature", type=bpy.types.Object,
+                              description="The character's armature: pinned vertices follow its bones")
+    body: PointerProperty(name="Body Mesh", type=bpy.types.Object,
+                          description="The character's skinned mesh to collide with (empty: capsules on the bones)")
+    collider: EnumProperty(name="Collide With", items=(
+        ("AUTO", "Auto", "The body mesh when one is set, else capsules fitted to the bones"),
+        ("MESH", "Body Mesh", "The evaluated (skinned) body mesh, every frame"),
+        ("CAPSULES", "Capsules", "Capsules on the bones by body role (radii fitted to the body mesh if set)"),
+        ("BOTH", "Both", "The body mesh and the capsules"),
+        ("NONE", "None", "No collisions"),
+    ), default="AUTO")
+    level: IntProperty(name="Smoothing Level", default=2, min=1, max=8,
+                       description="Segments per side of each of the four sub-patches: every coarse face "
+                                   "becomes 4 x level^2 triangles")
+    normal_control: BoolProperty(name="Normal Control", default=True,
+                                 description="Particle normals weighted by the elastic forces (eq. 4.3)")
+    edge_control: BoolProperty(name="Edge Length Control", default=True,
+                               description="Shortened edges fold so their curves keep the rest length")
+    preset: EnumProperty(name="Material", items=(
+        ("COTTON", "Light Cotton", "Light and soft, waves freely"),
+        ("DENIM", "Denim", "Heavier, stiffer in bending"),
+        ("LEATHER", "Leather", "Heavy and stiff"),
+        ("CUSTOM", "Custom", "The values below"),
+    ), default="COTTON")  # no update callback: one on an EnumProperty crashes the bpy 4.2 module at exit
+    density: FloatProperty(name="Density", default=PRESETS["COTTON"].density, min=0.01, soft_max=2.0,
+                           description="kg per square metre")
+    stretch: FloatProperty(name="Stretch Stiffness", default=PRESETS["COTTON"].stretch, min=0.0, soft_max=1000.0,
+                           description="k_elastic of eq. 4.1, N/m (capped to what the time step keeps stable)")
+    bend: FloatProperty(name="Bending", default=PRESETS["COTTON"].bend, min=0.0, soft_max=50.0, description="N/m")
+    damping: FloatProperty(name="Damping", default=PRESETS["COTTON"].damping, min=0.0, soft_max=1.0,
+                           description="Along the edges, N s/m")
+    drag: FloatProperty(name="Air Drag", default=PRESETS["COTTON"].drag, min=0.0, soft_max=3.0,
+                        description="Drag coefficient of the cloth moving across the air")
+    air_damping: FloatProperty(name="Air Damping", default=PRESETS["COTTON"].air_damping, min=0.0, soft_max=5.0,
+                               description="Damping of the absolute velocity, 1/s")
+    wind: FloatVectorProperty(name="Wind", size=3, subtype="VELOCITY", unit="VELOCITY", default=(0.0, 0.0, 0.0))
+    thickness: FloatProperty(name="Thickness", default=0.008, min=0.0, soft_max=0.05, unit="LENGTH",
+                             description="Distance kept between the cloth and the body")
+    compress_limit: FloatProperty(name="Compression Limit", default=0.05, min=0.0, max=0.5, subtype="FACTOR",
+                                  description="Shortening of an edge beyond this share is undone in the simulation; "
+                                              "up to it the smoothing folds the edge (0: all left to the smoothing, "
+                                              "as in the thesis)")
+    friction: FloatProperty(name="Friction", default=0.0, min=0.0, max=1.0,
+                            description="Share of the sliding speed lost in a contact")
+    substeps: IntProperty(name="Substeps", default=2, min=1, max=64, description="RK4 steps per simulated frame")
+    frame_start: IntProperty(name="Start", default=0, description="0: the scene's start")
+    frame_end: IntProperty(name="End", default=0, description="0: the scene's end")
+    frame_step: IntProperty(name="Step", default=0, min=0, max=16,
+                            description="Simulate every Nth frame and interpolate between (0: about 30 per second)")
+    keep_coarse: BoolProperty(name="Keep Coarse", default=False,
+                              description="Also write the coarse simulated mesh (with its own point cache)")
+    cache_dir: StringProperty(name="Cache Folder", default="//cloth_cache", subtype="DIR_PATH", options=_RELATIVE,
+                              description="Where the PC2 files go ('//' is the .blend's folder; a temporary "
+                                          "folder while the file is unsaved)")
 
 
-def unregister():
-    pass
+CLASSES = (HumanAnimCloth,)
+
+register, unregister = settings_registration(CLASSES, bpy.types.Scene, "humananim_cloth", HumanAnimCloth)
+
+
+def material(props):
+    """The physical values: the preset's, or the custom ones."""
+    if props.preset in PRESETS:
+        p = PRESETS[props.preset]
+        return {name: getattr(p, name) for name in PHYSICAL}
+    return {name: getattr(props, name) for name in PHYSICAL}
+
+
+def params_of(props):
+    return ClothParams(**material(props), wind=tuple(props.wind), thickness=props.thickness,
+                       substeps=props.substeps, friction=props.friction, compress_limit=props.compress_limit)
+
+
+# ---- reading Blender data --------------------------------------------------------------------
+
+def _metres(scene):
+    return float(scene.unit_settings.scale_length)
+
+
+def bone_world(arm, scene, rest=False):
+    """World matrices (J, 4, 4) of the armature's bones at the current frame (or in the rest
+    pose), metres."""
+    n = len(arm.pose.bones)
+    m = np.empty(n * 16)
+    if rest:
+        arm.data.bones.foreach_get("matrix_local", m)
+    else:
+        arm.pose.bones.foreach_get("matrix", m)
+    world = np.array(arm.matrix_world) @ m.reshape(n, 4, 4).transpose(0, 2, 1)
+    world[:, :3, :] *= _metres(scene)
+    return world
+
+
+def garment_data(obj, scene):
+    """World positions (metres) and triangles of the garment's own mesh (modifiers ignored)."""
+    mesh = obj.data
+    if obj.type != "MESH" or len(mesh.polygons) == 0:
+        raise ClothError(f"'{obj.name}' is not a mesh with faces: pick the coarse garment mesh")
+    co = np.empty(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3) @ np.array(obj.matrix_world)[:3, :3].T + np.array(obj.matrix_world)[:3, 3]
+    mesh.calc_loop_triangles()
+    tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", tris)
+    return co * _metres(scene), tris.reshape(-1, 3).astype(np.int64)
+
+
+def group_weights(obj, names):
+    """(V, len(names)) weights of the object's vertex groups with those names (0 where missing)."""
+    out = np.zeros((len(obj.data.vertices), len(names)))
+    column = {obj.vertex_groups[n].index: k for k, n in enumerate(names) if n in obj.vertex_groups}
+    if column:
+        for v in obj.data.vertices:
+            for g in v.groups:
+                k = column.get(g.group)
+                if k is not None:
+                    out[v.index, k] = g.weight
+    return out
+
+
+def pinned_vertices(obj, group):
+    if not group:
+        return np.zeros(0, dtype=np.int64)
+    if group not in obj.vertex_groups:
+        raise ClothError(f"'{obj.name}' has no vertex group '{group}' for the pinned vertices")
+    return np.flatnonzero(group_weights(obj, [group])[:, 0] > 0.0)
+
+
+def pin_binding(garment, pins, positions, arm, world):
+    """Each pinned vertex attached to bones: the garment's own weights for vertex groups named
+    after bones when it has them, else the nearest deforming bone. Returns (bones (K, B), weights
+    (K, B), offsets (K, B, 3) in those bones' frames at the start frame)."""
+    names = [b.name for b in arm.data.bones]
+    w = group_weights(garment, names)[pins]
+    heads = world[:, :3, 3]
+    tails = np.array([world[j, :3, :3] @ [0.0, b.length, 0.0] + world[j, :3, 3] for j, b in enumerate(arm.data.bones)])
+    deform = np.array([b.use_deform for b in arm.data.bones])
+    from ..solver.cloth.collision import closest_on_segments
+    q, _ = closest_on_segments(positions[pins][:, None], heads[None], tails[None])
+    dist = np.linalg.norm(positions[pins][:, None] - q, axis=2)
+    dist[:, ~deform] += 1e6
+    nearest = np.argmin(dist, axis=1)
+    weighted = w.sum(axis=1) > 0
+    w[~weighted] = 0.0
+    w[~weighted, nearest[~weighted]] = 1.0
+    w /= w.sum(axis=1, keepdims=True)
+    count = int((w > 0).sum(axis=1).max()) if len(pins) else 1
+    bones = np.argsort(-w, axis=1)[:, :count]
+    weights = np.take_along_axis(w, bones, axis=1)
+    inv = np.linalg.inv(world)
+    local = np.einsum("kbij,kj->kbi", inv[bones], np.c_[positions[pins], np.ones(len(pins))])[..., :3]
+    return bones, weights, local
+
+
+def pin_targets(binding, world):
+    bones, weights, local = binding
+    m = world[bones]  # (K, B, 4, 4)
+    p = np.einsum("kbij,kbj->kbi", m[..., :3, :3], local) + m[..., :3, 3]
+    return np.einsum("kb,kbi->ki", weights, p)
+
+
+def body_mesh_positions(body, depsgraph, scene):
+    evaluated = body.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        co = np.empty(len(mesh.vertices) * 3)
+        mesh.vertices.foreach_get("co", co)
+        mesh.calc_loop_triangles()
+        tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+        mesh.loop_triangles.foreach_get("vertices", tris)
+    finally:
+        evaluated.to_mesh_clear()
+    m = np.array(evaluated.matrix_world)
+    return (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]) * _metres(scene), tris.reshape(-1, 3).astype(np.int64)
+
+
+def roles_of(arm):
+    return detect(arm).roles.with_overrides(role_overrides(arm.data.humananim))
+
+
+def body_capsules(arm, scene, world, body=None, depsgraph=None):
+    """Capsule specs for the armature's body roles; radii from proportions, or fitted to the body
+    mesh's vertex groups (named after the bones) when a body mesh is given."""
+    names = [b.name for b in arm.data.bones]
+    lengths = np.array([b.length for b in arm.data.bones])
+    unit = float(np.mean(arm.matrix_world.to_scale())) * _metres(scene)
+    specs = capsules_from_roles(names, lengths, roles_of(arm), unit)
+    if body is not None and body.type == "MESH" and body.vertex_groups:
+        points, _ = body_mesh_positions(body, depsgraph or bpy.context.evaluated_depsgraph_get(), scene)
+        weights = group_weights(body, names)
+        radii = fit_radii(specs, world, points, weights)
+        for spec, r in zip(specs, radii):
+            spec.radius = float(r)
+    return specs
+
+
+# ---- the job --------------------------------------------------------------------------------
+
+def frame_plan(scene, props):
+    start = props.frame_start or scene.frame_start
+    end = props.frame_end or scene.frame_end
+    if end <= start:
+        raise ClothError(f"the frame range {start}-{end} is empty")
+    step = props.frame_step or max(1, int(round(scene_fps(scene) / 30.0)))
+    frames = list(range(start, end + 1, step))
+    if frames[-1] != end:
+        frames.append(end)
+    return frames
+
+
+class ClothJob:
+    """`steps()` simulates frame by frame (yielding progress); `write()` writes what is done,
+    so a cancelled job keeps its frames."""
+
+    def __init__(self, scene, props=None):
+        self.scene = scene
+        self.props = props or scene.humananim_cloth
+        self.fine, self.coarse, self.frames_done = [], [], []
+        self.sim = None
+        self.seconds = 0.0
+        self.depth_max = 0.0
+        self.stretch = []
+
+    # setup
+    def _check(self):
+        p = self.props
+        if p.garment is None:
+            raise ClothError("pick the garment mesh")
+        if p.armature is None or p.armature.type != "ARMATURE":
+            raise ClothError("pick the character's armature")
+        if p.collider in ("MESH", "BOTH") and p.body is None:
+            raise ClothError("pick the body mesh to collide with (or collide with capsules)")
+        if p.body is not None and p.body.type != "MESH":
+            raise ClothError(f"'{p.body.name}' is not a mesh")
+
+    def steps(self):
+        self._check()
+        scene, p = self.scene, self.props
+        frames = frame_plan(scene, p)
+        fps = scene_fps(scene)
+        saved = (scene.frame_current, scene.frame_subframe)
+        try:
+            scene.frame_set(frames[0])
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            positions, tris = garment_data(p.garment, scene)
+            pins = pinned_vertices(p.garment, p.pin_group)
+            mesh = build_mesh(positions, tris)
+            arm = p.armature
+            world = bone_world(arm, scene)
+            binding = pin_binding(p.garment, pins, positions, arm, world) if len(pins) else None
+            use_mesh = p.collider in ("MESH", "BOTH") or (p.collider == "AUTO" and p.body is not None)
+            use_caps = p.collider in ("CAPSULES", "BOTH") or (p.collider == "AUTO" and p.body is None)
+            bodies, caps, skin = [], None, None
+            if use_caps:
+                specs = body_capsules(arm, scene, world, p.body, depsgraph)
+                caps = CapsuleBody([s.radius for s in specs], [s.name for s in specs])
+                caps_prev = capsule_ends(specs, world)
+                caps.set_motion(*caps_prev)
+                bodies.append(caps)
+            if use_mesh:
+                verts_prev, body_tris = body_mesh_positions(p.body, depsgraph, scene)
+                skin = MeshBody(body_tris, len(verts_prev))
+                skin.set_motion(verts_prev)
+                bodies.append(skin)
+            self.sim = sim = ClothSimulation(mesh, params_of(p), pins, bodies, p.level, fps / (frames[1] - frames[0]),
+                                             positions, p.normal_control, p.edge_control)
+            self.mesh, self.frames_all = mesh, frames
+            self._record(frames[0])
+            yield 1.0 / len(frames)
+            t0 = time.perf_counter()
+            for i, f in enumerate(frames[1:], start=1):
+                scene.frame_set(f)
+                dt = (f - frames[i - 1]) / fps
+                world = bone_world(arm, scene)
+                if caps is not None:
+                    ends = capsule_ends(specs, world)
+                    caps.set_motion(*caps_prev, *ends, dt)
+                    caps_prev = ends
+                if skin is not None:
+                    verts, _ = body_mesh_positions(p.body, bpy.context.evaluated_depsgraph_get(), scene)
+                    if len(verts) != len(verts_prev):
+                        raise ClothError(f"'{p.body.name}' changes its vertex count between frames")
+                    skin.set_motion(verts_prev, verts, dt)
+                    verts_prev = verts
+                sim.step(pin_targets(binding, world) if binding is not None else None, dt)
+                self._record(f)
+                yield (i + 1) / len(frames)
+            self.seconds = time.perf_counter() - t0
+        finally:
+            scene.frame_set(*saved[:1], subframe=saved[1])
+
+    def _record(self, frame):
+        sim = self.sim
+        self.fine.append(sim.surface().astype(np.float32))
+        self.coarse.append(sim.x.astype(np.float32))
+        self.frames_done.append(frame)
+        if sim.bodies:
+            self.depth_max = max(self.depth_max, float(sim.depth_inside().max()))
+        self.stretch.append(sim.stretch())
+
+    # output
+    def write(self):
+        """New objects with Mesh Cache modifiers reading the PC2 files; the summary."""
+        if len(self.frames_done) < 2:
+            raise ClothError("no frame was simulated: nothing to write")
+        p, scene = self.props, self.scene
+        unit = _metres(scene)
+        frames = np.array(self.frames_done)
+        every = np.arange(frames[0], frames[-1] + 1)
+        folder = cache_folder(p)
+        base = _safe(p.garment.name)
+        fine = resample(np.array(self.fine), frames, every) / unit
+        fine_obj = new_mesh_object(f"{p.garment.name}.cloth", fine[0], self.sim.smoother.faces, p.garment, smooth=True)
+        fine_path = os.path.join(folder, f"{base}.cloth.pc2")
+        write_pc2(fine_path, fine, start=float(every[0]), rate=1.0)
+        add_mesh_cache(fine_obj, fine_path, int(every[0]))
+        wrote = [fine_path]
+        coarse_name = None
+        if p.keep_coarse:
+            coarse = resample(np.array(self.coarse), frames, every) / unit
+            coarse_obj = new_mesh_object(f"{p.garment.name}.cloth_coarse", coarse[0], self.mesh.faces, p.garment,
+                                         smooth=False)
+            coarse_path = os.path.join(folder, f"{base}.cloth_coarse.pc2")
+            write_pc2(coarse_path, coarse, start=float(every[0]), rate=1.0)
+            add_mesh_cache(coarse_obj, coarse_path, int(every[0]))
+            wrote.append(coarse_path)
+            coarse_name = coarse_obj.name
+        sim = self.sim
+        timing = {k: round(v, 4) for k, v in sim.ms_per_frame().items()}
+        return {
+            "object": fine_obj.name, "coarse_object": coarse_name, "wrote": wrote,
+            "frames": int(len(frames)), "frame_range": [int(frames[0]), int(frames[-1])],
+            "complete": bool(frames[-1] == self.frames_all[-1]),
+            "frame_step": int(frames[1] - frames[0]) if len(frames) > 1 else 1,
+            "particles": int(self.mesh.particle_count), "coarse_faces": int(len(self.mesh.faces)),
+            "fine_vertices": int(fine.shape[1]), "fine_faces": int(len(sim.smoother.faces)),
+            "pinned": int(len(sim.pins)), "colliders": [type(b).__name__ for b in sim.bodies],
+            "substeps": int(sim.substeps), "stiffness_capped": bool(sim.dynamics.capped),
+            "max_depth_inside_mm": round(1000.0 * self.depth_max, 3),
+            "max_mean_stretch": round(float(np.max(np.abs(self.stretch))), 5),
+            "contacts": dict(sim.contacts), "timing_ms_per_frame": timing,
+            "simulate_seconds": round(self.seconds, 3),
+        }
+
+
+def run(scene, props=None):
+    """The whole job as steps (for batch runs): the summary at the end."""
+    job = ClothJob(scene, props)
+    yield from job.steps()
+    return job.write()
+
+
+def resample(samples, frames, every):
+    """Simulated frames to every scene frame between, linearly."""
+    if len(frames) == len(every):
+        return samples
+    idx = np.clip(np.searchsorted(frames, every, side="right") - 1, 0, len(frames) - 2)
+    t = ((every - frames[idx]) / (frames[idx + 1] - frames[idx]))[:, None, None]
+    return (1.0 - t) * samples[idx] + t * samples[idx + 1]
+
+
+def cache_folder(props):
+    path = props.cache_dir or "//cloth_cache"
+    if path.startswith("//") and not bpy.data.filepath:
+        path = os.path.join(tempfile.gettempdir(), "humananim_cloth", path[2:])
+    folder = bpy.path.abspath(path)
+    os.makedirs(folder, exist_ok=True)
+    return folder
+
+
+def _safe(name):
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name) or "cloth"
+
+
+def new_mesh_object(name, positions, faces, like, smooth=True):
+    """A new mesh object at the world origin (vertices in world space), in `like`'s collections,
+    with its materials."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(positions.tolist(), [], faces.tolist())
+    if smooth:
+        mesh.polygons.foreach_set("use_smooth", np.ones(len(mesh.polygons), dtype=bool))
+    for mat in getattr(like.data, "materials", ()):
+        mesh.materials.append(mat)
+    mesh.update()
+    obj = bpy.data.objects.new(name, mesh)
+    collections = list(like.users_collection) or [bpy.context.scene.collection]
+    for c in collections:
+        c.objects.link(obj)
+    return obj
+
+
+def add_mesh_cache(obj, path, frame_start):
+    mod = obj.modifiers.new("Cloth Cache", "MESH_CACHE")
+    mod.cache_format = "PC2"
+    mod.filepath = bpy.path.relpath(path) if bpy.data.filepath else path
+    mod.frame_start = float(frame_start)
+    mod.play_mode = "SCENE"
+    return mod
+
+
+# ---- the skirt generator and a stand-in body --------------------------------------------------
+
+def add_skirt(armature, scene=None, name="Skirt", rings=6, columns=11, length=0.9, flare=1.3, waist=0.25,
+              clearance=0.02, pin_group="waist", frame=None, set_settings=True):
+    """A procedural skirt (Oshita 2003 §4.5) fitted to `armature` at `frame` (default: the current
+    one): `rings` rings of `columns` particles (6 x 11 = the thesis's 66) from `waist` thigh lengths
+    above the hip joints to `length` thigh lengths below them, clearing capsules on the bones by
+    `clearance` metres, the hem flared by `flare`. Its top ring is in the vertex group `pin_group`
+    and, for the attachment, in a group named after the pelvis bone. Needs pelvis and thigh roles
+    (any rig HumanAnim recognises). Returns the new object; with `set_settings` it also becomes
+    the scene's cloth garment, with this armature and pinned group."""
+    scene = scene or bpy.context.scene
+    if armature is None or armature.type != "ARMATURE":
+        raise ClothError("add_skirt needs an armature")
+    saved = scene.frame_current
+    if frame is not None:
+        scene.frame_set(frame)
+    try:
+        world = bone_world(armature, scene)
+        specs = body_capsules(armature, scene, world)
+    finally:
+        if frame is not None:
+            scene.frame_set(saved)
+    roles = roles_of(armature)
+    names = [b.name for b in armature.data.bones]
+    thighs = [names.index(roles.bone(f"thigh.{s}")) for s in "LR"]
+    heads = world[thighs, :3, 3]
+    knees = np.array([world[j, :3, :3] @ [0.0, armature.data.bones[j].length, 0.0] + world[j, :3, 3] for j in thighs])
+    caps = CapsuleBody([s.radius for s in specs])
+    caps.set_motion(*capsule_ends(specs, world))
+    up = np.array([0.0, 0.0, 1.0])
+    positions, faces, pinned = fit_skirt(heads, knees, up, [caps], rings, columns, length, waist, flare, clearance)
+    obj = new_mesh_object(name, positions / _metres(scene), faces, armature, smooth=True)
+    obj.data.materials.clear()
+    for group in (pin_group, roles.bone("pelvis")):
+        vg = obj.vertex_groups.new(name=group)
+        vg.add([int(i) for i in pinned], 1.0, "REPLACE")
+    if set_settings and hasattr(scene, "humananim_cloth"):
+        props = scene.humananim_cloth
+        props.garment, props.armature, props.pin_group = obj, armature, pin_group
+    return obj
+
+
+def add_capsule_body(armature, scene=None, name="Body", segments=16):
+    """A stand-in skinned body: a closed capsule mesh per body part, each in the vertex group of
+    its bone, deformed by the armature (an Armature modifier). Returns the new mesh object."""
+    scene = scene or bpy.context.scene
+    world = bone_world(armature, scene, rest=True)  # the Armature modifier deforms from the rest pose
+    specs = body_capsules(armature, scene, world)
+    a, b = capsule_ends(specs, world)
+    verts, tris, groups, n = [], [], [], 0
+    names = [bn.name for bn in armature.data.bones]
+    for spec, ca, cb in zip(specs, a, b):
+        v, t = capsule_mesh(ca, cb, spec.radius, segments=segments, spacing=0.025)
+        verts.append(v), tris.append(t + n), groups.append((names[spec.owner], np.arange(n, n + len(v))))
+        n += len(v)
+    obj = new_mesh_object(name, np.vstack(verts) / _metres(scene), np.vstack(tris), armature, smooth=True)
+    obj.data.materials.clear()
+    for bone, idx in groups:
+        vg = obj.vertex_groups.get(bone) or obj.vertex_groups.new(name=bone)
+        vg.add([int(i) for i in idx], 1.0, "REPLACE")
+    mod = obj.modifiers.new("Armature", "ARMATURE")
+    mod.object = armature
+    obj.parent = armature
+    obj.matrix_parent_inverse = armature.matrix_world.inverted()
+    return obj

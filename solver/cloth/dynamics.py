@@ -1,0 +1,264 @@
+"""The coarse cloth's dynamics (Oshita 2003 §4.4): elastic springs on the edges (eq. 4.1),
+bending springs across adjacent faces, gravity, air drag and wind, damping; explicit RK4 with
+substeps; Provot-style correction of elongated edges (§4.4.3); particles pinned to targets."""
+
+import numpy as np
+from scipy import sparse
+
+from .materials import AIR_DENSITY, as_vector
+
+# explicit RK4 is stable for |lambda dt| up to about 2.8 on the imaginary axis: keep a margin
+STABLE_OMEGA_DT = 2.2
+VELOCITY_SWEEPS = 3
+SLACK = 2e-3  # relative overshoot of a length limit the correction tolerates
+RELAX = 1.5  # over-relaxation of the averaged (Jacobi) length corrections
+STABLE_DAMPING_DT = 1.0  # damping shares the step's stability budget with the springs
+
+
+class ClothDynamics:
+    """Forces and integration of the particles; `pinned` particles follow given targets."""
+
+    def __init__(self, mesh, params, pinned=()):
+        self.mesh, self.params = mesh, params
+        p = mesh.particle_count
+        self.pinned = np.zeros(p, dtype=bool)
+        self.pinned[np.asarray(pinned, dtype=np.int64)] = True
+        self.free = ~self.pinned
+        self.mass = np.maximum(params.density * mesh.area, 1e-6)
+        self.inv_mass = np.where(self.pinned, 0.0, 1.0 / self.mass)
+        self.gravity = as_vector(params.gravity)
+        self.wind = as_vector(params.wind)
+        e0, e1 = mesh.edges[:, 0], mesh.edges[:, 1]
+        self._e0, self._e1 = e0, e1
+        self._b0, self._b1 = mesh.bend_pairs[:, 0], mesh.bend_pairs[:, 1]
+        self.stretch, self.bend, self.damping = params.stretch, params.bend, params.damping
+        self.capped = False
+        p_count = len(self.mass)
+        self._limit = mesh.rest_length * (1.0 + params.stretch_limit)
+        self._floor = mesh.rest_length * (1.0 - params.compress_limit) if params.compress_limit > 0 else \
+            np.zeros(len(e0))
+        self._movable_edge = (self.inv_mass[e0] + self.inv_mass[e1]) > 0.0
+        wsum = np.where(self._movable_edge, self.inv_mass[e0] + self.inv_mass[e1], 1.0)
+        self._share0, self._share1 = self.inv_mass[e0] / wsum, self.inv_mass[e1] / wsum
+        # a correction along each edge, shared by the inverse masses: +share0 at the first
+        # particle, -share1 at the second; `reach` counts the edges that move a particle
+        rows, cols = np.r_[e0, e1], np.r_[np.arange(len(e0)), np.arange(len(e0))]
+        self._spread = sparse.csr_matrix((np.r_[self._share0, -self._share1], (rows, cols)), shape=(p_count, len(e0)))
+        self._reach = sparse.csr_matrix(((np.r_[self._share0, self._share1] > 0).astype(float), (rows, cols)),
+                                        shape=(p_count, len(e0)))
+        self._tether_data = self._tethers()
+        f = len(mesh.faces)
+        self._face_incidence = sparse.csr_matrix(
+            (np.ones(3 * f), (mesh.faces.ravel(), np.repeat(np.arange(f), 3))), shape=(p_count, f))
+        self._prepare()
+
+    def unit_stiffness_eigenvalue(self, pairs, rest_length):
+        """Largest eigenvalue of M^-1/2 K M^-1/2 for springs of unit stiffness on `pairs` at rest
+        (free particles only): the squared highest angular frequency per N/m."""
+        x = self.mesh.rest
+        d = (x[pairs[:, 1]] - x[pairs[:, 0]]) / rest_length[:, None]
+        block = d[:, :, None] * d[:, None, :]  # (S, 3, 3)
+        p = len(x)
+        rows, cols, vals = [], [], []
+        for a, b, sign in ((0, 0, 1.0), (1, 1, 1.0), (0, 1, -1.0), (1, 0, -1.0)):
+            r = 3 * pairs[:, a][:, None, None] + np.arange(3)[None, :, None]
+            c = 3 * pairs[:, b][:, None, None] + np.arange(3)[None, None, :]
+            rows.append(np.broadcast_to(r, block.shape).ravel())
+            cols.append(np.broadcast_to(c, block.shape).ravel())
+            vals.append((sign * block).ravel())
+        k = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * p, 3 * p))
+        free = np.flatnonzero(np.repeat(self.free, 3))
+        scale = 1.0 / np.sqrt(np.repeat(self.mass, 3)[free])
+        a = sparse.diags(scale) @ k[free][:, free] @ sparse.diags(scale)
+        if a.shape[0] <= 600:
+            return float(np.linalg.eigvalsh(a.toarray()).max())
+        from scipy.sparse.linalg import eigsh
+        return float(eigsh(a, k=1, which="LA", return_eigenvectors=False, tol=1e-3)[0])
+
+    def limit_stiffness(self, dt):
+        """Explicit RK4 is stable only while the highest frequency times the step stays below
+        about 2.8: scale the springs (and the edge damping) down to that limit, with a margin,
+        when the material asks for more. Elongation is a constraint (§4.4.3), so soft springs
+        keep the garment's size; the thesis makes the same trade. True if anything was capped."""
+        p = self.params
+        if not self.free.any():
+            return False
+        lam_e = self.unit_stiffness_eigenvalue(self.mesh.edges, self.mesh.rest_length)
+        lam_b = (self.unit_stiffness_eigenvalue(self.mesh.bend_pairs, self.mesh.bend_rest)
+                 if len(self.mesh.bend_pairs) else 0.0)
+        lam = p.stretch * lam_e + p.bend * lam_b  # an upper bound of the sum's eigenvalue
+        scale = min(1.0, (STABLE_OMEGA_DT / dt) ** 2 / max(lam, 1e-12))
+        self.stretch, self.bend = p.stretch * scale, p.bend * scale
+        self.damping = min(p.damping, STABLE_DAMPING_DT / (dt * lam_e))
+        self.capped = scale < 1.0 or self.damping < p.damping
+        self._prepare()
+        return self.capped
+
+    # ---- forces -------------------------------------------------------------------------
+    def _prepare(self):
+        """Edges and bending pairs as one set of springs, scaled by the inverse masses, so an
+        evaluation is a handful of vectorised operations and one sparse product."""
+        mesh, p = self.mesh, self.params
+        e, b = len(self._e0), len(self._b0)
+        self._s0, self._s1 = np.r_[self._e0, self._b0], np.r_[self._e1, self._b1]
+        self._srest = np.r_[mesh.rest_length, mesh.bend_rest]
+        self._sk = np.r_[np.full(e, self.stretch), np.full(b, self.bend)] / self._srest  # k / L of eq. 4.1
+        s = e + b
+        incidence = sparse.csr_matrix((np.r_[np.ones(s), -np.ones(s)], (np.r_[self._s0, self._s1],
+                                                                        np.r_[np.arange(s), np.arange(s)])),
+                                      shape=(len(self.mass), s))
+        self._acc_of = (sparse.diags(self.inv_mass) @ incidence).tocsr()  # zero rows for pinned particles
+        self._free_f = self.free.astype(float)[:, None]
+        self._drag_of = 0.5 * AIR_DENSITY * p.drag * mesh.area * self.inv_mass
+        self._edges = e
+
+    def spring_forces(self, x, v):
+        """Per-edge forces on the first particle, eq. 4.1 with a dashpot: (E, 3)."""
+        mesh = self.mesh
+        d = x[self._e1] - x[self._e0]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        stretch = (length - mesh.rest_length) / mesh.rest_length  # |f| = k |d|/L (|d| - L), along d
+        dv = v[self._e1] - v[self._e0]
+        along = np.einsum("ij,ij->i", dv, d) / np.maximum(length * length, 1e-18)
+        return (self.stretch * stretch + self.damping * along)[:, None] * d
+
+    def accelerations(self, x, v, normals=None):
+        """Accelerations of all particles (zero for pinned ones). `normals` (for the air drag) may
+        be given: they change little within a step."""
+        p = self.params
+        d = np.take(x, self._s1, axis=0) - np.take(x, self._s0, axis=0)
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        coef = self._sk * (length - self._srest)  # eq. 4.1 (bending springs alike)
+        e = self._edges
+        if self.damping > 0.0:
+            dv = np.take(v, self._e1, axis=0) - np.take(v, self._e0, axis=0)
+            coef[:e] += self.damping * np.einsum("ij,ij->i", dv, d[:e]) / (length[:e] * length[:e] + 1e-18)
+        acc = self._acc_of @ (coef[:, None] * d)
+        acc += self._free_f * (self.gravity - p.air_damping * v)
+        if p.drag > 0.0:  # air pushes against the motion across the cloth: 1/2 rho Cd A |vn| vn
+            n = self.particle_normals(x) if normals is None else normals
+            vn = np.einsum("ij,ij->i", v - self.wind, n)
+            acc -= (self._drag_of * np.abs(vn) * vn)[:, None] * n
+        return acc
+
+    def particle_normals(self, x):
+        f = self.mesh.faces
+        a = x[f[:, 0]]
+        u, w = x[f[:, 1]] - a, x[f[:, 2]] - a
+        n = np.column_stack([u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1], u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2],
+                             u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]])  # area-weighted face normals
+        out = self._face_incidence @ n
+        return out / np.maximum(np.sqrt(np.einsum("ij,ij->i", out, out)), 1e-12)[:, None]
+
+    # ---- integration ----------------------------------------------------------------------
+    def rk4_step(self, x, v, dt, pin_x0, pin_x1):
+        """One RK4 step of length dt; pinned particles move linearly from pin_x0 to pin_x1."""
+        pins = self.pinned
+        pin_v = (pin_x1 - pin_x0) / dt
+        pin_mid = 0.5 * (pin_x0 + pin_x1)
+        x0, v0 = x.copy(), v.copy()
+        x0[pins], v0[pins] = pin_x0, pin_v
+        n = self.particle_normals(x0) if self.params.drag > 0.0 else None
+        h = 0.5 * dt
+        a1 = self.accelerations(x0, v0, n)
+        x2, v2 = x0 + h * v0, v0 + h * a1
+        x2[pins] = pin_mid
+        a2 = self.accelerations(x2, v2, n)
+        x3, v3 = x0 + h * v2, v0 + h * a2
+        x3[pins] = pin_mid
+        a3 = self.accelerations(x3, v3, n)
+        x4, v4 = x0 + dt * v3, v0 + dt * a3
+        x4[pins] = pin_x1
+        a4 = self.accelerations(x4, v4, n)
+        x_new = x0 + dt / 6.0 * (v0 + 2.0 * v2 + 2.0 * v3 + v4)
+        v_new = v0 + dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        x_new[pins], v_new[pins] = pin_x1, pin_v
+        return x_new, v_new
+
+    def limit_elongation(self, x, v, iterations=None):
+        """Provot's correction (§4.4.3): the particles of an edge longer than (1 + limit) L are
+        moved towards each other (inverse-mass weighted, pinned ones stay) back to that length,
+        and the part of their relative velocity that stretches the edge further is removed.
+        Shortened edges are left to the smoothing, unless shorter than (1 - compress_limit) L.
+
+        All edges beyond a limit are corrected together (Jacobi): each particle takes the mean
+        of its edges' corrections, over-relaxed by RELAX, for up to `iterations` sweeps (until
+        none is beyond). Before that, tethers to the pins remove the stretch that accumulates
+        along a hanging garment (which local corrections undo only slowly). Returns (x, v,
+        number of edges corrected)."""
+        p = self.params
+        x, v = x.copy(), v.copy()
+        e0, e1 = self._e0, self._e1
+        limit, floor = self._limit, self._floor
+        spread, reach = self._spread, self._reach
+        corrected = np.zeros(len(e0), dtype=bool)
+        self._tether(x, v)
+        for _ in range(max(1, iterations or p.constraint_iterations)):
+            d = np.take(x, e1, axis=0) - np.take(x, e0, axis=0)
+            length = np.sqrt(np.einsum("ij,ij->i", d, d))
+            target = np.clip(length, floor, limit)
+            off = (np.abs(target - length) > SLACK * target) & self._movable_edge
+            if not off.any():
+                break
+            corrected |= off
+            dx = np.where(off, (length - target) / length, 0.0)[:, None] * d
+            count = reach @ off.astype(float)
+            x += (RELAX / np.maximum(count, 1.0))[:, None] * (spread @ dx)
+        if corrected.any():  # corrected edges stop stretching (squeezed ones stop shortening)
+            d = np.take(x, e1, axis=0) - np.take(x, e0, axis=0)
+            length = np.sqrt(np.einsum("ij,ij->i", d, d))
+            u = d / np.maximum(length, 1e-12)[:, None]
+            longer = length > self.mesh.rest_length
+            scale = (RELAX / np.maximum(reach @ corrected.astype(float), 1.0))[:, None]
+            for _ in range(VELOCITY_SWEEPS):
+                rate = np.einsum("ij,ij->i", np.take(v, e1, axis=0) - np.take(v, e0, axis=0), u)
+                rate = np.where(corrected, np.where(longer, np.maximum(rate, 0.0), np.minimum(rate, 0.0)), 0.0)
+                v += scale * (spread @ (rate[:, None] * u))
+        return x, v, int(corrected.sum())
+
+    def _tethers(self):
+        """Each free particle's nearest pin along the mesh and the rest length of that path
+        (scipy's Dijkstra over the edges); empty without pins."""
+        from scipy.sparse.csgraph import dijkstra
+        pins = np.flatnonzero(self.pinned)
+        if len(pins) == 0:
+            return None
+        n = len(self.mass)
+        graph = sparse.csr_matrix((self.mesh.rest_length, (self._e0, self._e1)), shape=(n, n))
+        dist, _, source = dijkstra(graph, directed=False, indices=pins, return_predecessors=True, min_only=True)
+        free = np.flatnonzero(self.free & np.isfinite(dist) & (source >= 0))
+        return free, source[free], dist[free] * (1.0 + self.params.stretch_limit)
+
+    def _tether(self, x, v):
+        """Accumulated stretch along a hanging garment, which the local corrections remove only
+        slowly: no particle may be farther from its pin than the rest length of the path to it
+        along the mesh (in place; the outward velocity is removed too)."""
+        if self._tether_data is None:
+            return
+        i, anchor, reach = self._tether_data
+        d = x[i] - x[anchor]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        over = length > reach
+        if not over.any():
+            return
+        i, d, length, reach = i[over], d[over], length[over], reach[over]
+        u = d / length[:, None]
+        x[i] -= ((length - reach)[:, None]) * u
+        out = np.maximum(np.einsum("ij,ij->i", v[i] - v[anchor[over]], u), 0.0)
+        v[i] -= out[:, None] * u
+
+    # ---- energy (for tests and diagnostics) -------------------------------------------------
+    def energy(self, x, v):
+        """Kinetic + spring potential (of eq. 4.1's force) + gravity potential, joules."""
+        mesh = self.mesh
+
+        def spring(k, length, rest):  # integral of k s/L (s - L) ds from L
+            return k / rest * (length ** 3 / 3.0 - rest * length ** 2 / 2.0 + rest ** 3 / 6.0)
+
+        le = np.linalg.norm(x[self._e1] - x[self._e0], axis=1)
+        lb = np.linalg.norm(x[self._b1] - x[self._b0], axis=1)
+        # the bending springs are linear in (l - L)/L times d: the same integral shape
+        u = spring(self.stretch, le, mesh.rest_length).sum() + spring(self.bend, lb, mesh.bend_rest).sum()
+        kinetic = 0.5 * np.sum(self.mass[self.free] * np.einsum("ij,ij->i", v[self.free], v[self.free]))
+        grav = -np.sum(self.mass[self.free] * (x[self.free] @ self.gravity))
+        return kinetic + u + grav

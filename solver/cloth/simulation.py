@@ -1,0 +1,116 @@
+"""A garment over a frame range: dynamics, collisions and smoothing per frame, with timings."""
+
+import time
+
+import numpy as np
+
+from .collision import penetration, query_bodies, resolve_contacts, resolve_particles
+from .dynamics import ClothDynamics
+from .mesh import ClothError, edge_lengths
+from .smoothing import Smoother
+
+
+class ClothSimulation:
+    """Advance with `step(pin_targets, dt)` after setting the bodies' motion for the frame
+    (`body.set_motion(start pose, end pose, dt)`); `surface()` gives the smoothed fine mesh."""
+
+    def __init__(self, mesh, params, pinned=(), bodies=(), level=2, fps=30.0, positions=None,
+                 normal_control=True, edge_control=True, surface_collision=True):
+        self.mesh, self.params = mesh, params
+        self.dynamics = ClothDynamics(mesh, params, pinned)
+        self.pins = np.flatnonzero(self.dynamics.pinned)
+        self.movable = self.dynamics.free
+        self._everyone = np.ones(len(self.movable), dtype=bool)
+        self.bodies = list(bodies)
+        self.substeps = max(1, int(params.substeps))
+        self.dynamics.limit_stiffness(1.0 / (fps * self.substeps))
+        self.x = np.array(mesh.rest if positions is None else positions, dtype=float)
+        self.v = np.zeros_like(self.x)
+        self.smoother = Smoother(mesh, level, params.stretch, normal_control, edge_control)
+        self.timing = {"integration": 0.0, "collision": 0.0, "smoothing": 0.0}
+        self.frames = 0
+        self.contacts = {"particles": 0, "faces": 0}
+        self.corrected_edges = 0
+        self.surface_collision = surface_collision
+        self.surface_pushed = 0
+
+    def step(self, pin_targets=None, dt=1.0 / 30.0):
+        """One frame of length dt: pinned particles reach `pin_targets` (K, 3) at its end."""
+        dyn, n = self.dynamics, self.substeps
+        h = dt / n
+        start = self.x[self.pins].copy()
+        end = start if pin_targets is None else np.asarray(pin_targets, float)
+        x, v = self.x, self.v
+        for k in range(n):
+            t0 = time.perf_counter()
+            pa, pb = start + (end - start) * (k / n), start + (end - start) * ((k + 1) / n)
+            x, v = dyn.rk4_step(x, v, h, pa, pb)
+            x, v, corrected = dyn.limit_elongation(x, v)
+            t1 = time.perf_counter()
+            n_p, n_f = resolve_contacts(x, v, self.mesh.faces, self.bodies, (k + 1) / n, self.params.thickness,
+                                        self.movable, self.params.friction, self._everyone)
+            t2 = time.perf_counter()
+            self.timing["integration"] += t1 - t0
+            self.timing["collision"] += t2 - t1
+            self.corrected_edges += corrected
+            self.contacts["particles"] += n_p
+            self.contacts["faces"] += n_f
+        # the frame that is shown: the body's pushes may have stretched or squeezed edges, so
+        # restore the lengths thoroughly, then keep the particles out of the body once more
+        t0 = time.perf_counter()
+        x, v, corrected = dyn.limit_elongation(x, v, self.params.final_iterations)
+        t1 = time.perf_counter()
+        if self.bodies:
+            resolve_particles(x, v, self.bodies, 1.0, self.params.thickness, self._everyone, self.params.friction)
+        self.timing["integration"] += t1 - t0
+        self.timing["collision"] += time.perf_counter() - t1
+        if not (np.isfinite(x).all() and np.isfinite(v).all()):
+            raise ClothError("the cloth simulation became unstable: use more substeps or softer settings")
+        self.x, self.v = x, v
+        self.frames += 1
+        return x
+
+    def surface(self):
+        """The smoothed fine surface of the current particles. Its curved patches can bulge into
+        the body between particles that are all outside (the thesis notes it); with
+        `surface_collision` such fine vertices are pushed back out to the thickness."""
+        t0 = time.perf_counter()
+        out = self.smoother.surface(self.x)
+        t1 = time.perf_counter()
+        self.timing["smoothing"] += t1 - t0
+        if self.bodies and self.surface_collision:
+            self._push_surface_out(out)
+            self.timing["collision"] += time.perf_counter() - t1
+        return out
+
+    def _push_surface_out(self, fine):
+        """Fine vertices inside the body go back out to the thickness; only those of coarse faces
+        that can reach the body are tested (phi is 1-Lipschitz and a patch stays within about
+        its longest edge of its corners)."""
+        mesh, tess = self.mesh, self.smoother.tess
+        phi = query_bodies(self.bodies, self.x, 1.0)[0]
+        tri = self.x[mesh.faces]
+        edge = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+        near = phi[mesh.faces].max(axis=1) - edge < self.params.thickness
+        if not near.any():
+            return
+        idx = np.unique(tess.vertex_of[near])
+        idx = idx[idx >= mesh.particle_count]  # the particles are already out
+        pts = fine[idx]
+        pushed, _ = resolve_particles(pts, np.zeros_like(pts), self.bodies, 1.0, self.params.thickness,
+                                      np.ones(len(idx), dtype=bool))
+        fine[idx] = pts
+        self.surface_pushed += pushed
+
+    def stretch(self):
+        """Mean edge length over rest length, minus 1 (elongation handled: ~0)."""
+        return float(np.mean(edge_lengths(self.mesh, self.x) / self.mesh.rest_length) - 1.0)
+
+    def depth_inside(self, points=None):
+        return penetration(self.x if points is None else points, self.bodies, 1.0)
+
+    def ms_per_frame(self):
+        f = max(self.frames, 1)
+        out = {k + "_ms": 1000.0 * t / f for k, t in self.timing.items()}
+        out["total_ms"] = sum(out.values())
+        return out

@@ -1,0 +1,328 @@
+"""Geometric smoothing of the coarse cloth (Oshita 2003 §4.3), run after each simulated frame:
+
+1. particle normal control: each particle's normal is the average of its faces' normals weighted
+   by the elastic force each face applies to it (eq. 4.2-4.4);
+2. PN triangles: a cubic Bezier triangle per coarse face from its corners and normals (§4.3.1);
+3. edge length control: each patch is split into four at its edge midpoints; the midpoint of a
+   shortened edge moves along its normal by h (eq. 4.5) so that the edge's curve regains its rest
+   length, h found by bisection from the initial guess of eq. 4.6 (§4.3.3);
+4. tessellation of the four sub-patches (PN triangles again) to a chosen level.
+
+Everything shared by two faces (edge curves, midpoints and their normals) is computed once per
+edge, so the fine surface is watertight and passes through every particle.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .mesh import face_normals
+
+# Gauss-Legendre nodes and weights on [0, 1] for the length of a cubic curve
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
+GL_T, GL_W = 0.5 * (_GL_X + 1.0), 0.5 * _GL_W
+
+
+def _unit(v):
+    return v / np.maximum(np.linalg.norm(v, axis=-1), 1e-18)[..., None]
+
+
+def _dot(a, b):
+    return np.einsum("...i,...i->...", a, b)
+
+
+# ---- particle normals -------------------------------------------------------------------------
+
+def _corner_tables(mesh):
+    """Per face corner: the particle, the next and previous ones, the rest lengths of the two
+    sides at the corner, and the (P, 3F) sum over corners (cached on the mesh)."""
+    tables = getattr(mesh, "_corner_tables", None)
+    if tables is None:
+        from scipy import sparse
+        f = mesh.faces
+        la = mesh.rest_length[mesh.face_edges]  # side (corner, next)
+        lc = np.roll(la, 1, axis=1)  # side (previous, corner)
+        gather = sparse.csr_matrix((np.ones(f.size), (f.ravel(), np.arange(f.size))), shape=(len(mesh.rest), f.size))
+        tables = (f, np.roll(f, -1, axis=1), np.roll(f, 1, axis=1), la, lc, gather)
+        mesh._corner_tables = tables
+    return tables
+
+
+def elastic_face_forces(mesh, x, k_elastic):
+    """|f_i^j| (F, 3): magnitude of the elastic force face j applies to each of its corners,
+    f_i^j = f_ia + f_ib (eq. 4.4), each spring force from eq. 4.1."""
+    f, nxt, prv, la, lc, _ = _corner_tables(mesh)
+    pa = x[f]
+    db, dc = x[nxt] - pa, x[prv] - pa
+    lb, lcc = np.sqrt(np.einsum("fcj,fcj->fc", db, db)), np.sqrt(np.einsum("fcj,fcj->fc", dc, dc))
+    force = ((lb - la) / la)[..., None] * db + ((lcc - lc) / lc)[..., None] * dc
+    return k_elastic * np.sqrt(np.einsum("fcj,fcj->fc", force, force))
+
+
+def controlled_normals(mesh, x, k_elastic=1.0, control=True):
+    """Particle normals (P, 3): eq. 4.3 with the weights of eq. 4.2-4.4 (control=True), or the
+    plain average of the adjacent face normals (Gouraud, control=False). A particle under no
+    elastic force at all takes the plain average (the weights carry a tiny uniform part). The
+    division by the sum of the weights in eq. 4.3 cancels in the unit vector."""
+    n, _ = face_normals(x, mesh.faces)
+    gather = _corner_tables(mesh)[-1]
+    if control:
+        w = elastic_face_forces(mesh, x, k_elastic)
+        w = w + 1e-9 * (1.0 + w.max())
+        out = gather @ (w.reshape(-1, 1) * np.repeat(n, 3, axis=0))
+    else:
+        out = gather @ np.repeat(n, 3, axis=0)
+    return _unit(out)
+
+
+# ---- PN triangles ---------------------------------------------------------------------------
+
+def edge_controls(p0, n0, p1, n1):
+    """Inner control points of the PN edge curve p0 -> p1 (depends on the edge alone)."""
+    d = p1 - p0
+    c1 = (2.0 * p0 + p1 - _dot(d, n0)[..., None] * n0) / 3.0
+    c2 = (2.0 * p1 + p0 + _dot(d, n1)[..., None] * n1) / 3.0
+    return c1, c2
+
+
+def pn_patch(p, n):
+    """Control points (..., 10, 3) of PN triangles with corners p (..., 3, 3) and normals n.
+    Order: b300 b030 b003 b210 b120 b021 b012 b102 b201 b111 (corner 0 weight w, 1 u, 2 v)."""
+    p1, p2, p3 = p[..., 0, :], p[..., 1, :], p[..., 2, :]
+    n1, n2, n3 = n[..., 0, :], n[..., 1, :], n[..., 2, :]
+    b210, b120 = edge_controls(p1, n1, p2, n2)
+    b021, b012 = edge_controls(p2, n2, p3, n3)
+    b102, b201 = edge_controls(p3, n3, p1, n1)
+    e = (b210 + b120 + b021 + b012 + b102 + b201) / 6.0
+    v = (p1 + p2 + p3) / 3.0
+    b111 = e + (e - v) / 2.0
+    return np.stack([p1, p2, p3, b210, b120, b021, b012, b102, b201, b111], axis=-2)
+
+
+def bernstein(bary):
+    """Cubic Bernstein weights (G, 10) at barycentric points (G, 3) = (w, u, v)."""
+    w, u, v = bary[:, 0], bary[:, 1], bary[:, 2]
+    return np.stack([w ** 3, u ** 3, v ** 3, 3 * w * w * u, 3 * w * u * u, 3 * u * u * v, 3 * u * v * v,
+                     3 * w * v * v, 3 * w * w * v, 6 * w * u * v], axis=1)
+
+
+def pn_mid_normal(p0, n0, p1, n1):
+    """The PN triangles' quadratic normal at the middle of edge p0-p1: (n0 + n1 + n110) / 4."""
+    d = p1 - p0
+    vij = 2.0 * _dot(d, n0 + n1) / np.maximum(_dot(d, d), 1e-18)
+    n110 = _unit(n0 + n1 - vij[..., None] * d)
+    return _unit(n0 + n1 + n110)
+
+
+def cubic_point(p0, c1, c2, p1, t):
+    s = 1.0 - t
+    return s ** 3 * p0 + 3 * s * s * t * c1 + 3 * s * t * t * c2 + t ** 3 * p1
+
+
+# B'(t) = D[t] . (p0, c1, c2, p1) at the Gauss-Legendre nodes
+_T = GL_T[:, None]
+DERIV = 3.0 * np.hstack([-(1 - _T) ** 2, (1 - _T) ** 2 - 2 * (1 - _T) * _T, 2 * (1 - _T) * _T - _T ** 2, _T ** 2])
+
+
+def cubic_length(p0, c1, c2, p1):
+    """Length of cubic Bezier curves (..., 3) by 5-point Gauss-Legendre on |B'(t)|."""
+    ctrl = np.stack([p0, c1, c2, p1], axis=-2)  # (..., 4, 3)
+    return _speed_length(np.einsum("tk,...kj->...tj", DERIV, ctrl))
+
+
+def _speed_length(velocity):
+    return np.sqrt(np.einsum("...tj,...tj->...t", velocity, velocity)) @ GL_W
+
+
+def pn_curve_length(p0, n0, p1, n1):
+    c1, c2 = edge_controls(p0, n0, p1, n1)
+    return cubic_length(p0, c1, c2, p1)
+
+
+def split_curve_length(p0, n0, pm, nm, p1, n1):
+    """Length of an edge split at a midpoint pm (normal nm) into two PN curves."""
+    return pn_curve_length(p0, n0, pm, nm) + pn_curve_length(pm, nm, p1, n1)
+
+
+def _split_speed(p0, n0, m, nm, p1, n1):
+    """B'(t) of the two halves at the quadrature nodes as V0 + h V1 for a midpoint m + h nm:
+    the PN control points are affine in h, so each bisection step is one fused evaluation."""
+    def halves(mid):
+        c1, c2 = edge_controls(p0, n0, mid, nm)
+        c3, c4 = edge_controls(mid, nm, p1, n1)
+        ctrl = np.stack([np.stack([p0, c1, c2, mid], axis=-2), np.stack([mid, c3, c4, p1], axis=-2)], axis=1)
+        return np.einsum("tk,ahkj->ahtj", DERIV, ctrl)  # (M, 2, T, 3)
+
+    v0 = halves(m)
+    return v0, halves(m + nm) - v0
+
+
+# ---- edge length control ------------------------------------------------------------------
+
+def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
+    """Midpoints (E, 3), their normals, h (E,) and whether each edge was shortened: §4.3.3.
+
+    The midpoint of the PN edge curve moves along its normal by h >= 0 so that the two halves'
+    PN curves (through the moved midpoint) are as long as the rest length. Bisection: the bracket
+    starts at the initial guess of eq. 4.6, h0 = k (L - |p_i - p_j|), and grows until it holds
+    the root; a fixed number of halvings follows, for all shortened edges at once."""
+    c1, c2 = edge_controls(p0, n0, p1, n1)
+    mid = cubic_point(p0, c1, c2, p1, 0.5)
+    nm = pn_mid_normal(p0, n0, p1, n1)
+    h = np.zeros(len(rest))
+    short = cubic_length(p0, c1, c2, p1) < rest
+    if not short.any():
+        return mid, nm, h, short
+    i = np.flatnonzero(short)
+    a0, b0, a1, b1, m, n, target = p0[i], n0[i], p1[i], n1[i], mid[i], nm[i], rest[i]
+    v0, v1 = _split_speed(a0, b0, m, n, a1, b1)
+    # |v0 + h v1|^2 = A + h (B + h C) at every quadrature node: each bisection step is one pass
+    qa, qb, qc = (np.einsum("ahtj,ahtj->aht", v0, v0), 2.0 * np.einsum("ahtj,ahtj->aht", v0, v1),
+                  np.einsum("ahtj,ahtj->aht", v1, v1))
+    weights = np.concatenate([GL_W, GL_W])
+
+    def length(hh):
+        hh = hh[:, None, None]
+        return np.sqrt(np.maximum(qa + hh * (qb + hh * qc), 0.0)).reshape(len(hh), -1) @ weights
+
+    chord = np.linalg.norm(a1 - a0, axis=1)
+    h0 = np.maximum(k_guess * (target - chord), 1e-6 * target)  # eq. 4.6
+    lo, hi = np.zeros(len(i)), h0.copy()
+    for _ in range(40):  # grow the bracket until the curve at hi is long enough
+        low = length(hi) < target
+        if not low.any():
+            break
+        lo = np.where(low, hi, lo)
+        hi = np.where(low, 2.0 * hi, hi)
+    for _ in range(iterations):
+        mid_h = 0.5 * (lo + hi)
+        low = length(mid_h) < target
+        lo, hi = np.where(low, mid_h, lo), np.where(low, hi, mid_h)
+    h[i] = 0.5 * (lo + hi)
+    mid[i] = m + h[i, None] * n
+    return mid, nm, h, short
+
+
+# ---- tessellation -------------------------------------------------------------------------
+
+@dataclass
+class Tessellation:
+    """Fine mesh layout: each coarse face is a grid of n = 2 m segments per side, split into the
+    four sub-patches (three corner ones and the middle one); n^2 triangles per coarse face."""
+
+    level: int  # m: segments per sub-patch side
+    vertex_count: int
+    faces: np.ndarray  # (F n^2, 3) fine triangles
+    vertex_of: np.ndarray  # (F, G) fine vertex of each grid point of each coarse face
+    patch_of: np.ndarray  # (G,) sub-patch 0..3 of each grid point
+    weights: np.ndarray  # (G, 10) Bernstein weights of each grid point in its sub-patch
+    edge_vertices: np.ndarray  # (E, n + 1) fine vertices along each coarse edge, first to second particle
+    full_weights: np.ndarray = None  # (G, 40): each grid point's weights on the 4 x 10 control points
+
+
+def _grid(n):
+    return [(i, j) for j in range(n + 1) for i in range(n + 1 - j)]  # i along corner 1, j along corner 2
+
+
+def tessellation(mesh, level):
+    if level < 1:
+        raise ValueError("the smoothing level is at least 1")
+    m, f_count = level, len(mesh.faces)
+    n = 2 * m
+    grid = _grid(n)
+    g_index = {ij: g for g, ij in enumerate(grid)}
+    bary = np.array([((n - i - j) / n, i / n, j / n) for i, j in grid])
+    patch, local = [], []
+    for i, j in grid:
+        W, U, V = n - i - j, i, j
+        if W >= m:
+            patch.append(0), local.append(((W - m) / m, U / m, V / m))
+        elif U >= m:
+            patch.append(1), local.append((W / m, (U - m) / m, V / m))
+        elif V >= m:
+            patch.append(2), local.append((W / m, U / m, (V - m) / m))
+        else:
+            patch.append(3), local.append((1 - V / m, 1 - W / m, 1 - U / m))
+    p_count, e_count = mesh.particle_count, len(mesh.edges)
+    inner = [g for g, (i, j) in enumerate(grid) if i > 0 and j > 0 and i + j < n]
+    vertex_of = np.empty((f_count, len(grid)), dtype=np.int64)
+    edge_vertices = np.empty((e_count, n + 1), dtype=np.int64)
+    edge_vertices[:, 0], edge_vertices[:, -1] = mesh.edges[:, 0], mesh.edges[:, 1]
+    edge_vertices[:, 1:-1] = p_count + np.arange(e_count)[:, None] * (n - 1) + np.arange(n - 1)[None]
+    base_inner = p_count + e_count * (n - 1)
+    corner_grid = (g_index[(0, 0)], g_index[(n, 0)], g_index[(0, n)])
+    for f, face in enumerate(mesh.faces):
+        for c, g in enumerate(corner_grid):
+            vertex_of[f, g] = face[c]
+        # sides: (corner0 -> corner1) along i, (corner1 -> corner2), (corner2 -> corner0)
+        sides = [[g_index[(t, 0)] for t in range(n + 1)],
+                 [g_index[(n - t, t)] for t in range(n + 1)],
+                 [g_index[(0, n - t)] for t in range(n + 1)]]
+        for s, cells in enumerate(sides):
+            e = mesh.face_edges[f, s]
+            along = edge_vertices[e] if mesh.edges[e, 0] == face[s] else edge_vertices[e][::-1]
+            vertex_of[f, cells] = along
+        vertex_of[f, inner] = base_inner + f * len(inner) + np.arange(len(inner))
+    tris = []
+    for j in range(n):
+        for i in range(n - j):
+            tris.append((g_index[(i, j)], g_index[(i + 1, j)], g_index[(i, j + 1)]))
+            if i + j < n - 1:
+                tris.append((g_index[(i + 1, j)], g_index[(i + 1, j + 1)], g_index[(i, j + 1)]))
+    tris = np.array(tris)
+    faces = vertex_of[:, tris].reshape(-1, 3)
+    del bary
+    weights = bernstein(np.array(local))
+    full = np.zeros((len(grid), 40))
+    for g, k in enumerate(patch):
+        full[g, 10 * k:10 * k + 10] = weights[g]
+    return Tessellation(level, base_inner + f_count * len(inner), faces, vertex_of, np.array(patch),
+                        weights, edge_vertices, full)
+
+
+class Smoother:
+    """The fine cloth surface from the particles: `surface(x)` -> fine vertices (V, 3)."""
+
+    def __init__(self, mesh, level=2, k_elastic=1.0, normal_control=True, edge_control=True, k_guess=1.0,
+                 iterations=10):
+        self.mesh, self.k_elastic = mesh, k_elastic
+        self.normal_control, self.edge_control = normal_control, edge_control
+        self.k_guess, self.iterations = k_guess, iterations
+        self.tess = tessellation(mesh, level)
+        self.faces = self.tess.faces
+        self.vertex_count = self.tess.vertex_count
+        self.last = {}
+
+    def surface(self, x):
+        mesh, t = self.mesh, self.tess
+        normals = controlled_normals(mesh, x, self.k_elastic, self.normal_control)
+        e0, e1 = mesh.edges[:, 0], mesh.edges[:, 1]
+        if self.edge_control:
+            mid, mid_n, h, short = edge_midpoints(x[e0], normals[e0], x[e1], normals[e1], mesh.rest_length,
+                                                  self.k_guess, self.iterations)
+        else:
+            c1, c2 = edge_controls(x[e0], normals[e0], x[e1], normals[e1])
+            mid = cubic_point(x[e0], c1, c2, x[e1], 0.5)
+            mid_n = pn_mid_normal(x[e0], normals[e0], x[e1], normals[e1])
+            h, short = np.zeros(len(e0)), np.zeros(len(e0), dtype=bool)
+        self.last = {"normals": normals, "mid": mid, "mid_normals": mid_n, "h": h, "short": short}
+        f = mesh.faces
+        # the six points of each face: corners a b c, then midpoints of ab, bc, ca
+        pts = np.concatenate([x[f], mid[mesh.face_edges]], axis=1)  # (F, 6, 3)
+        nrm = np.concatenate([normals[f], mid_n[mesh.face_edges]], axis=1)
+        sub = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]])  # corner a, b, c patches, middle
+        cp = pn_patch(pts[:, sub], nrm[:, sub]).reshape(len(f), 40, 3)  # (F, 4 x 10, 3)
+        fine = t.full_weights @ cp  # (F, G, 3)
+        out = np.empty((self.vertex_count, 3))
+        out[t.vertex_of.ravel()] = fine.reshape(-1, 3)
+        out[np.arange(len(x))] = x  # exactly through the particles
+        return out
+
+    def edge_curve_lengths(self, x=None):
+        """Length of every coarse edge's curve on the last surface (two PN halves), (E,)."""
+        mesh, last = self.mesh, self.last
+        if x is None:
+            raise ValueError("pass the particle positions the last surface was made from")
+        e0, e1 = mesh.edges[:, 0], mesh.edges[:, 1]
+        n = last["normals"]
+        return split_curve_length(x[e0], n[e0], last["mid"], last["mid_normals"], x[e1], n[e1])

@@ -1,0 +1,141 @@
+"""Cloth against the body (Oshita 2003 §4.4.4): capsules and skinned triangle meshes, the vertex
+and the face case, tangential velocity only; a skirt on a walking body stays outside."""
+
+import numpy as np
+
+from cloth_scenes import RADII, legs, walking_skirt
+from humananim.solver.cloth import (CapsuleBody, ClothSimulation, MeshBody, capsule_mesh, preset,
+                                    resolve_contacts)
+from humananim.solver.cloth.collision import closest_on_segments, closest_on_triangles
+
+
+def capsule_depth(points, a, b, r):
+    """Exact depth inside a union of capsules (0 outside)."""
+    q, _ = closest_on_segments(points[:, None], a[None], b[None])
+    return np.maximum((r[None] - np.linalg.norm(points[:, None] - q, axis=2)).max(axis=1), 0.0)
+
+
+def test_closest_points_on_triangles_match_a_dense_sampling():
+    rng = np.random.default_rng(3)
+    a, b, c = rng.normal(size=(3, 50, 3))
+    p = rng.normal(size=(50, 3)) * 2
+    q, bary = closest_on_triangles(p, a, b, c)
+    assert np.allclose(bary.sum(axis=1), 1) and (bary >= -1e-12).all()
+    assert np.allclose(q, bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c)
+    s = np.linspace(0, 1, 60)
+    u, v = np.meshgrid(s, s)
+    keep = u + v <= 1
+    u, v = u[keep], v[keep]
+    for i in range(50):
+        pts = a[i] + u[:, None] * (b[i] - a[i]) + v[:, None] * (c[i] - a[i])
+        assert np.linalg.norm(p[i] - q[i]) <= np.linalg.norm(pts - p[i], axis=1).min() + 1e-12
+
+
+def test_a_particle_inside_a_capsule_moves_out_with_only_tangential_relative_velocity():
+    body = CapsuleBody([0.1])
+    body.set_motion([[0, 0, 0]], [[0, 0, 1]], [[0.1, 0, 0]], [[0.1, 0, 1]], dt=1.0)  # moving +x at 0.1 m/s
+    x = np.array([[0.12, 0.0, 0.5], [0.5, 0, 0.5], [0.5, 0.3, 0.5]])
+    v = np.array([[-1.0, 0.3, 0.2], [0, 0, 0], [0, 0, 0]])
+    x0, v0 = x.copy(), v.copy()
+    resolve_contacts(x, v, np.array([[0, 1, 2]]), [body], 1.0, 0.005, np.array([True, False, False]))
+    assert np.allclose(x[0], [0.1 + 0.1 + 0.005, 0, 0.5])  # at the surface plus the thickness
+    assert np.allclose(v[0], [0.1, 0.3, 0.2])  # normal relative velocity gone, tangential kept
+    assert np.array_equal(x[1:], x0[1:]) and np.array_equal(v[1:], v0[1:])  # not movable
+
+
+def test_a_face_cut_by_a_capsule_moves_out_whole_though_its_corners_are_outside():
+    body = CapsuleBody([0.05])
+    body.set_motion([[0.0, -1.0, 0.0]], [[0.0, 1.0, 0.0]])  # a thin bar along y under the face
+    x = np.array([[-0.5, -0.3, 0.02], [0.5, -0.3, 0.02], [0.3, 0.6, 0.02]])
+    v = np.zeros_like(x)
+    faces = np.array([[0, 1, 2]])
+    before = x.copy()
+    n_p, n_f = resolve_contacts(x, v, faces, [body], 1.0, 0.0, np.ones(3, bool))
+    assert n_p == 0 and n_f == 1
+    shift = x - before
+    assert np.allclose(shift, shift[0]) and shift[0, 2] > 0.029  # moved up together
+    samples = np.einsum("sk,kj->sj", np.random.default_rng(0).dirichlet([1, 1, 1], 500), x)
+    assert capsule_depth(samples, body.a0, body.b0, body.radius).max() < 2e-3
+
+
+def test_mesh_body_inside_outside_matches_the_capsules_it_tessellates():
+    a = np.array([[0, 0, 0], [0.05, 0, 0.3]])
+    b = np.array([[0, 0, 0.5], [0.4, 0, 0.3]])  # two overlapping capsules: a union of closed parts
+    r = np.array([0.08, 0.06])
+    verts, tris = [], []
+    for k in range(2):
+        v, t = capsule_mesh(a[k], b[k], r[k], segments=24, spacing=0.02)
+        tris.append(t + sum(len(x) for x in verts))
+        verts.append(v)
+    verts, tris = np.vstack(verts), np.vstack(tris)
+    body = MeshBody(tris, len(verts))
+    body.set_motion(verts)
+    rng = np.random.default_rng(4)
+    pts = rng.uniform([-0.15, -0.15, -0.1], [0.5, 0.15, 0.6], size=(4000, 3))
+    phi, normal, _ = body.query(pts, 1.0, max_distance=0.2)
+    exact = capsule_depth(pts, a, b, r)
+    inside_exact = exact > 0.004  # faceting: the mesh lies up to r(1 - cos(pi/24)) inside
+    outside_exact = capsule_depth(pts, a, b, r + 0.004) == 0
+    assert np.all(phi[inside_exact] < 0) and np.all(phi[outside_exact] > 0)
+    deep = exact > 0.01
+    assert np.allclose(-phi[deep], exact[deep], atol=0.004)
+
+
+def _run_skirt(bodies_for, frames=60, **param_changes):
+    mesh, pinned, capsules = walking_skirt()
+    bodies = bodies_for(capsules)
+    sim = ClothSimulation(mesh, preset("COTTON", **param_changes), pinned, bodies, level=2, fps=30)
+    pin0 = mesh.rest[pinned]
+    worst, stretch = 0.0, []
+    a0, b0 = legs(0.0)
+    for f in range(1, frames + 1):
+        a1, b1 = legs(f / 30.0)
+        capsules.set_motion(a0, b0, a1, b1, 1 / 30)
+        for body in bodies:
+            if body is not capsules:
+                body.update(a0, b0, a1, b1)
+        sim.step(pin0, 1 / 30)
+        worst = max(worst, capsule_depth(sim.x, a1, b1, RADII).max())
+        stretch.append(sim.stretch())
+        a0, b0 = a1, b1
+    return sim, worst, np.array(stretch)
+
+
+def test_a_skirt_on_walking_capsules_stays_outside_and_keeps_its_size():
+    sim, worst, stretch = _run_skirt(lambda caps: [caps])
+    assert worst < 0.002  # no particle more than 2 mm inside the body on any frame
+    assert np.abs(stretch).max() < 0.02  # mean edge length within 2 % of rest on every frame
+    assert sim.contacts["particles"] + sim.contacts["faces"] > 0  # the legs did push it
+    assert np.isfinite(sim.x).all() and np.abs(sim.v).max() < 20.0
+
+
+class _SkinnedCapsules(MeshBody):
+    """The walking capsules as one triangle mesh, re-tessellated each frame (skinned)."""
+
+    def __init__(self):
+        a, b = legs(0.0)
+        self.update(a, b, a, b)
+        super().__init__(self.tris, len(self.v_end))
+        self.set_motion(self.v_start, self.v_end, 1 / 30)
+
+    def update(self, a0, b0, a1, b1):
+        def mesh(a, b):
+            vs, ts, n = [], [], 0
+            for k in range(len(RADII)):
+                v, t = capsule_mesh(a[k], b[k], RADII[k], segments=20, rings=24)
+                vs.append(v), ts.append(t + n)
+                n += len(v)
+            return np.vstack(vs), np.vstack(ts)
+
+        self.v_start, self.tris = mesh(a0, b0)
+        self.v_end, _ = mesh(a1, b1)
+        if hasattr(self, "parts"):  # after MeshBody.__init__
+            self.set_motion(self.v_start, self.v_end, 1 / 30)
+
+
+def test_a_skirt_on_a_skinned_mesh_body_stays_outside():
+    sim, worst, stretch = _run_skirt(lambda caps: [_SkinnedCapsules()], frames=45)
+    # the mesh lies inside the exact capsules by its faceting (r (1 - cos(pi/20)) < 1.4 mm)
+    assert worst < 0.002
+    assert np.abs(stretch).max() < 0.02
+    assert sim.contacts["particles"] + sim.contacts["faces"] > 0
