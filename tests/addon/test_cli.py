@@ -37,8 +37,13 @@ def test_demo_writes_a_blend_and_info_reads_it(tmp_path):
     r = run("demo", "--out", str(out), "--json")
     assert r.returncode == 0, r.stderr
     demo = json.loads(r.stdout)
-    assert demo["wrote"] == [str(out)] and out.exists()
-    r = run("info", str(out))
+    assert demo["wrote"][0] == str(out) and out.exists()
+    skirts = demo["cloth"]  # a generated skirt on the walk and on the hop, played from point caches
+    assert [s["armature"] for s in skirts] == ["cmu_131_01", "cmu_131_03"]
+    for s in skirts:
+        assert s["complete"] and s["max_depth_inside_mm"] < 2.0 and s["max_mean_stretch"] < 0.02
+        assert all(os.path.getsize(path) > 0 for path in s["wrote"] if path.endswith(".pc2"))
+    r = run("info", str(out), "--armature", "cmu_131_01")
     assert r.returncode == 0, r.stderr
     assert "70.0 kg" in r.stdout and "cmu_131_01" in r.stdout
 
