@@ -49,9 +49,11 @@ def acceleration_profile(skeleton, tr):
 
 def spike_ratio(skeleton, joined, window, sources, margin=1):
     """Largest joint and root acceleration inside the transition window (+- margin frames) over
-    the sources' 99th percentile (the smaller of the clips'): (angular ratio, linear ratio)."""
+    the 99th percentile of the source clips' own accelerations (all their frames together):
+    (angular ratio, linear ratio); at most 1 means no spike above the clips' own."""
     a, lin = acceleration_profile(skeleton, joined)
     lo, hi = max(0, window[0] - margin), min(len(a), window[1] + margin + 1)
-    ref_a = min(np.percentile(acceleration_profile(skeleton, s)[0], 99) for s in sources)
-    ref_l = min(np.percentile(acceleration_profile(skeleton, s)[1], 99) for s in sources)
+    prof = [acceleration_profile(skeleton, s) for s in sources]
+    ref_a = np.percentile(np.concatenate([p[0] for p in prof]), 99)
+    ref_l = np.percentile(np.concatenate([p[1] for p in prof]), 99)
     return float(a[lo:hi].max() / max(ref_a, 1e-9)), float(lin[lo:hi].max() / max(ref_l, 1e-9))

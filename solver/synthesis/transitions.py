@@ -44,6 +44,9 @@ class TransitionSettings:
     lift_height: float = 0.08  # m, flying foot at the connective action's middle keyframe
     angular_speed: float = 1.5  # rad/s, eq. 3.5's constant C_angular
     spatial_speed: float = 0.4  # m/s, eq. 3.5's constant C_spatial
+    # m/s^2: beyond eq. 3.5, a connective phase is also long enough that the root and flying foot
+    # accelerate no more than this or the next action's own 99th percentile, whichever is larger
+    spatial_acceleration: float = 1.0
     min_phase: float = 0.1  # s, shortest phase of a connective action
 
 
@@ -173,8 +176,8 @@ def _support_mask(a, side_limb, a_range):
 
 def _blend(a1, end1, a2, nb, s):
     sk, fps = a1.skeleton, a1.fps
-    t2 = _align(a1, end1, a2, nb - 1)
     start = end1 + 1 - nb  # output frame where a2 begins
+    t2 = _align(a1, start, a2, 0)  # a2's first frame meets a1 where the window opens
     n = start + a2.frame_count
     out = _Pose(sk, a1.trajectories.frames[0] + np.arange(n), fps, a1.trajectories.armature_to_world)
     out.put(np.arange(start), a1.trajectories, np.arange(start))
@@ -404,6 +407,11 @@ def _connect(a1, end1, a2, s):
     phases = np.array([1.5 * np.linalg.norm(r1 - r0) / v_root,
                        1.5 * np.linalg.norm(f2 - f0) / v_foot,
                        1.5 * max(np.linalg.norm(f3 - f2) / v_foot, np.linalg.norm(r3 - r1) / v_root)])
+    a_max = max(s.spatial_acceleration, float(np.percentile(
+        np.linalg.norm(np.diff(p2, 2, axis=0), axis=-1), 99)) * fps * fps if len(p2) > 2 else 0.0)
+    dist = np.array([np.linalg.norm(r1 - r0), np.linalg.norm(f2 - f0),
+                     max(np.linalg.norm(f3 - f2), np.linalg.norm(r3 - r1))])
+    phases = np.maximum(phases, np.sqrt(6.0 * dist / a_max))  # a cubic's peak: 6 d / T^2
     phases = np.maximum(phases, s.min_phase)
     rot1, rot2 = a1.trajectories.rotations, t2.rotations
     d_ang = np.linalg.norm(spatial.quat_log(rotations.multiply(rotations.conjugate(rot1[end1]), rot2[0])), axis=-1)
