@@ -78,9 +78,10 @@ def step_forward(sk, tr, length=0.3, lift=0.08, seconds=2.0, fps=30.0, lead="R")
     return act
 
 
-def kick(sk, tr, side="R", reach=0.35, height=0.3, seconds=1.4, fps=30.0):
+def kick(sk, tr, side="R", reach=0.35, height=0.3, seconds=1.8, fps=30.0):
     """A front kick: the root shifts towards the base foot, the kicking foot goes forward and up
-    and comes back to where it was."""
+    and comes back to where it was. Like the thesis's set, the initial and terminal phases (the
+    first and last 0.4 s) are in the standing posture, so any action joins it."""
     pose = _standing(tr)
     n = int(round(seconds * fps)) + 1
     fwd = forward_of(sk, pose)
@@ -89,8 +90,19 @@ def kick(sk, tr, side="R", reach=0.35, height=0.3, seconds=1.4, fps=30.0):
     lateral = w0[sk.role_index(f"foot.{base}")][:3, 3] - w0[sk.role_index(f"foot.{side}")][:3, 3]
     lateral[2] = 0.0
     t = np.linspace(0.0, 1.0, n)
-    shift = np.sin(np.pi * np.clip(t / 1.0, 0, 1)) ** 2
+    quiet = 0.4 / seconds
+    shift = np.sin(np.pi * np.clip((t - quiet) / (1 - 2 * quiet), 0, 1)) ** 2
     root = 0.4 * lateral * shift[:, None]
-    bump = np.sin(np.pi * np.clip((t - 0.25) / 0.5, 0, 1)) ** 2
+    bump = np.sin(np.pi * np.clip((t - 0.38) / 0.24, 0, 1)) ** 2
     feet = {side: bump[:, None] * (reach * fwd + np.array([0, 0, height])), base: np.zeros((n, 3))}
     return from_trajectories("kick", sk, _build(sk, pose, n, root, feet, fps), **PHASES)
+
+
+def stance(sk, tr, offsets, seconds=1.0, fps=30.0, name="stance"):
+    """The standing pose with feet moved by offsets[side] (3,) (the root half way), held."""
+    pose = _standing(tr)
+    n = int(round(seconds * fps)) + 1
+    feet = {s: np.repeat(np.asarray(offsets.get(s, (0.0, 0.0, 0.0)), float)[None], n, axis=0) for s in "LR"}
+    root = 0.5 * (feet["L"] + feet["R"])
+    root[:, 2] = 0.0
+    return from_trajectories(name, sk, _build(sk, pose, n, root, feet, fps), **PHASES)

@@ -97,8 +97,9 @@ def connect_rejection(a1, end1, a2):
 
 # ---- the three modes ---------------------------------------------------------------------------
 
-def transition(a1, a2, mode="blend", settings=None, end1=None):
-    """Join a1 (used up to its frame end1, default its last) and a2; raises TransitionRejected."""
+def transition(a1, a2, mode="blend", settings=None, end1=None, base=None):
+    """Join a1 (used up to its frame end1, default its last) and a2; raises TransitionRejected.
+    `base` forces the connective action's base foot ("foot.L" or "foot.R")."""
     if mode not in MODES:
         raise HumanAnimError(f"unknown transition mode {mode!r} (one of {', '.join(MODES)})")
     s = settings or TransitionSettings()
@@ -118,7 +119,7 @@ def transition(a1, a2, mode="blend", settings=None, end1=None):
         why = connect_rejection(a1, end1, a2)
         if why:
             raise TransitionRejected(why)
-        return _connect(a1, end1, a2, s)
+        return _connect(a1, end1, a2, s, base)
     ni = s.inertialization_duration if s.inertialization_duration is not None else blend
     return _inertialize(a1, end1, a2, max(2, int(round(ni * a1.fps)) + 1), s)
 
@@ -272,12 +273,27 @@ def _solve_limbs(sk, out, raw, targets):
         if limb == "toes":
             continue
         side, kind = LIMBS[limb]
-        ik = LimbIK(sk, side, kind, basis=basis[0])
+        ik = LimbIK(sk, side, kind, basis=basis[0], hinge=_bend_axis(sk, side, kind, world, basis[0]))
         for f in np.flatnonzero(np.isfinite(tgt[:, 0, 0])):
             q, _, _ = ik.solve(ik.parent_frame(world[f]), tgt[f], ik.swivel(world[f]))
             rot[f, [ik.upper, ik.lower, ik.end]] = q
     return Trajectories(raw.frames, raw.fps, rotations.make_continuous(rot), raw.translations,
                         raw.armature_to_world)
+
+
+def _bend_axis(sk, side, kind, world, basis):
+    """The axis (lower bone frame) the motion bends the knee (elbow) about, taken where it bends
+    most; a rig whose rest pose is straight (CMU's BVH bones) has no other reliable hinge, and a
+    wrong hinge makes the IK's ankle turn to make up for it (a joint-angle jump at the join)."""
+    from ..motion_control.limb_ik import LIMBS as CHAIN
+    up, lo = (sk.role_index(f"{r}.{side}") for r in CHAIN[kind][:2])
+    ik = LimbIK(sk, side, kind, basis=basis)
+    rel = np.linalg.solve(world[:, up] @ ik.upper_chain, world[:, lo])[:, :3, :3]
+    vec = spatial.quat_log(rotations.from_matrix(rel))
+    f = int(np.argmax(np.linalg.norm(vec, axis=-1)))
+    if np.linalg.norm(vec[f]) < np.radians(15.0):
+        return None
+    return vec[f] / np.linalg.norm(vec[f])
 
 
 def _joined_support(a1, a2, start, n, held, extra=None):
@@ -371,9 +387,13 @@ def _peak_speed(x, fps):
     return float(np.linalg.norm(np.diff(x, axis=0), axis=-1).max() * fps) if len(x) > 1 else 0.0
 
 
-def _connect(a1, end1, a2, s):
+def _connect(a1, end1, a2, s, base=None):
     sk, fps = a1.skeleton, a1.fps
     shared = [k for k in LEGS if a1.constraints[k][end1] == SUPPORT and a2.constraints[k][0] == SUPPORT]
+    if base is not None:
+        if base not in shared:
+            raise TransitionRejected(f"connect rejected: {base} does not support the body at the join")
+        shared = [base]
     w1all = a1.trajectories.world_frames(sk)
     w1 = w1all[end1]
     if len(shared) == 2:  # base: the foot the next action has closest to where it is now
