@@ -186,17 +186,22 @@ def _protective_step(current, f, vel, res, s, floor):
     fly_term[2] = feet[fly][2]
     root_term[2] = p0[2]
     # terminal posture: the current posture with the root and flying foot moved, legs by IK
-    pose = _frame_tr(tr, f)
-    pose = pose.with_root_pose(sk, root_term[None], q_root[f][None])
-    pw = pose.world_frames(sk)[0]
-    rot = pose.rotations.copy()
-    basis = pose.basis()[0]
-    for limb, target_pos in ((base, feet[base]), (fly, fly_term)):
-        ik = LimbIK(sk, limb[-1], basis=basis)
-        tgt = world[ik.end].copy()
-        tgt[:3, 3] = target_pos
-        q, _, _ = ik.solve(ik.parent_frame(pw), tgt, ik.swivel(world))
-        rot[0, [ik.upper, ik.lower, ik.end]] = q
+    for _ in range(40):  # the root lowered (1 cm at a time) until both legs reach their feet
+        pose = _frame_tr(tr, f).with_root_pose(sk, root_term[None], q_root[f][None])
+        pw = pose.world_frames(sk)[0]
+        rot = pose.rotations.copy()
+        basis = pose.basis()[0]
+        reached = True
+        for limb, target_pos in ((base, feet[base]), (fly, fly_term)):
+            ik = LimbIK(sk, limb[-1], basis=basis)
+            tgt = world[ik.end].copy()
+            tgt[:3, 3] = target_pos
+            q, _, ok = ik.solve(ik.parent_frame(pw), tgt, ik.swivel(world))
+            rot[0, [ik.upper, ik.lower, ik.end]] = q
+            reached &= ok
+        if reached:
+            break
+        root_term[2] -= 0.01
     pose = Trajectories(pose.frames, pose.fps, rot, pose.translations, pose.armature_to_world)
     stance = _still_action("protective step stance", sk, pose, s.hold)
     # the step is a connective action with this base foot (the stance is placed where it stands)
@@ -251,21 +256,28 @@ def fallen_pose(sk, pose, direction, floor):
     leg = sk.lengths[thigh] + sk.lengths[shin]
     hip_h = w[thigh][2, 3] - p[2]  # hip below (negative) or above the root
     if direction == "back":
-        pitch = -np.radians(25.0)
+        pitch = -np.radians(40.0)
         root = p - 0.35 * leg * fwd
         root[2] = floor + 0.12 - hip_h
         foot_pos = {side: root + 0.85 * leg * fwd + sign * 0.12 * lateral for side, sign in (("L", 1), ("R", -1))}
         hand_pos = {side: root - 0.25 * fwd + sign * 0.3 * lateral for side, sign in (("L", 1), ("R", -1))}
     else:
-        pitch = np.radians(35.0)
+        pitch = np.radians(88.0)  # kneeling, thighs nearly upright, the trunk bent over the hands
         root = p + 0.3 * leg * fwd
-        root[2] = floor + sk.lengths[thigh] * 0.95 - hip_h
+        root[2] = floor + 0.06 + sk.lengths[thigh] * 0.9 - hip_h
         foot_pos = {side: root - sk.lengths[shin] * fwd + sign * 0.12 * lateral for side, sign in (("L", 1), ("R", -1))}
         hand_pos = {side: root + 0.55 * leg * fwd + sign * 0.25 * lateral for side, sign in (("L", 1), ("R", -1))}
     tilt = spatial.quat_exp(pitch * lateral)
     ori = rotations.multiply(tilt, q)
     pose2 = pose.with_root_pose(sk, root[None], ori[None])
     pw = pose2.world_frames(sk)[0]
+    if direction == "forward":  # knees on the ground, hips back over the heels, shins flat behind
+        root[2] += floor + 0.05 + 0.6 * sk.lengths[thigh] - pw[thigh][2, 3]
+        pose2 = pose.with_root_pose(sk, root[None], ori[None])
+        pw = pose2.world_frames(sk)[0]
+        for side, sign in (("L", 1), ("R", -1)):
+            hip = pw[sk.role_index(f"thigh.{side}")][:3, 3]
+            foot_pos[side] = hip + (0.8 * sk.lengths[thigh] - sk.lengths[shin]) * fwd
     basis = pose2.basis()[0]
     rot = pose2.rotations.copy()
     for side in "LR":
@@ -277,6 +289,15 @@ def fallen_pose(sk, pose, direction, floor):
             tgt = w[ik.end].copy()
             tgt[:3, 3] = targets[side]
             tgt[2, 3] = floor + lift
+            if kind == "arm":  # a hand on the ground within reach of the shoulder, towards its target
+                sh = pw[ik.upper][:3, 3]
+                reach = 0.95 * (sk.lengths[ik.upper] + sk.lengths[ik.lower])
+                flat = np.sqrt(max(reach ** 2 - (sh[2] - tgt[2, 3]) ** 2, 0.0))
+                off = tgt[:2, 3] - sh[:2]
+                tgt[:2, 3] = sh[:2] + off / max(np.linalg.norm(off), 1e-9) * min(flat, np.linalg.norm(off))
+                y = np.r_[off / max(np.linalg.norm(off), 1e-9), 0.0]  # fingers flat, pointing away
+                x = np.cross(y, up)
+                tgt[:3, :3] = np.column_stack((x, y, np.cross(x, y)))
             qq, _, _ = ik.solve(ik.parent_frame(pw), tgt, ik.swivel(w))
             rot[0, [ik.upper, ik.lower, ik.end]] = qq
             pw = sk.world_frames(_with_rot(pose2, rot).basis()[0], pose2.armature_to_world)
