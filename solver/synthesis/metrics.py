@@ -18,9 +18,10 @@ def foot_points(skeleton, tr, side):
     return np.stack(pts, axis=1)
 
 
-def planted_slide(skeleton, tr, masks, window=None):
+def planted_slide(skeleton, tr, masks, window=None, inside=False):
     """Largest distance (m) a planted foot's points move within each run of `masks` (side ->
-    (F,) bool) that overlaps `window` (first, last frame index): side -> metres."""
+    (F,) bool) that overlaps `window` (first, last frame index): side -> metres. inside=True
+    measures only the run's frames inside the window."""
     from ..motion_control.contacts import runs
     out = {}
     for side, m in masks.items():
@@ -29,6 +30,8 @@ def planted_slide(skeleton, tr, masks, window=None):
         for on, a, b in runs(m):
             if not on or (window is not None and (b - 1 < window[0] or a > window[1])):
                 continue
+            if inside and window is not None:
+                a, b = max(a, window[0]), min(b, window[1] + 1)
             seg = pts[a:b]
             worst = max(worst, float(np.linalg.norm(seg - seg[0], axis=-1).max()))
         out[side] = worst

@@ -482,8 +482,17 @@ def _connect(a1, end1, a2, s, base=None):
     _, fq3 = decompose(w2[jf])
     u = smootherstep((tk - times[1]) / (times[3] - times[1]))
     ff[mid] = compose(fpos, slerp(np.broadcast_to(fq0, (len(tk), 4)), np.broadcast_to(fq3, (len(tk), 4)), u[:, None]))
-    ff[mid[tk <= times[1]]] = w1[jf]
+    planted = mid[tk <= times[1]]
+    ff[planted] = w1[jf]
     targets[fly] = ff
+    toe = sk.role_index(f"toe.{LIMBS[fly][0]}")
+    if toe is not None:  # the planted flying foot's toe keeps its angle until the foot leaves
+        trot = targets.setdefault("toes", {}).setdefault(toe, np.full((n, 5), np.nan))
+        trot[planted, :4] = rot1[end1, toe]
+        trot[planted, 4] = 0.0
+        lift = (tk > times[1]) & (tk <= times[2])  # and rejoins the interpolation as the foot lifts
+        trot[mid[lift], :4] = rot1[end1, toe]
+        trot[mid[lift], 4] = smootherstep((tk[lift] - times[1]) / (times[2] - times[1]))
     held = _hold_supporting_feet(a1, end1, a2, start, n, raw, targets, s, first_hold=end1, join2=0, only=[base])
     base_side, fly_side = LIMBS[base][0], LIMBS[fly][0]
     fly_on = np.zeros(n, bool)
