@@ -52,9 +52,9 @@ class HumanAnimSynthesis(bpy.types.PropertyGroup):
     entries: CollectionProperty(type=HumanAnimQueueEntry)
     entry_index: IntProperty()
     reactions: BoolProperty(name="Dynamic Control and Reactions", default=False,
-                            description="Run the synthesized motion through dynamic control with the Dynamic "
-                                        "Control panel's loads, pushes and collider, with protective steps, "
-                                        "falls and recovery")
+                            description="Run the synthesized motion through dynamic control with protective "
+                                        "steps, falls and recovery (always on when the Dynamic Control panel "
+                                        "has loads, pushes or a collider)")
     step_speed_min: FloatProperty(name="Step Speed Min", default=0.5, min=0.0, unit="VELOCITY",
                                   description="Eq. 3.6: a protective step above this root speed (m/s)")
     step_speed_max: FloatProperty(name="Step Speed Max", default=1.0, min=0.0, unit="VELOCITY",
@@ -167,6 +167,12 @@ def read_entry(obj, scene, skeleton, entry):
                              overrides)
 
 
+def environment_set(control):
+    """Loads, pushes or a colliding character set in the Dynamic Control panel."""
+    return control.load_left > 0.0 or control.load_right > 0.0 or len(control.impulses) > 0 \
+        or control.collider is not None
+
+
 def reaction_settings(props):
     from ..solver.synthesis.reactions import ReactionSettings
     return ReactionSettings(step_speed=(props.step_speed_min, props.step_speed_max),
@@ -214,7 +220,7 @@ def run(obj, scene):
     traj = syn.trajectories
     support = syn.support()
     reaction = None
-    if props.reactions:
+    if props.reactions or environment_set(scene.humananim_control):
         from ..solver.synthesis.reactions import react
         from . import motion_control
         cs = motion_control.solver_settings(scene, scene.humananim_control, obj, skeleton, traj)

@@ -90,7 +90,7 @@ def test_push_gives_a_protective_step(metarig):
     acts = _keyframed_actions(obj, scene)
     synthesis.add_entry(scene, acts["still"], "BLEND")
     props = scene.humananim_synthesis
-    props.reactions = True
+    assert not props.reactions  # a push set in the Dynamic Control panel turns reactions on
     sk_root = obj.pose.bones[0].name
     motion_control.add_impulse(obj, scene, sk_root, 10, direction=(0.0, 1.0, 0.0), magnitude=14.0)
     s = _run(obj, scene)
@@ -120,3 +120,33 @@ def test_synthesize_command(tmp_path):
     assert r.returncode == 0 and "1 rejected" in r.stdout and "blend rejected" in r.stdout
     r = run_cli("synthesize", CMU_CLIPS[0], "--queue", "nope", "--out", str(tmp_path / "y.blend"))
     assert r.returncode == 2 and "no action named 'nope'" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_operators_queue_nla_strips_mark_and_bake(metarig):
+    from humananim.humananim_addon import action_api
+    obj, scene = metarig, bpy.context.scene
+    acts = _keyframed_actions(obj, scene)
+    assert hasattr(bpy.types, "VIEW3D_PT_humananim_synthesis")
+    ad = obj.animation_data
+    ad.action = None
+    frame = 1
+    for name in ("still", "kick"):
+        slot = acts[name].slots[0] if action_api.SLOTTED else None
+        _, strip = action_api.push_to_nla(obj, acts[name], slot, name, frame)
+        frame = int(strip.frame_end) + 1
+    assert bpy.ops.humananim.queue_from_nla() == {"FINISHED"}
+    props = scene.humananim_synthesis
+    assert [e.action.name for e in props.entries] == ["still", "kick"]
+    props.entry_index = 0
+    scene.frame_set(5)
+    props.marker_limb, props.marker_constraint = "hand.L", "spatial"
+    assert bpy.ops.humananim.mark_constraint() == {"FINISHED"}
+    assert [(m.name, m.frame) for m in acts["still"].pose_markers] == [("hand.L=spatial", 5)]
+    props.entries[1].mode = "INERTIALIZE"
+    n = len(bpy.data.actions)
+    assert bpy.ops.humananim.synthesize() == {"FINISHED"}
+    assert len(bpy.data.actions) == n + 1 and ad.action.name.startswith("still.synth")
+    assert props.entries[1].status == "accepted"
+    assert bpy.ops.humananim.queue_move(direction=1) == {"FINISHED"}
+    assert [e.action.name for e in props.entries] == ["kick", "still"]
+    assert bpy.ops.humananim.queue_remove() == {"FINISHED"} and len(props.entries) == 1
