@@ -27,8 +27,10 @@ class VIEW3D_PT_humananim_synthesis(HumanAnimPanel, bpy.types.Panel):
         buttons = row.column(align=True)
         buttons.operator("humananim.queue_add", icon="ADD", text="")
         buttons.operator("humananim.queue_remove", icon="REMOVE", text="")
-        buttons.operator("humananim.queue_move", icon="TRIA_UP", text="").direction = -1
-        buttons.operator("humananim.queue_move", icon="TRIA_DOWN", text="").direction = 1
+        for icon, step in (("TRIA_UP", -1), ("TRIA_DOWN", 1)):
+            op = buttons.operator("humananim.queue_move", icon=icon, text="")
+            if op is not None:  # None in a layout that only records the calls
+                op.direction = step
         layout.operator("humananim.queue_from_nla", icon="NLA")
         if 0 <= props.entry_index < len(props.entries):
             e = props.entries[props.entry_index]

@@ -150,3 +150,21 @@ def test_operators_queue_nla_strips_mark_and_bake(metarig):
     assert bpy.ops.humananim.queue_move(direction=1) == {"FINISHED"}
     assert [e.action.name for e in props.entries] == ["kick", "still"]
     assert bpy.ops.humananim.queue_remove() == {"FINISHED"} and len(props.entries) == 1
+
+
+def test_motion_queue_panel_draws_entries_markers_and_reactions(metarig):
+    from test_panels import RecordingLayout
+    from humananim.panels.synthesis import VIEW3D_PT_humananim_synthesis as Panel
+    from humananim.humananim_addon import synthesis
+    obj, scene = metarig, bpy.context.scene
+    acts = _keyframed_actions(obj, scene)
+    e = synthesis.add_entry(scene, acts["still"], "CONNECT")
+    e.status, e.accepted, e.interrupt = "connect rejected: no foot supports the body", False, True
+    synthesis.add_marker(acts["still"], 3, "foot.R", "angular")
+    scene.humananim_synthesis.reactions = True
+    log = []
+    Panel.draw(type("P", (), {"layout": RecordingLayout(log)})(), bpy.context)
+    for item in (("operator", "humananim.synthesize"), ("operator", "humananim.mark_constraint"),
+                 ("label", "3: foot.R=angular"), ("label", "connect rejected: no foot supports the body"),
+                 ("prop", "interrupt_frame"), ("prop", "step_speed_min"), ("prop", "fall_back")):
+        assert item in log, item
