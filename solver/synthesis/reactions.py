@@ -63,13 +63,24 @@ class ReactionResult:
     info: dict = field(default_factory=dict)
 
 
-def root_rates(skeleton, out, target):
-    """Root velocity (F, 3) and acceleration magnitude (F,) of `out` relative to `target`
-    (backward differences: a push shows at the frame it acts)."""
+RATE_STEP = 1.0 / 30.0  # s: the thesis's frame time; rates over it make eq. 3.6's thresholds fps-free
+
+
+def root_rates(skeleton, out, target, skate=None):
+    """Root velocity (F, 3) and acceleration magnitude (F,) of `out` relative to `target` (moved by
+    the controller's foot-skate offset `skate` (F, 2) when given), as backward differences over
+    RATE_STEP (a push shows at the frame it acts; capture noise at 120 fps is not differentiated
+    twice over 8 ms)."""
     fps = out.fps
     p = out.root_pose(skeleton)[0] - target.root_pose(skeleton)[0]
-    v = np.vstack((np.zeros((1, 3)), np.diff(p, axis=0) * fps))
-    a = np.concatenate(([0.0], np.linalg.norm(np.diff(v, axis=0), axis=-1) * fps))
+    if skate is not None:
+        p[:, :2] -= skate
+    k = max(1, int(round(RATE_STEP * fps)))
+    h = k / fps
+    v = np.zeros_like(p)
+    v[k:] = (p[k:] - p[:-k]) / h
+    a = np.zeros(len(p))
+    a[k:] = np.linalg.norm(v[k:] - v[:-k], axis=-1) / h
     return v, a
 
 
@@ -77,7 +88,7 @@ def detect(skeleton, action, result, settings):
     """(kind, frame) of the first reaction the controlled motion calls for."""
     s = settings
     out = result.trajectories
-    v, a = root_rates(skeleton, out, action.trajectories)
+    v, a = root_rates(skeleton, out, action.trajectories, result.foot_skate)
     speed = np.linalg.norm(v, axis=-1)
     both = result.support.all(axis=1)
     falls = (speed > s.fall_speed) & (a > s.fall_acceleration)
@@ -118,7 +129,7 @@ def react(action, control_settings=None, settings=None, fall_actions=None):
     res = control(sk, action.trajectories, cs)
     kind, f, v = detect(sk, action, res, s)
     speed = np.linalg.norm(v, axis=-1)
-    _, acc = root_rates(sk, res.trajectories, action.trajectories)
+    _, acc = root_rates(sk, res.trajectories, action.trajectories, res.foot_skate)
     floor = float(motion_floor(sk, action.trajectories) if cs.ground_height is None else cs.ground_height)
     support = {side: res.support[:, i] for i, side in enumerate("LR")}
     if kind == "none":

@@ -134,3 +134,11 @@ def test_recovery_when_a_joint_cannot_follow(standing):
     err = rotations.angle_between(heavy.trajectories.rotations[-1][heavy_bones],
                                   still.trajectories.rotations[0][heavy_bones])
     assert err.max() < 0.05
+
+
+def test_captured_motion_without_a_push_needs_no_reaction():
+    """CMU 131_01 (120 fps): capture noise and the controller's foot-skate offset are not pushes."""
+    from humananim.solver.synthesis import from_trajectories
+    sk, tr = load("cmu_131_01")
+    r = react(from_trajectories("walk", sk, tr))
+    assert r.kind == "none" and r.root_speed.max() < 0.2
