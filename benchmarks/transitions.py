@@ -20,7 +20,6 @@ Measured on each result, over the transition window only:
 import argparse
 import json
 import os
-import sys
 import tempfile
 import time
 

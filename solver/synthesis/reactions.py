@@ -26,7 +26,7 @@ from ..dynamics import motion_floor, spatial
 from ..motion_control import ControlSettings, control
 from ..motion_control.limb_ik import LimbIK
 from ..trajectories import Trajectories
-from .action import ANGULAR, SUPPORT, Action, slerp, transformed, yaw_of
+from .action import ANGULAR, SUPPORT, Action
 from .keyframed import forward_of
 from .transitions import LEGS, TransitionRejected, TransitionSettings, transition
 

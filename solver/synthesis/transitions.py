@@ -21,7 +21,7 @@ from ..motion_control.contacts import runs
 from ..motion_control.limb_ik import LimbIK
 from ..skeleton import compose, decompose
 from ..trajectories import Trajectories
-from .action import (ANGULAR, CONSTRAINT_NAMES, LIMBS, SPATIAL, SUPPORT, Action, blend_frames, rigid_2d, slerp,
+from .action import (ANGULAR, CONSTRAINT_NAMES, LIMBS, SPATIAL, SUPPORT, blend_frames, rigid_2d, slerp,
                      transformed, yaw_of)
 
 MODES = ("blend", "connect", "inertialize")
@@ -494,7 +494,7 @@ def _connect(a1, end1, a2, s, base=None):
         trot[mid[lift], :4] = rot1[end1, toe]
         trot[mid[lift], 4] = smootherstep((tk[lift] - times[1]) / (times[2] - times[1]))
     held = _hold_supporting_feet(a1, end1, a2, start, n, raw, targets, s, first_hold=end1, join2=0, only=[base])
-    base_side, fly_side = LIMBS[base][0], LIMBS[fly][0]
+    fly_side = LIMBS[fly][0]
     fly_on = np.zeros(n, bool)
     fly_on[mid[tk <= times[1]]] = True
     fly_sel = np.zeros(n, bool)
