@@ -15,6 +15,16 @@ Measured on each result, over the transition window only:
     percentile of the two sections' own (1 = no spike above the clips' own), and the same for the
     root's linear acceleration;
   * ms to compute the transition (solver modes).
+
+Measured here (bpy 5.0 and 4.2, same figures; ms vary with load on the 2 shared cores):
+  mode          foot slide mm  spike (angular)  spike (root)  ms
+  blend                  0.00             0.28          0.04  115-160
+  connect                0.00             0.27          0.08  270-410 (a 1.1 s connective step)
+  inertialize            0.00             0.38          0.05  110-140
+  NLA crossfade         38.62             0.36          0.09  -
+The NLA crossfade blends two sections whose roots and feet are in different places: the planted
+foot slides 39 mm in 30 frames; HumanAnim's modes place the next action on the planted feet and
+hold them (IK), so none slides.
 """
 
 import argparse
