@@ -168,3 +168,15 @@ def test_motion_queue_panel_draws_entries_markers_and_reactions(metarig):
                  ("label", "3: foot.R=angular"), ("label", "connect rejected: no foot supports the body"),
                  ("prop", "interrupt_frame"), ("prop", "step_speed_min"), ("prop", "fall_back")):
         assert item in log, item
+
+
+def test_synthesize_command_with_a_push_reacts(tmp_path):
+    r = run_cli("synthesize", CMU_CLIPS[0], "--queue", "cmu_131_01@1-100", "--impulse", "30:Hips:0,60,0",
+                "--out", str(tmp_path / "push.blend"), "--json")
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert s["reaction"]["kind"] in ("step", "fall") and s["reaction"]["frame"] >= 30
+    assert s["reaction"]["max_root_speed_ms"] > 0.5
+    r = run_cli("synthesize", CMU_CLIPS[0], "--queue", "cmu_131_01@1-100", "--react",
+                "--out", str(tmp_path / "still.blend"))
+    assert r.returncode == 0 and "reaction: none" in r.stdout
