@@ -60,17 +60,29 @@ def test_blend_keyframed(metarig_actions, pair):
     check(sk, transition(a, b, "blend"), [a, b])
 
 
-def test_blend_of_spatial_hands_reaches_the_blended_targets(metarig_actions):
-    sk, still, step, kick = metarig_actions
-    a = keyframed.still(sk, load("metarig_legs", frames=1)[1])
-    b = keyframed.kick(sk, load("metarig_legs", frames=1)[1])
-    for act in (a, b):
+def test_blend_of_spatial_hands_follows_the_blended_hand_trajectories(cmu_actions):
+    from humananim.solver.synthesis.transitions import _align, smootherstep
+    sk, a0, b0, c0 = cmu_actions
+    a = from_trajectories("a", sk, a0.trajectories)
+    c = from_trajectories("c", sk, c0.trajectories)
+    for act in (a, c):
         act.edit("hand.L", act.trajectories.frames[0], act.trajectories.frames[-1], "spatial")
-    r = transition(a, b, "blend")
+    r = transition(a, c, "blend")
     hand = sk.role_index("hand.L")
-    got = r.trajectories.world_frames(sk)[r.window[0]:r.window[1] + 1, hand, :3, 3]
-    w1 = a.end_effectors()["hand.L"][r.window[0]:r.window[1] + 1, :3, 3]
-    assert np.isfinite(got).all() and np.abs(got - w1).max() < 0.05
+    lo, hi = r.window
+    got = r.trajectories.world_frames(sk)[lo:hi + 1, hand]
+    # eq. 3.2 per axis with the smootherstep weight, on the next action as placed at the join
+    w = smootherstep(np.arange(hi - lo + 1) / (hi - lo))[:, None]
+    e1 = a.end_effectors()["hand.L"][lo:hi + 1]
+    e2 = _align(a, lo, c, 0).world_frames(sk)[:hi - lo + 1, hand]
+    assert np.abs(e1[:, :3, 3] - e2[:, :3, 3]).max() > 0.02  # the two hands differ
+    assert np.abs(got[:, :3, 3] - ((1 - w) * e1[:, :3, 3] + w * e2[:, :3, 3])).max() < 1e-3
+    # orientation by slerp: halfway between the two at mid-window, within the IK's accuracy
+    from humananim.solver import rotations
+    from humananim.solver.skeleton import decompose
+    q1, q2, qg = (decompose(x)[1] for x in (e1, e2, got))
+    total = rotations.angle_between(q1, q2)
+    assert np.abs(rotations.angle_between(q1, qg) - w[:, 0] * total).max() < 0.01
 
 
 def test_blend_rejected_when_constraints_differ_then_connect(metarig_actions):
