@@ -185,3 +185,24 @@ def test_synthesizer_queue_after_now_and_rejections(metarig_actions):
     assert [q.accepted for q in syn.requests] == [True, False, True, True]
     with pytest.raises(Exception, match="unknown transition mode"):
         syn.queue(kick, "crossfade")
+
+
+def test_held_foot_rejoins_the_next_action_smoothly_when_it_lifts(cmu_actions):
+    """Fig. 3.3 (b): the held foot blends into the next action's trajectory once that lifts it,
+    and is on it by the time the next action lands it again."""
+    from humananim.solver.synthesis.transitions import _align
+    sk, a, b, c = cmu_actions
+    longer = from_trajectories("c", sk, sliced(load("cmu_131_01")[1], 50, 170))  # lifts and lands the left foot
+    r = transition(a, longer, "blend")
+    aligned = _align(a, r.window[0], longer, 0)
+    lift = int(np.flatnonzero(r.held["L"])[-1]) + 1
+    sup = longer.constraints["foot.L"] == SUPPORT
+    land = r.next_start + int(np.flatnonzero(sup & (np.arange(len(sup)) > lift - r.next_start))[0])
+    pts = foot_points(sk, r.trajectories, "L")[:, 0]
+    own = foot_points(sk, aligned, "L")[:, 0]
+    after = np.arange(land, r.trajectories.frame_count)
+    assert np.abs(pts[after] - own[after - r.next_start]).max() < 1e-3  # on its own trajectory again
+    # no jump on the way: the foot speeds up and slows down gradually (it also makes up the
+    # distance between where it was held and where the next action has it)
+    step = np.linalg.norm(np.diff(pts[lift - 2:land + 1], axis=0), axis=-1)
+    assert step.max() < 0.03 and np.abs(np.diff(step)).max() < 0.2 * step.max()
