@@ -1,5 +1,113 @@
-"""Motion synthesis: transitions and dynamic reactions (issue 5): batch commands (being built)."""
+"""Batch motion synthesis: `python -m humananim synthesize clip.blend --queue still --queue kick:connect`.
+
+Runs the same bridge code as the Motion Queue panel, saves a .blend (--out) and prints a summary
+(--json: one object)."""
+
+import os
+import re
+import time
+
+from .cli import UsageError
+
+_QUEUE = re.compile(r"^(?P<action>[^@:]+)(?:@(?P<start>-?\d+)-(?P<end>-?\d+))?(?::(?P<mode>blend|connect|inertialize))?"
+                    r"(?::now=(?P<now>\d+))?$", re.IGNORECASE)
 
 
 def add_commands(sub, add_common_options):
-    return {}
+    c = sub.add_parser("synthesize", help="motion synthesis: join actions (blend, connect, inertialize) with "
+                                          "planted feet kept, optionally with dynamic reactions; writes a new action")
+    c.add_argument("file", help="a .blend or .bvh file")
+    c.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
+    c.add_argument("--queue", action="append", default=[], metavar="ACTION[@START-END][:MODE][:now=FRAME]",
+                   help="an action to queue (in order; MODE blend (default), connect or inertialize; now=FRAME "
+                        "interrupts the motion so far at that frame, counted from its start); repeatable; "
+                        "default: the NLA strips, else the active action")
+    c.add_argument("--initial", type=float, default=0.25, help="initial phase of every action, s (default 0.25)")
+    c.add_argument("--terminal", type=float, default=0.25, help="terminal phase of every action, s (default 0.25)")
+    c.add_argument("--react", action="store_true", help="dynamic control with protective steps, falls, recovery")
+    c.add_argument("--impulse", action="append", default=[], metavar="FRAME:BONE:FX,FY,FZ[:SECONDS]",
+                   help="a push (N s, world axes) on a bone for --react; repeatable")
+    c.add_argument("--step-speed", type=float, nargs=2, metavar=("MIN", "MAX"), default=(0.5, 1.0),
+                   help="eq. 3.6 root speeds, m/s (default 0.5 1.0)")
+    c.add_argument("--step-acceleration", type=float, default=10.0, help="eq. 3.6 root acceleration, m/s^2")
+    c.add_argument("--output", choices=("ACTION", "NLA"), default="ACTION")
+    c.add_argument("--out", default=os.path.join("out", "synthesis.blend"), help="the .blend to write")
+    add_common_options(c)
+    return {"synthesize": cmd_synthesize}
+
+
+def parse_queue(text):
+    m = _QUEUE.match(text.strip())
+    if not m:
+        raise UsageError(f"--queue '{text}': expected ACTION[@START-END][:blend|connect|inertialize][:now=FRAME]")
+    rng = (int(m["start"]), int(m["end"])) if m["start"] is not None else None
+    return m["action"], rng, (m["mode"] or "blend").upper(), (int(m["now"]) if m["now"] is not None else None)
+
+
+def cmd_synthesize(args):
+    import bpy
+    from ..solver.progress import run_to_end
+    from . import synthesis
+    from .cli import _load, parse_arrow
+    from .control_cli import add_impulse_from_vector
+    t0 = time.perf_counter()
+    obj, scene, unit = _load(args.file, args.armature, args.scale)
+    if args.mass:
+        obj.data.humananim.total_mass = args.mass
+    props = scene.humananim_synthesis
+    props.entries.clear()
+    if args.queue:
+        for text in args.queue:
+            name, rng, mode, now = parse_queue(text)
+            act = bpy.data.actions.get(name)
+            if act is None:
+                raise UsageError(f"--queue: no action named '{name}' (actions: "
+                                 f"{', '.join(a.name for a in bpy.data.actions) or 'none'})")
+            synthesis.add_entry(scene, act, mode, rng, now)
+    elif obj.animation_data and any(t.strips for t in obj.animation_data.nla_tracks):
+        synthesis.entries_from_nla(obj, scene)
+    elif obj.animation_data and obj.animation_data.action:
+        synthesis.add_entry(scene, obj.animation_data.action)
+    else:
+        raise UsageError("nothing to synthesize: pass --queue ACTION ...")
+    for e in props.entries:
+        e.initial_duration, e.terminal_duration = args.initial, args.terminal
+    props.reactions = args.react
+    props.step_speed_min, props.step_speed_max = args.step_speed
+    props.step_acceleration = args.step_acceleration
+    scene.humananim.output = args.output
+    for text in args.impulse:
+        frame, bone, vector, seconds = parse_arrow(text, obj, "--impulse", 0.0)
+        add_impulse_from_vector(obj, scene, bone, frame, vector, seconds)
+    summary = run_to_end(synthesis.run(obj, scene))
+    out = os.path.abspath(args.out)
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=out)
+    summary.update(command="synthesize", file=os.path.abspath(args.file), armature=obj.name, wrote=[out],
+                   seconds=round(time.perf_counter() - t0, 3))
+    if unit:
+        summary["bvh_unit"] = unit
+    summary["summary"] = text_summary(summary)
+    return summary
+
+
+def text_summary(s):
+    lines = [f"synthesize: '{s['armature']}' {s['frames']} frames from {len(s['source_actions'])} actions "
+             f"({s['accepted']} joined, {s['rejected']} rejected)"]
+    for r in s["requests"]:
+        if not r["accepted"]:
+            lines.append(f"  {r['action']} ({r['mode']}): {r['reason']}")
+        elif r["mode"] == "start":
+            lines.append(f"  {r['action']}: first")
+        else:
+            lines.append(f"  {r['action']} ({r['mode']}, {r['when']}): from frame {r['start_frame']:g}, planted "
+                         f"foot moved {r['max_planted_slide_mm']:.2f} mm, acceleration {r['spike_ratio_angular']:.2f}"
+                         f"x of the clips' 99th percentile")
+    if "reaction" in s:
+        rx = s["reaction"]
+        lines.append(f"  reaction: {rx['kind']}" + (f" at frame {rx['frame']:g}" if rx["frame"] is not None else ""))
+    lines.append(f"  wrote action '{s['action']}'")
+    for path in s["wrote"]:
+        lines.append(f"  wrote {path}")
+    lines.append(f"  took {s['seconds']:.2f} s")
+    return "\n".join(lines)
