@@ -23,7 +23,7 @@ TYPE_FINGERS = {"LATERAL": ("thumb", "index"), "PINCH": ("thumb", "index"),
                 "TRIPOD": ("thumb", "index", "middle"), "WRAP": FINGERS, "DISK": FINGERS}
 # thresholds relative to the hand's size (wrist to middle fingertip, ~0.19 m on an adult)
 TOO_SMALL = 0.12  # below this every shape is pinched ("if the primitive is too small, pinch")
-SMALL = 0.2  # "small diameter" of a cylinder or frustum: pinch
+SMALL = 0.22  # "small diameter" of a cylinder or frustum: pinch
 SPHERE_SMALL = 0.3  # "small diameter" of a sphere: tripod
 THIN = 0.08  # a box this thin is held laterally
 TOO_LARGE = 0.6  # above this across every grip direction, two hands
@@ -482,6 +482,35 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
     return out
 
 
+def _shape_normal(shape, p, h=1e-5):
+    g = np.array([(shape.distance(p + e) - shape.distance(p - e)) / (2 * h) for e in np.eye(3) * h])
+    n = np.linalg.norm(g)
+    return g / n if n > 1e-12 else np.array([0.0, 0.0, 1.0])
+
+
+def _keep_off_object(skeleton, frames, armature_to_world, side, chain, shape, reach_frames, margin=0.003):
+    """On the way in, a hand sensor that would pass through the object gives the hand a
+    temporary goal pushed out along the surface normal (sec. 4.6.3's alternative, applied to the
+    object); the last frame (the grasp itself) is left alone."""
+    sensors = default_hand_sensors(skeleton, side)
+    radii = np.array([x.radius for x in sensors])
+    hand = skeleton.role_index(sided("hand", side))
+    for t in range(1, reach_frames):
+        for _ in range(6):
+            w = skeleton.world_frames(frames[t], armature_to_world)
+            pts = sensor_centres(sensors, w, skeleton)
+            depth = radii - shape.distance(pts)
+            k = int(np.argmax(depth))
+            if depth[k] <= 0:
+                break
+            push = _shape_normal(shape, pts[k]) * (depth[k] + margin)
+            goal = w[hand].copy()
+            goal[:3, 3] += push
+            base = ik.chain_base(chain, w)
+            res = ik.solve(chain, frames[t], base, goal[:3, 3], goal[:3, :3], iterations=30)
+            frames[t] = res.basis
+
+
 # --- the whole grasp ------------------------------------------------------------------------
 @dataclass
 class HandGrasp:
@@ -627,6 +656,8 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
                     frames[t, j, :3, :3] = (Rotation.from_matrix(basis[j, :3, :3])
                                             * Rotation.from_rotvec(rel.as_rotvec() * x * x * (3 - 2 * x))).as_matrix()
                 frames[reach_frames:, j, :3, :3] = r
+    for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
+        _keep_off_object(skeleton, frames, armature_to_world, s, chain, shape, reach_frames)
     if avoid_body:  # the arms keep out of the trunk and head (sec. 4.6) on every frame of the reach
         frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, frames[:reach_frames + 1], armature_to_world,
                                                               sides=tuple(chosen), with_spine=with_spine)
