@@ -48,6 +48,58 @@ def rodrigues(v):
     return np.eye(3) + a * k + b * (k @ k)
 
 
+def euler_xyz(r):
+    """Intrinsic X-Y-Z angles (..., 3) of rotations (..., 3, 3): R = Rx(a) Ry(b) Rz(c)."""
+    r = np.asarray(r, float)
+    b = np.arcsin(np.clip(r[..., 0, 2], -1.0, 1.0))
+    a = np.arctan2(-r[..., 1, 2], r[..., 2, 2])
+    c = np.arctan2(-r[..., 0, 1], r[..., 0, 0])
+    return np.stack((a, b, c), axis=-1)
+
+
+def matrix_xyz(e):
+    """Rotations (..., 3, 3) of intrinsic X-Y-Z angles (..., 3)."""
+    e = np.asarray(e, float)
+    ca, sa = np.cos(e[..., 0]), np.sin(e[..., 0])
+    cb, sb = np.cos(e[..., 1]), np.sin(e[..., 1])
+    cc, sc = np.cos(e[..., 2]), np.sin(e[..., 2])
+    out = np.empty(e.shape[:-1] + (3, 3))
+    out[..., 0, 0] = cb * cc
+    out[..., 0, 1] = -cb * sc
+    out[..., 0, 2] = sb
+    out[..., 1, 0] = ca * sc + sa * sb * cc
+    out[..., 1, 1] = ca * cc - sa * sb * sc
+    out[..., 1, 2] = -sa * cb
+    out[..., 2, 0] = sa * sc - ca * sb * cc
+    out[..., 2, 1] = sa * cc + ca * sb * sc
+    out[..., 2, 2] = ca * cb
+    return out
+
+
+_REST_LOCAL = {}
+
+
+def rest_local(skeleton):
+    """The skeleton's rest_local, computed once per skeleton (it solves J 4x4 systems)."""
+    key = id(skeleton)
+    hit = _REST_LOCAL.get(key)
+    if hit is None or hit[0] is not skeleton.rest:
+        if len(_REST_LOCAL) > 32:
+            _REST_LOCAL.clear()
+        hit = _REST_LOCAL[key] = (skeleton.rest, skeleton.rest_local)
+    return hit[1]
+
+
+def fk(skeleton, basis, armature_to_world=None):
+    """World frames (J, 4, 4) of one pose, as Skeleton.world_frames, with the rest frames cached."""
+    local = rest_local(skeleton) @ np.asarray(basis, float)
+    world = np.empty_like(local)
+    base = np.eye(4) if armature_to_world is None else np.asarray(armature_to_world, float)
+    for j, p in enumerate(skeleton.parents):
+        world[j] = (base if p < 0 else world[p]) @ local[j]
+    return world
+
+
 def rot_log(r):
     """World axis-angle vector of a rotation matrix."""
     return Rotation.from_matrix(r).as_rotvec()
@@ -93,8 +145,10 @@ class Chain:
                      and (self.allowed is None or a in self.allowed.get(j, ()))]
         lim = np.array([sk.limits[self.joints[k], a] for k, a in self.dofs]).reshape(-1, 2)
         self.lower, self.upper = lim[:, 0], lim[:, 1]
-        self.rest_local = sk.rest_local[self.joints]
+        self.rest_local = rest_local(sk)[self.joints]
         self.n = len(self.dofs)
+        self._k = np.array([k for k, _ in self.dofs], int)
+        self._a = np.array([a for _, a in self.dofs], int)
 
     @classmethod
     def arm(cls, skeleton, side, point=(0, 0, 0), with_spine=False, tip=None):
@@ -105,19 +159,17 @@ class Chain:
 
     # --- angles <-> basis -------------------------------------------------------------
     def angles(self, basis):
-        eul = Rotation.from_matrix(basis[self.joints, :3, :3]).as_euler("XYZ")
-        return np.array([eul[k, a] for k, a in self.dofs])
+        eul = euler_xyz(basis[self.joints, :3, :3])
+        return eul[self._k, self._a]
 
     def euler(self, theta, basis):
-        eul = Rotation.from_matrix(basis[self.joints, :3, :3]).as_euler("XYZ")
-        for i, (k, a) in enumerate(self.dofs):
-            eul[k, a] = theta[i]
+        eul = euler_xyz(basis[self.joints, :3, :3])
+        eul[self._k, self._a] = theta
         return eul
 
     def apply(self, theta, basis):
-        out = np.array(basis, float, copy=True)
-        eul = self.euler(theta, basis)
-        out[self.joints, :3, :3] = Rotation.from_euler("XYZ", eul).as_matrix()
+        out = np.array(basis, float)
+        out[self.joints, :3, :3] = matrix_xyz(self.euler(theta, basis))
         return out
 
     # --- kinematics -------------------------------------------------------------------
