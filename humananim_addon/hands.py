@@ -54,6 +54,24 @@ register, unregister = settings_registration((HumanAnimHands,), bpy.types.Scene,
 
 
 # --- reading Blender -----------------------------------------------------------------------
+def hand_skeleton(obj, scene):
+    """The armature's Skeleton. Grasping needs no masses: a skin the mass model cannot use (open,
+    hands only) falls back to the body tables for this run instead of failing."""
+    from ..solver.errors import RigError
+    try:
+        return skeleton_from_armature(obj, scene)
+    except RigError as error:
+        settings = getattr(obj.data, "humananim", None)
+        if settings is None or "mesh" not in str(error) or settings.mass_source == "ANTHROPOMETRIC":
+            raise
+        keep = settings.mass_source
+        settings.mass_source = "ANTHROPOMETRIC"
+        try:
+            return skeleton_from_armature(obj, scene)
+        finally:
+            settings.mass_source = keep
+
+
 def pose_frames(obj, scene, skeleton, frames):
     """Local bases (F, J, 4, 4) in metres: from the active action, or the current pose."""
     frames = [int(f) for f in frames]
@@ -95,6 +113,43 @@ def object_shape(target, scene):
     return fit_primitive(verts * scene.unit_settings.scale_length, tri.reshape(-1, 3))
 
 
+def skin_of(obj):
+    """The mesh deformed by the armature (an Armature modifier on it), or None."""
+    for o in bpy.data.objects:
+        if o.type == "MESH" and any(m.type == "ARMATURE" and m.object == obj for m in o.modifiers):
+            return o
+    return None
+
+
+def hand_sensors_from_skin(obj, scene, skeleton, world):
+    """Sensors sized from the skin's vertices around each finger bone and the palm (sec. 4.3.1);
+    {} when the armature has no skin (the bones size them)."""
+    skin = skin_of(obj)
+    if skin is None:
+        return {}
+    index = {g.index: skeleton.find(g.name) for g in skin.vertex_groups}
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    ev = skin.evaluated_get(depsgraph)
+    mesh = ev.to_mesh()
+    try:
+        n = len(mesh.vertices)
+        co = np.empty(n * 3)
+        mesh.vertices.foreach_get("co", co)
+    finally:
+        ev.to_mesh_clear()
+    owner = np.full(n, -1)
+    for v in skin.data.vertices:  # the strongest group of each vertex
+        if v.groups:
+            g = max(v.groups, key=lambda e: e.weight)
+            j = index.get(g.group)
+            owner[v.index] = -1 if j is None else j
+    m = np.array(skin.matrix_world)
+    verts = (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]) * scene.unit_settings.scale_length
+    from ..solver.hands.sensors import default_hand_sensors, sensors_from_mesh
+    return {s: sensors_from_mesh(skeleton, default_hand_sensors(skeleton, s), world, verts, owner)
+            for s in ("L", "R") if skeleton.role_index(sided("hand", s)) is not None}
+
+
 def _trajectories(frames, fps, basis, a2w):
     trans = basis[:, :, :3, 3].copy()
     quats = rotations.make_continuous(rotations.from_matrix(basis[:, :, :3, :3]))
@@ -114,7 +169,7 @@ def run_grasp(obj, scene, target, props=None):
     """Job: reach, close, write the new action and the keyed Child Of. Yields progress; returns
     the summary dict."""
     props = props or scene.humananim_hands
-    skeleton = skeleton_from_armature(obj, scene)
+    skeleton = hand_skeleton(obj, scene)
     shape = object_shape(target, scene)
     fps = actions.scene_fps(scene)
     reach = max(1, int(round(props.duration * fps)))
@@ -127,8 +182,13 @@ def run_grasp(obj, scene, target, props=None):
         pattern = pose_frames_of_action(obj, scene, skeleton, props.pattern)
     a2w = armature_to_world(obj, scene)
     gtype = None if props.grasp_type == "AUTO" else props.grasp_type
+    keep = scene.frame_current
+    scene.frame_set(start)  # the skin at the start pose
+    skin_sensors = hand_sensors_from_skin(obj, scene, skeleton, grasp_solver.ik.fk(skeleton, basis0, a2w))
+    scene.frame_set(keep)
     result = grasp_solver.grasp(skeleton, basis0, a2w, shape, side=props.side, gtype=gtype, reach_frames=reach,
-                                close_frames=close, fps=fps, pattern=pattern, with_spine=props.with_spine)
+                                close_frames=close, fps=fps, pattern=pattern, with_spine=props.with_spine,
+                                hand_sensors=skin_sensors)
     yield 0.7
     end = start + result.frame_count - 1
     release = props.release_frame if props.release_frame > end else 0
@@ -151,7 +211,8 @@ def run_grasp(obj, scene, target, props=None):
             "frames": [int(start), int(last)], "grasped_frame": int(end), "release_frame": int(release),
             "max_penetration_mm": round(1000 * m["max_penetration_m"], 3),
             "max_finger_gap_mm": round(1000 * m["max_finger_gap_m"], 3),
-            "reach_error_mm": round(1000 * m["reach_error_m"], 3), "hand_bone": hand_bone}
+            "reach_error_mm": round(1000 * m["reach_error_m"], 3), "hand_bone": hand_bone,
+            "sensors_from": "skin" if skin_sensors else "bones"}
 
 
 def pose_frames_of_action(obj, scene, skeleton, action):
@@ -228,7 +289,7 @@ def run_follow(obj, scene, target, props=None):
     con = target.constraints.get(CONSTRAINT)
     if con is None or con.target != obj:
         raise HumanAnimError(f"'{target.name}' is not held by '{obj.name}': grasp it first")
-    skeleton = skeleton_from_armature(obj, scene)
+    skeleton = hand_skeleton(obj, scene)
     frames = np.arange(props.frame_start, props.frame_end + 1)
     if len(frames) < 2:
         raise MotionError("the frame range is empty")
@@ -258,8 +319,8 @@ def run_hold(obj, scene, props=None):
         raise HumanAnimError("choose another armature to hold")
     if props.other_bone not in other.pose.bones:
         raise HumanAnimError(f"'{other.name}' has no bone '{props.other_bone}'")
-    skeleton = skeleton_from_armature(obj, scene)
-    other_sk = skeleton_from_armature(other, scene)
+    skeleton = hand_skeleton(obj, scene)
+    other_sk = hand_skeleton(other, scene)
     fps = actions.scene_fps(scene)
     reach = max(1, int(round(props.duration * fps)))
     close = max(1, int(round(props.close_duration * fps)))
@@ -283,7 +344,7 @@ def run_hold(obj, scene, props=None):
 def run_self_collisions(obj, scene, props=None):
     """Job: the arms kept out of the trunk and head over the frame range (table 4-1)."""
     props = props or scene.humananim_hands
-    skeleton = skeleton_from_armature(obj, scene)
+    skeleton = hand_skeleton(obj, scene)
     frames = np.arange(props.frame_start, props.frame_end + 1)
     base = pose_frames(obj, scene, skeleton, frames)
     yield 0.2

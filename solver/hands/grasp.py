@@ -488,11 +488,12 @@ def _shape_normal(shape, p, h=1e-5):
     return g / n if n > 1e-12 else np.array([0.0, 0.0, 1.0])
 
 
-def _keep_off_object(skeleton, frames, armature_to_world, side, chain, shape, reach_frames, margin=0.003):
+def _keep_off_object(skeleton, frames, armature_to_world, side, chain, shape, reach_frames, margin=0.003,
+                     sensors=None):
     """On the way in, a hand sensor that would pass through the object gives the hand a
     temporary goal pushed out along the surface normal (sec. 4.6.3's alternative, applied to the
     object); the last frame (the grasp itself) is left alone."""
-    sensors = default_hand_sensors(skeleton, side)
+    sensors = sensors or default_hand_sensors(skeleton, side)
     radii = np.array([x.radius for x in sensors])
     hand = skeleton.role_index(sided("hand", side))
     for t in range(1, reach_frames):
@@ -550,8 +551,10 @@ def choose_side(skeleton, world, shape):
 
 
 def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, reach_frames=24,
-          close_frames=12, fps=24.0, pattern=None, with_spine=False, eye=None, two_hands=None, avoid_body=True):
-    """Reach for and close on `shape` (world). Returns a GraspResult with per-frame bases."""
+          close_frames=12, fps=24.0, pattern=None, with_spine=False, eye=None, two_hands=None, avoid_body=True,
+          hand_sensors=None):
+    """Reach for and close on `shape` (world). Returns a GraspResult with per-frame bases.
+    `hand_sensors` {side: sensors} replaces the bone-sized sensors (e.g. sized from the skin)."""
     basis = np.array(basis, float)
     world = ik.fk(skeleton, basis, armature_to_world)
     side0 = choose_side(skeleton, world, shape) if side in (None, "AUTO") else side
@@ -569,7 +572,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
     for s in sides:
         hand = skeleton.role_index(sided("hand", s))
         geom = hand_geometry(skeleton, s, world)
-        sens = default_hand_sensors(skeleton, s)
+        sens = (hand_sensors or {}).get(s) or default_hand_sensors(skeleton, s)
         # every hand sensor in the hand's frame at the current (open) finger pose
         inv = np.linalg.inv(world[hand])
         cen = sensor_centres(sens, world, skeleton) @ inv[:3, :3].T + inv[:3, 3]
@@ -657,7 +660,8 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
                                             * Rotation.from_rotvec(rel.as_rotvec() * x * x * (3 - 2 * x))).as_matrix()
                 frames[reach_frames:, j, :3, :3] = r
     for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
-        _keep_off_object(skeleton, frames, armature_to_world, s, chain, shape, reach_frames)
+        _keep_off_object(skeleton, frames, armature_to_world, s, chain, shape, reach_frames,
+                         sensors=(hand_sensors or {}).get(s))
     if avoid_body:  # the arms keep out of the trunk and head (sec. 4.6) on every frame of the reach
         frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, frames[:reach_frames + 1], armature_to_world,
                                                               sides=tuple(chosen), with_spine=with_spine)
@@ -671,7 +675,8 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
             skeleton, s, world_f, geom, gtype, centre_local[:3, 3], basis=final)
         if pattern is not None and not isinstance(pattern, dict):
             pat = pattern_from_pose(skeleton, s, pattern)
-        track, touching, sensors = close_fingers(skeleton, s, final, world_f, pat, [shape], close_frames)
+        track, touching, sensors = close_fingers(skeleton, s, final, world_f, pat, [shape], close_frames,
+                                                 sensors=(hand_sensors or {}).get(s))
         for j, rots in track.items():
             frames[reach_frames:, j, :3, :3] = rots
         fingers = tuple(sorted({x.split(".")[0] for x in touching}))

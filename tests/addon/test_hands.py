@@ -165,3 +165,44 @@ def test_grasp_command(metarig, tmp_path):
     assert s["type"] in ("TRIPOD", "WRAP")
     bpy.ops.wm.open_mainfile(filepath=str(out))
     assert bpy.data.objects["Ball"].constraints.get(hands.CONSTRAINT) is not None
+
+
+def add_hand_skin(rig, radius=0.008):
+    """A skin of rings around the right hand's bones, weighted to them, deformed by the rig."""
+    verts, groups = [], []
+    names = [b.name for b in rig.data.bones if b.name.endswith(".R") and
+             (b.name.startswith(("f_", "thumb")) or b.name == "hand.R")]
+    for name in names:
+        b = rig.data.bones[name]
+        m = np.array(rig.matrix_world @ b.matrix_local)
+        for t in np.linspace(0, 1, 6):
+            for a in np.linspace(0, 2 * np.pi, 10, endpoint=False):
+                p = np.array([radius * np.cos(a), t * b.length, radius * np.sin(a), 1.0])
+                verts.append((m @ p)[:3])
+                groups.append(name)
+    mesh = bpy.data.meshes.new("skin")
+    mesh.from_pydata([tuple(v) for v in verts], [], [])
+    skin = bpy.data.objects.new("skin", mesh)
+    bpy.context.scene.collection.objects.link(skin)
+    for k, name in enumerate(groups):
+        g = skin.vertex_groups.get(name) or skin.vertex_groups.new(name=name)
+        g.add([k], 1.0, "REPLACE")
+    mod = skin.modifiers.new("Armature", "ARMATURE")
+    mod.object = rig
+    return skin
+
+
+def test_sensors_sized_from_the_skin(metarig):
+    from humananim.solver.progress import run_to_end
+    scene = bpy.context.scene
+    rig = metarig
+    add_hand_skin(rig)
+    target = add_object("CYLINDER", (-0.25, -0.35, 1.15), 0.05)
+    scene.humananim_hands.side = "R"
+    s = run_to_end(hands.run_grasp(rig, scene, target))
+    assert s["sensors_from"] == "skin"
+    assert s["max_penetration_mm"] <= 1.0 and s["max_finger_gap_mm"] <= 2.0
+    sk = hands.hand_skeleton(rig, scene)
+    world = sk.world_frames(hands.pose_frames(rig, scene, sk, [1])[0], armature_to_world(rig, scene))
+    sized = hands.hand_sensors_from_skin(rig, scene, sk, world)["R"]
+    assert all(abs(x.radius - 0.008) < 1e-4 for x in sized if x.finger != "palm")

@@ -129,3 +129,33 @@ def test_pose_pattern_and_type_override(rig):
     radii = np.array([s.radius for s in r2.hands[0].sensors])
     d = shape.distance(sensor_centres(r2.hands[0].sensors, r2.world, sk)) - radii
     assert d.min() > -0.001 and r2.hands[0].fingers_touching
+
+
+def test_sensors_sized_from_the_skin(rig):
+    """Sec. 4.3.1: each sphere fitted to its joint's shape: skin vertices 7 mm around the index
+    bones give 7 mm sensors there; bones without skin keep the bone-based size."""
+    from humananim.solver.hands.sensors import default_hand_sensors, sensors_from_mesh
+    sk, basis, a2w = rig
+    world = sk.world_frames(basis, a2w)
+    chains = G.finger_chains(sk, "R")
+    verts, owner = [], []
+    for j in chains["index"]:
+        f = world[j]
+        for t in np.linspace(0, 1, 9):
+            for a in np.linspace(0, 2 * np.pi, 12, endpoint=False):
+                p = np.array([0.007 * np.cos(a), t * sk.lengths[j], 0.007 * np.sin(a)])
+                verts.append(f[:3, :3] @ p + f[:3, 3])
+                owner.append(j)
+    base = default_hand_sensors(sk, "R")
+    sized = sensors_from_mesh(sk, base, world, np.array(verts), np.array(owner))
+    for a, b in zip(base, sized):
+        if a.joint in chains["index"]:
+            assert b.radius == pytest.approx(0.007, abs=1e-6)
+        else:
+            assert b == a
+    # a grasp with them keeps the proof's limits
+    shape = Cylinder(frame(SPOTS[0]), 0.03, 0.08)
+    r = G.grasp(sk, basis, a2w, shape, hand_sensors={"R": sized})
+    m = grasp_measures(sk, r, shape, a2w)
+    assert r.hands[0].sensors == sized
+    assert m["max_penetration_m"] <= 0.001 and m["max_finger_gap_m"] <= 0.002
