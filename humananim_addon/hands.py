@@ -54,6 +54,24 @@ register, unregister = settings_registration((HumanAnimHands,), bpy.types.Scene,
 
 
 # --- reading Blender -----------------------------------------------------------------------
+def require_posable_hands(obj, skeleton, sides=("L", "R")):
+    """Keys go on the role bones: a rig whose arm or finger role bones follow other bones through
+    constraints (a generated Rigify rig's DEF- bones) would ignore them, so it is refused."""
+    from ..solver.body_roles import FINGERS
+    from ..solver.hands.ik import chain_joints
+    driven = []
+    for s in sides:
+        if skeleton.role_index(sided("hand", s)) is None:
+            continue
+        names = [skeleton.names[j] for j in chain_joints(skeleton, s)]
+        names += [n for f in FINGERS for n in skeleton.roles.chain(sided(f, s))]
+        driven += [n for n in names if any(not c.mute and c.influence > 0 for c in obj.pose.bones[n].constraints)]
+    if driven:
+        raise HumanAnimError(f"the arm and finger bones {', '.join(driven[:4])}{' ...' if len(driven) > 4 else ''} "
+                             "follow other bones through constraints (a control rig): keys on them would be "
+                             "ignored; grasp with the metarig, or map the roles to the FK controls")
+
+
 def hand_skeleton(obj, scene):
     """The armature's Skeleton. Grasping needs no masses: a skin the mass model cannot use (open,
     hands only) falls back to the body tables for this run instead of failing."""
@@ -170,6 +188,7 @@ def run_grasp(obj, scene, target, props=None):
     the summary dict."""
     props = props or scene.humananim_hands
     skeleton = hand_skeleton(obj, scene)
+    require_posable_hands(obj, skeleton)
     shape = object_shape(target, scene)
     fps = actions.scene_fps(scene)
     reach = max(1, int(round(props.duration * fps)))
