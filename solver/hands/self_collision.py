@@ -132,10 +132,13 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
             if t > 0 and targets is not None:
                 chain = ik.Chain.arm(skeleton, s, with_spine=with_spine)
                 start = chain.apply(chain.angles(out[t - 1]), cur)
-            before = max([d for *_, d, _ in _inside(skeleton, [x for x in sensors if x.limb == "arm"
-                                                                 and x.chain_side == s], w_in, volumes, 0.0)], default=0.0)
+            arm = [x for x in sensors if x.limb == "arm" and x.chain_side == s]
+            near = _inside(skeleton, arm, w_in, volumes, margin)
+            before = max([d for *_, d, _ in near if d > 0], default=0.0)
+            if not near and targets is None:  # clear of the body, on its own target: nothing to do
+                continue
             cur, _, after, n = correct_frame(skeleton, start, armature_to_world, s, tp, tr, volumes,
-                                                  margin, max_steps, with_spine, method, sensors)
+                                             margin, max_steps, with_spine, method, sensors)
             steps += n
             corrected += before > 0
             worst_before, worst_after = max(worst_before, before), max(worst_after, after)
