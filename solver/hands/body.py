@@ -110,8 +110,6 @@ def collisions(skeleton, sensors, world, volumes, margin=0.0):
         for k, v in enumerate(volumes):
             if v.name == f"thigh.{s.chain_side}" and s.limb == "leg":
                 continue
-            if s.limb == "leg" and v.name.startswith("thigh") is False and v.name == "trunk" and s.name.startswith("knee"):
-                continue
             d = s.radius - v.distance(pts[i])
             if d > -margin:
                 out.append((i, k, float(d), v.normal(pts[i])))

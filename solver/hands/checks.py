@@ -4,7 +4,6 @@ arm does not pass through the body while reaching."""
 
 import numpy as np
 
-from ..body_roles import sided
 from . import ik
 from .body import body_sensors, body_volumes, collisions
 from .grasp import TYPE_FINGERS

@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 from ..body_roles import FINGERS, sided
 from ..errors import HumanAnimError
 from . import ik
-from .primitives import Box, Cylinder, Frustum, Sphere, dimensions, kind, shape_frame
+from .primitives import Box, Sphere, dimensions, kind, shape_frame
 from .self_collision import remove_self_collisions
 from .sensors import default_hand_sensors, sensor_centres
 
@@ -111,6 +111,7 @@ def rigid_inv(m):
 CLOSE_ANGLES = {  # radians of flexion at the end of the built-in pattern, per phalanx
     "WRAP": (1.6, 1.7, 1.2), "DISK": (1.2, 1.3, 1.0), "PINCH": (1.1, 1.2, 0.9),
     "TRIPOD": (1.1, 1.2, 0.9), "LATERAL": (1.3, 1.5, 1.1)}
+OPEN_HAND = {"thumb": -0.5, "index": -0.1, "middle": -0.1, "ring": -0.1, "pinky": -0.1}  # pre-shape shares
 REST_CURL = 0.5  # fingers the type does not use curl this share of the way
 
 
@@ -229,34 +230,6 @@ def pinch_pattern(skeleton, side, basis, world, geom, gtype, aperture, point_loc
             preshape[j] = res.basis[j, :3, :3]
     inv = np.linalg.inv(h)
     return pattern, preshape, inv[:3, :3] @ meet + inv[:3, 3], inv[:3, :3] @ u
-
-
-def pinch_point(skeleton, side, basis, world, geom, gtype, samples=21):
-    """Where the used fingertips meet when the pattern closes freely (hand frame): the object of a
-    pinch, tripod or lateral grasp is centred there, so the fingers close onto it."""
-    hand = skeleton.role_index(sided("hand", side))
-    guess = geom.palm + geom.normal * 0.35 * geom.size
-    pat = builtin_pattern(skeleton, side, world, geom, gtype, guess)
-    chains = finger_chains(skeleton, side)
-    used = [f for f in TYPE_FINGERS[gtype] if f in chains]
-    rest_local = ik.rest_local(skeleton)
-    inv = np.linalg.inv(world[hand])
-    best = None
-    for share in np.linspace(0.0, 1.0, samples):
-        tips = []
-        for f in used:
-            chain = chains[f]
-            rots = {j: (Rotation.from_matrix(basis[j, :3, :3]) * Rotation.from_rotvec(
-                (Rotation.from_matrix(basis[j, :3, :3]).inv() * Rotation.from_matrix(pat[j])).as_rotvec() * share)
-            ).as_matrix() for j in chain}
-            fr = _finger_world(skeleton, chain, world, rots, basis, rest_local)
-            last = chain[-1]
-            tips.append(fr[last][:3, :3] @ [0, 0.85 * skeleton.lengths[last], 0] + fr[last][:3, 3])
-        tips = np.array(tips)
-        spread = max(np.linalg.norm(a - b) for a in tips for b in tips)
-        if best is None or spread < best[0]:
-            best = (spread, tips.mean(0))
-    return inv[:3, :3] @ best[1] + inv[:3, 3]
 
 
 # --- closing with sensors ----------------------------------------------------------------
@@ -582,7 +555,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
             # the hand opens during the reach: thumb abducted, fingers straight
             guess = geom.palm + geom.normal * 0.05
             preshape = builtin_pattern(skeleton, s, world, geom, gtype, guess, basis=basis,
-                                       scales={"thumb": -0.5, "index": -0.1, "middle": -0.1, "ring": -0.1, "pinky": -0.1})
+                                       scales=OPEN_HAND)
             pinch_pat = (None, preshape)
         else:
             aperture = 0.5 * float(np.sort(dimensions(shape))[0]) + 0.015

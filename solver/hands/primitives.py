@@ -92,7 +92,8 @@ def principal_frame(vertices, triangles):
     w = area / area.sum()
     c = w @ cent
     d = cent - c
-    cov = (d * w[:, None]).T @ d + sum((tri[:, k] - cent).T @ ((tri[:, k] - cent) * w[:, None]) for k in range(3)) / 12.0
+    spread = sum((tri[:, k] - cent).T @ ((tri[:, k] - cent) * w[:, None]) for k in range(3)) / 12.0
+    cov = (d * w[:, None]).T @ d + spread
     _, vecs = np.linalg.eigh(cov)
     axes = vecs[:, ::-1]
     if np.linalg.det(axes) < 0:
