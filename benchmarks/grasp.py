@@ -11,9 +11,13 @@ maximum), the same split by phase for one object, and milliseconds per IK step (
 least-squares step with the null-space term on the 12-DOF shoulder-to-hand chain) and per
 followed frame of a keyframed hammer.
 
-The issue's aim is a complete grasp under 50 ms. Measured here (2 shared cores, other jobs running):
-see the README's figures; the grasp is well above the aim, about a third of the time in the
-self-collision pass of the reach and a third in the candidate grasp frames' IK solves.
+The issue's aim is a complete grasp under 50 ms: NOT met. Measured here (2 shared cores, load
+average 3-5 from other jobs, so wall times vary about 2x between runs): one-hand grasp median
+330-740 ms wall (460 ms CPU), worst 0.9-1.4 s; two-hand grasp median 0.9-1.2 s; a 6 cm cylinder
+230-450 ms, of which the reach's self-collision pass is ~60-100 ms; IK step 0.5-0.8 ms; following a
+held object 3.7-7.3 ms per frame. The time goes to many small numpy calls in Python loops: the IK
+solves of the candidate grasp frames, the per-frame self-collision and object-clearance passes of
+the reach, and the per-step forward kinematics of the closing fingers.
 """
 
 import argparse
