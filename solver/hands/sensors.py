@@ -38,6 +38,28 @@ def default_hand_sensors(skeleton, side, radius_scale=0.35):
     return out
 
 
+def sensors_from_mesh(skeleton, sensors, world, vertices, owner):
+    """Resize sensors to the skin (Huang 1996 sec. 4.3.1: each sphere fitted to its joint's
+    shape): a sensor's radius is the median distance from its bone's axis of the skin vertices
+    the bone owns (`owner[v]` = joint index of the vertex's strongest weight, world `vertices`),
+    near the sensor's place along the bone. Sensors whose bone owns too few vertices keep their
+    size from the bones."""
+    vertices = np.asarray(vertices, float)
+    owner = np.asarray(owner, int)
+    out = []
+    for s in sensors:
+        f = world[s.joint]
+        length = skeleton.lengths[s.joint]
+        local = (vertices[owner == s.joint] - f[:3, 3]) @ f[:3, :3]
+        near = local[np.abs(local[:, 1] - s.along * length) < 0.3 * length] if len(local) else local
+        if len(near) < 4:
+            out.append(s)
+            continue
+        r = float(np.median(np.linalg.norm(near[:, [0, 2]], axis=1)))
+        out.append(SphereSensor(s.name, s.joint, s.finger, s.along, float(np.clip(r, 0.003, 0.05)), s.offset))
+    return out
+
+
 def sensor_centres(sensors, world, skeleton):
     """World centres (S, 3) of the sensors for world joint frames (J, 4, 4)."""
     out = np.empty((len(sensors), 3))

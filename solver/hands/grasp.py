@@ -1,0 +1,659 @@
+"""Automatic grasping (Huang 1996 sec. 4.3): the grasp type from the object's primitive and the
+hand's size (table of sec. 4.3.2), the grasp frame (thumb on the visible side, palm not facing
+away from the body, least weighted change of hand translation and rotation), the reach (IK gives
+the final arm posture, a PD servo per DOF moves the arm there, eq. 4-1) and the closing (fingers
+follow a hand motion pattern until a sensor touches; a touching sensor stops its ancestors'
+DOFs, the others go on, sec. 4.3.4)."""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..body_roles import FINGERS, sided
+from ..errors import HumanAnimError
+from . import ik
+from .primitives import Box, Sphere, dimensions, kind, shape_frame
+from .self_collision import remove_self_collisions
+from .sensors import default_hand_sensors, sensor_centres
+
+TYPES = ("LATERAL", "PINCH", "TRIPOD", "WRAP", "DISK")
+# fingers each type closes on the object (the proof checks every one touches)
+TYPE_FINGERS = {"LATERAL": ("thumb", "index"), "PINCH": ("thumb", "index"),
+                "TRIPOD": ("thumb", "index", "middle"), "WRAP": FINGERS, "DISK": FINGERS}
+# thresholds relative to the hand's size (wrist to middle fingertip, ~0.19 m on an adult)
+TOO_SMALL = 0.12  # below this every shape is pinched ("if the primitive is too small, pinch")
+SMALL = 0.22  # "small diameter" of a cylinder or frustum: pinch
+SPHERE_SMALL = 0.3  # "small diameter" of a sphere: tripod
+THIN = 0.08  # a box this thin is held laterally
+TOO_LARGE = 0.6  # above this across every grip direction, two hands
+FLAT = 0.45  # a cylinder whose height is under this share of its diameter is a disk
+
+
+@dataclass
+class HandGeometry:
+    """The hand in its own bone frame: palm centre, palm normal, across (index to pinky) and
+    along (fingers) axes; size = wrist to middle fingertip."""
+    palm: np.ndarray
+    normal: np.ndarray
+    across: np.ndarray
+    along: np.ndarray
+    size: float
+    palm_radius: float
+
+
+def hand_geometry(skeleton, side, world):
+    hand = skeleton.role_index(sided("hand", side))
+    h = world[hand]
+    inv = np.linalg.inv(h)
+
+    def local(p):
+        return inv[:3, :3] @ p + inv[:3, 3]
+
+    roots = {f: skeleton.index(skeleton.roles.chain(sided(f, side))[0]) for f in FINGERS
+             if skeleton.roles.chain(sided(f, side))}
+    if not {"thumb", "index", "pinky"} <= set(roots):
+        raise HumanAnimError(f"the {side} hand needs thumb, index and pinky finger roles")
+    tip = {}
+    for f in roots:
+        last = skeleton.index(skeleton.roles.chain(sided(f, side))[-1])
+        tip[f] = local(world[last][:3, :3] @ [0, skeleton.lengths[last], 0] + world[last][:3, 3])
+    root = {f: local(world[j][:3, 3]) for f, j in roots.items()}
+    knuckles = np.mean([root[f] for f in roots if f != "thumb"], axis=0)
+    palm = 0.5 * knuckles + 0.5 * np.array([0, 0.45 * skeleton.lengths[hand], 0])
+    along = knuckles / np.linalg.norm(knuckles)
+    across = root["pinky"] - root["index"]
+    across -= along * (across @ along)
+    across /= np.linalg.norm(across)
+    normal = np.cross(along, across)
+    # the palm is the side the thumb's tip lies on
+    if normal @ (tip["thumb"] - palm) < 0:
+        normal = -normal
+    mid = "middle" if "middle" in tip else "index"
+    size = float(np.linalg.norm(tip[mid]))
+    return HandGeometry(palm, normal, across, along, size, max(0.008, 0.18 * skeleton.lengths[hand]))
+
+
+def grasp_type(shape, hand_size):
+    """The table of sec. 4.3.2 -> (type, hands)."""
+    dims = np.sort(dimensions(shape)) / hand_size
+    k = kind(shape)
+    if k == "SPHERE":
+        d = dims[0]
+        if d > TOO_LARGE:
+            return "WRAP", 2
+        return ("PINCH" if d < TOO_SMALL else "TRIPOD" if d < SPHERE_SMALL else "WRAP"), 1
+    if k == "BOX":
+        if dims[0] > TOO_LARGE:
+            return "WRAP", 2
+        if dims[2] < TOO_SMALL:
+            return "PINCH", 1
+        return ("LATERAL" if dims[0] < THIN else "PINCH"), 1
+    d = 2 * max(shape.radius, getattr(shape, "r0", 0.0), getattr(shape, "r1", 0.0)) / hand_size
+    h = 2 * shape.half / hand_size
+    if min(d, h) > TOO_LARGE:
+        return "WRAP", 2
+    if max(d, h) < TOO_SMALL:
+        return "PINCH", 1
+    if h < FLAT * d and d >= SMALL:
+        return "DISK", 1
+    return ("PINCH" if d < SMALL else "WRAP"), 1
+
+
+def rigid_inv(m):
+    out = np.eye(4)
+    out[:3, :3] = m[:3, :3].T
+    out[:3, 3] = -m[:3, :3].T @ m[:3, 3]
+    return out
+
+
+# --- hand motion patterns --------------------------------------------------------------------
+CLOSE_ANGLES = {  # radians of flexion at the end of the built-in pattern, per phalanx
+    "WRAP": (1.6, 1.7, 1.2), "DISK": (1.2, 1.3, 1.0), "PINCH": (1.1, 1.2, 0.9),
+    "TRIPOD": (1.1, 1.2, 0.9), "LATERAL": (1.3, 1.5, 1.1)}
+OPEN_HAND = {"thumb": -0.5, "index": -0.1, "middle": -0.1, "ring": -0.1, "pinky": -0.1}  # pre-shape shares
+REST_CURL = 0.5  # fingers the type does not use curl this share of the way
+
+
+def builtin_pattern(skeleton, side, world, geom, gtype, centre_local, unused_curl=None, basis=None, scales=None):
+    """Target local rotations (J, 3, 3) of the finger bones: each phalanx turns about the axis
+    that brings its finger's tip toward the grasp centre (in front of the palm), so fingers curl
+    onto the object and the thumb opposes them."""
+    hand = skeleton.role_index(sided("hand", side))
+    h = world[hand]
+    centre = h[:3, :3] @ centre_local + h[:3, 3]
+    across_w = h[:3, :3] @ geom.across
+    out = {}
+    used = TYPE_FINGERS[gtype]
+    for f in FINGERS:
+        names = skeleton.roles.chain(sided(f, side))
+        if not names:
+            continue
+        idx = [skeleton.index(n) for n in names]
+        last = idx[-1]
+        tip = world[last][:3, :3] @ [0, skeleton.lengths[last], 0] + world[last][:3, 3]
+        share = 1.0 if f in used else REST_CURL if unused_curl is None else unused_curl
+        if scales is not None:
+            share = scales.get(f, share)
+        angles = CLOSE_ANGLES[gtype]
+        if f == "thumb":
+            angles = tuple(0.7 * a for a in angles)
+        for k, j in enumerate(idx):
+            p = world[j][:3, 3]
+            # each finger curls in its own plane toward the centre (the centre moved across the
+            # palm to the finger's knuckle); unused fingers curl toward the palm, out of the way
+            aim = centre + across_w * (across_w @ (world[idx[0]][:3, 3] - centre)) if gtype in ("WRAP", "DISK") \
+                and f != "thumb" else centre
+            axis = np.cross(tip - p, aim - p) if f in used else np.cross(tip - p, h[:3, :3] @ geom.normal)
+            if np.linalg.norm(axis) < 1e-9:
+                axis = np.cross(tip - p, h[:3, :3] @ geom.normal)
+            axis = axis / np.linalg.norm(axis)
+            local_axis = world[j][:3, :3].T @ axis
+            angle = share * angles[min(k, len(angles) - 1)]
+            out[j] = (np.eye(3) if basis is None else basis[j, :3, :3]) @ ik.rodrigues(local_axis * angle)
+    return out
+
+
+def pattern_from_pose(skeleton, side, pose_basis):
+    """A pose from the animator's library as a pattern: the finger bones' local rotations."""
+    out = {}
+    for f in FINGERS:
+        for n in skeleton.roles.chain(sided(f, side)):
+            j = skeleton.index(n)
+            out[j] = np.asarray(pose_basis[j])[:3, :3]
+    return out
+
+
+PINCHES = ("PINCH", "TRIPOD", "LATERAL")
+APPROACH = 0.06  # metres the palm backs off along its normal before the final approach
+
+
+def _flexion_axis(skeleton, j, world, normal_w, tip):
+    """The bone's local axis closest to its flexion axis (the one that curls the tip palmward)."""
+    axis = np.cross(tip - world[j][:3, 3], normal_w)
+    local = world[j][:3, :3].T @ axis
+    return int(np.argmax(np.abs(local)))
+
+
+def pinch_pattern(skeleton, side, basis, world, geom, gtype, aperture, point_local=None):
+    """The built-in pattern of a pinch, tripod or lateral grasp: the used fingertips meet at a
+    point in front of the index (found by IK on each finger: flexion at every phalanx, spread at
+    the knuckle, all three axes at the thumb's base; the thumb first, the others meet its tip);
+    the other fingers curl toward the palm. The pre-shape opens the used tips `aperture` apart
+    from the meeting point along the pinch axis, so they close onto the object from both sides.
+    Returns (closed pattern, pre-shape, meeting point and pinch axis in the hand's frame)."""
+    hand = skeleton.role_index(sided("hand", side))
+    h = world[hand]
+    if point_local is None:
+        point_local = geom.palm + geom.along * (0.3 * geom.size) + geom.normal * (0.2 * geom.size)
+    point = h[:3, :3] @ point_local + h[:3, 3]
+    normal_w = h[:3, :3] @ geom.normal
+    across_w = h[:3, :3] @ geom.across
+    pattern = builtin_pattern(skeleton, side, world, geom, gtype, point_local, unused_curl=0.0, basis=basis)
+    preshape = dict(pattern)  # the fingers the type does not use stay open, out of the way
+    chains = finger_chains(skeleton, side)
+    used = [f for f in sorted(TYPE_FINGERS[gtype], key=lambda f: f != "thumb") if f in chains]
+    solvers, tips = {}, {}
+    for f in used:
+        chain = chains[f]
+        last = chain[-1]
+        tip = world[last][:3, :3] @ [0, skeleton.lengths[last], 0] + world[last][:3, 3]
+        allowed = {}
+        for k, j in enumerate(chain):
+            fa = _flexion_axis(skeleton, j, world, normal_w, tip)
+            allowed[j] = (0, 1, 2) if (f == "thumb" and k == 0) else (fa, 2 if fa != 2 else 0) if k == 0 else (fa,)
+        ch = ik.Chain(skeleton, chain, last, np.array([0, 0.8 * skeleton.lengths[last], 0]), allowed=allowed)
+        base = world[skeleton.parents[chain[0]]]
+        target = point + (across_w * 0.016 if f == "middle" else 0.0)
+        res = ik.solve(ch, basis, base, target, iterations=60)
+        for j in chain:
+            pattern[j] = res.basis[j, :3, :3]
+        fr, _ = ch.frames(ch.euler(res.theta, basis), basis, base)
+        tips[f] = ch.effector(fr)[0]
+        solvers[f] = (ch, base, res.basis)
+        if f == "thumb":
+            point = tips[f]
+    meet = np.mean(list(tips.values()), axis=0)
+    # pinch axis: from the thumb's tip toward the opposing fingers' tips, at the open hand
+    others = [f for f in used if f != "thumb"]
+    open_tip = {f: solvers[f][0].effector(solvers[f][0].frames(solvers[f][0].euler(solvers[f][0].angles(basis), basis),
+                                                               basis, solvers[f][1])[0])[0] for f in used}
+    u = np.mean([open_tip[f] for f in others], axis=0) - open_tip.get("thumb", meet) if others and "thumb" in used \
+        else normal_w
+    u = u - normal_w * (u @ normal_w) * 0.5
+    u /= np.linalg.norm(u)
+    for f in used:
+        ch, base, closed = solvers[f]
+        sign = -1.0 if f == "thumb" else 1.0
+        res = ik.solve(ch, closed, base, tips[f] + sign * u * aperture - normal_w * 0.3 * aperture, iterations=60)
+        for j in ch.joints:
+            preshape[j] = res.basis[j, :3, :3]
+    inv = np.linalg.inv(h)
+    return pattern, preshape, inv[:3, :3] @ meet + inv[:3, 3], inv[:3, :3] @ u
+
+
+# --- closing with sensors ----------------------------------------------------------------
+def finger_chains(skeleton, side):
+    return {f: [skeleton.index(n) for n in skeleton.roles.chain(sided(f, side))] for f in FINGERS
+            if skeleton.roles.chain(sided(f, side))}
+
+
+def _finger_world(skeleton, chain, world, basis_rots, basis, rest_local=None):
+    rest_local = ik.rest_local(skeleton) if rest_local is None else rest_local
+    out = {}
+    for j in chain:
+        p = skeleton.parents[j]
+        parent = out[p] if p in out else world[p]
+        b = basis[j].copy()
+        b[:3, :3] = basis_rots[j]
+        out[j] = parent @ rest_local[j] @ b
+    return out
+
+
+def _sensor_depths(skeleton, sensors, frames, shapes):
+    pts = np.array([frames[s.joint][:3, :3] @ (np.array([0, s.along * skeleton.lengths[s.joint], 0]) + s.offset)
+                    + frames[s.joint][:3, 3] for s in sensors])
+    radii = np.array([s.radius for s in sensors])
+    if not shapes:
+        return np.full(len(sensors), -np.inf)
+    return np.max([radii - sh.distance(pts) for sh in shapes], axis=0)
+
+
+def close_fingers(skeleton, side, basis, world, pattern, shapes, frames=12, tolerance=0.0003, sensors=None):
+    """Fingers move from their current rotations toward the pattern's (slerp, one share per DOF
+    group) over `frames` steps; a sensor within `tolerance` of the object stops its bone and that
+    bone's ancestors in the finger, the others go on. Returns the per-frame finger rotations
+    {joint: (frames+1, 3, 3)}, the touching sensors and their depths."""
+    sensors = sensors or default_hand_sensors(skeleton, side)
+    hand = skeleton.role_index(sided("hand", side))
+    chains = finger_chains(skeleton, side)
+    rest_local = ik.rest_local(skeleton)
+    start = {j: basis[j, :3, :3].copy() for c in chains.values() for j in c}
+    track = {j: [start[j]] for j in start}
+    touching = {}
+    for f, chain in chains.items():
+        fs = [s for s in sensors if s.joint in chain]
+        share = {j: 0.0 for j in chain}
+        moving = set(chain)
+
+        rel = {j: Rotation.from_matrix(start[j].T @ pattern.get(j, start[j])).as_rotvec() for j in chain}
+
+        def rots(sh):
+            return {j: start[j] @ ik.rodrigues(rel[j] * sh[j]) for j in chain}
+
+        def depth(sh):
+            fr = _finger_world(skeleton, chain, world, rots(sh), basis, rest_local)
+            return _sensor_depths(skeleton, fs, fr, shapes) if fs else np.full(0, -1.0)
+
+        for _ in range(frames):
+            step = 1.0 / frames
+            trial = {j: min(1.0, share[j] + step) if j in moving else share[j] for j in chain}
+            if depth(trial).max(initial=-1) > 0:
+                lo, hi = 0.0, 1.0
+                for _ in range(18):
+                    m = 0.5 * (lo + hi)
+                    t = {j: share[j] + m * (trial[j] - share[j]) for j in chain}
+                    if depth(t).max(initial=-1) > 0:
+                        hi = m
+                    else:
+                        lo = m
+                trial = {j: share[j] + lo * (trial[j] - share[j]) for j in chain}
+            share = trial
+            d = depth(share)
+            for s, dv in zip(fs, d):
+                if dv > -tolerance:
+                    touching[s.name] = float(dv)
+                    stop = [s.joint] + [a for a in skeleton.ancestors(s.joint) if a in chain]
+                    moving -= set(stop)
+            moving -= {j for j in chain if share[j] >= 1.0}
+            r = rots(share)
+            for j in chain:
+                track[j].append(r[j])
+    return {j: np.array(v) for j, v in track.items()}, touching, sensors
+
+
+# --- reach: PD servo per DOF (eq. 4-1) -------------------------------------------------------
+def pd_servo(q0, qd, frames, fps, qd_vel=None, damping=1.0, settle=10.0):
+    """Each DOF driven by tau = k (qd - q) + kv (qd' - q') on a unit inertia, critically damped,
+    its gain set so the move settles within the duration (omega T = `settle`); the last frame
+    holds the target exactly."""
+    q0, qd = np.asarray(q0, float), np.asarray(qd, float)
+    vd = np.zeros_like(qd) if qd_vel is None else np.asarray(qd_vel, float)
+    duration = frames / fps
+    omega = settle / duration
+    k, kv = omega ** 2, 2 * damping * omega
+    sub = 8
+    dt = 1.0 / (fps * sub)
+    q, v = q0.copy(), np.zeros_like(q0)
+    out = [q.copy()]
+    for _ in range(frames):
+        for _ in range(sub):
+            tau = k * (qd - q) + kv * (vd - v)
+            v = v + tau * dt  # semi-implicit Euler
+            q = q + v * dt
+        out.append(q.copy())
+    out[-1] = qd.copy()
+    return np.array(out)
+
+
+# --- grasp frame ----------------------------------------------------------------------------
+@dataclass
+class Candidate:
+    hand_world: np.ndarray  # goal frame of the hand bone
+    grip: np.ndarray  # object frame in the hand bone's frame
+    cost: float
+
+
+def _hand_frame_for(geom, obj_frame, normal_w, across_w, offset, anchor=None):
+    """Hand bone frame whose palm normal is `normal_w` and across axis `across_w` (world), with
+    the anchor (palm centre, or the fingers' pinch point) at the object centre minus `offset`
+    along the normal."""
+    anchor = geom.palm if anchor is None else anchor
+    local_axes = np.column_stack((geom.normal, geom.across, geom.along))
+    along_w = np.sign(np.linalg.det(local_axes)) * np.cross(normal_w, across_w)
+    world_axes = np.column_stack((normal_w, across_w, along_w))
+    r = world_axes @ local_axes.T
+    anchor_w = obj_frame[:3, 3] - normal_w * offset
+    f = np.eye(4)
+    f[:3, :3] = r
+    f[:3, 3] = anchor_w - r @ anchor
+    return f
+
+
+def _offset_clear(geom, shape, frame_fn, normal_w, across_w, start, sensors_local):
+    """Move the object away from the palm until no hand sensor penetrates it (the thesis moves the
+    origin toward the border until no collision)."""
+    off = start
+    for _ in range(60):
+        h = frame_fn(normal_w, across_w, off)
+        pts = sensors_local[:, :3] @ h[:3, :3].T + h[:3, 3]
+        if np.all(shape.distance(pts) - sensors_local[:, 3] > 0.001):
+            return off, h
+        off += 0.003
+    return off, h
+
+
+def extent_along(shape, u):
+    """Half extent of a shape along a world direction."""
+    f = shape_frame(shape)[:3, :3]
+    lu = f.T @ u
+    if isinstance(shape, Sphere):
+        return shape.radius
+    if isinstance(shape, Box):
+        return float(np.abs(lu) @ np.asarray(shape.half))
+    r = max(shape.radius, getattr(shape, "r0", 0.0), getattr(shape, "r1", 0.0))
+    return float(r * np.sqrt(max(0.0, 1 - lu[2] ** 2)) + shape.half * abs(lu[2]))
+
+
+def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local, anchor=None, pinch_axis=None):
+    """Candidate hand frames over the object's symmetry (contact faces), filtered by the thesis's
+    rules and ranked by the weighted change from the current hand frame."""
+    f = shape_frame(shape)
+    axes = f[:3, :3]
+    out = []
+    dirs = []
+    if isinstance(shape, Sphere):
+        for th in np.linspace(0, np.pi, 6)[1:-1]:
+            for ph in np.linspace(0, 2 * np.pi, 9)[:-1]:
+                n = np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+                for roll in np.linspace(0, 2 * np.pi, 7)[:-1]:
+                    t1 = np.cross(n, [0, 0, 1.0])
+                    t1 /= np.linalg.norm(t1)
+                    t2 = np.cross(n, t1)
+                    dirs.append((n, np.cos(roll) * t1 + np.sin(roll) * t2))
+    elif isinstance(shape, Box):
+        half = np.asarray(shape.half)
+        for a in range(3):
+            for s in (-1, 1):
+                n = axes[:, a] * s
+                for b in range(3):
+                    if b != a:
+                        for t in (-1, 1):
+                            dirs.append((n, axes[:, b] * t))
+        del half
+    else:
+        z = axes[:, 2]
+        if gtype == "DISK":
+            for s in (-1, 1):
+                for roll in np.linspace(0, 2 * np.pi, 13)[:-1]:
+                    dirs.append((z * s, np.cos(roll) * axes[:, 0] + np.sin(roll) * axes[:, 1]))
+        else:
+            for ang in np.linspace(0, 2 * np.pi, 17)[:-1]:
+                n = np.cos(ang) * axes[:, 0] + np.sin(ang) * axes[:, 1]
+                for s in (-1, 1):
+                    dirs.append((n, z * s))
+    cur_palm = current_hand[:3, :3] @ geom.palm + current_hand[:3, 3]
+
+    def frame_fn(n, a, off):
+        return _hand_frame_for(geom, f, n, a, off, anchor)
+
+    for n, a in dirs:
+        a = a - n * (a @ n)
+        if np.linalg.norm(a) < 1e-6:
+            continue
+        a = a / np.linalg.norm(a)
+        off0 = 0.0 if anchor is not None else max(0.0, float(-shape.distance(f[:3, 3]))) + geom.palm_radius
+        off, h = _offset_clear(geom, shape, frame_fn, n, a, off0, sensors_local)
+        palm_w = h[:3, :3] @ geom.palm + h[:3, 3]
+        # the palm must not face away from the body: its normal points from the palm toward the object
+        away = palm_w - body_centre
+        away[2] = 0.0
+        if np.linalg.norm(away) > 1e-6 and n @ (away / np.linalg.norm(away)) > 0.5:
+            continue
+        # the thumb stays on the visible side: the thumb side (-across) faces the eye
+        thumb_dir = -(h[:3, :3] @ geom.across)
+        to_eye = eye - palm_w
+        if thumb_dir @ to_eye < -0.2 * np.linalg.norm(to_eye):
+            continue
+        dt = np.linalg.norm(palm_w - cur_palm)
+        dr = np.linalg.norm(ik.rot_log(h[:3, :3] @ current_hand[:3, :3].T))
+        cost = dt + 0.1 * dr
+        if pinch_axis is not None:  # pinch across the object's thinnest side
+            cost += 2.0 * (extent_along(shape, h[:3, :3] @ pinch_axis) - 0.5 * float(np.sort(dimensions(shape))[0]))
+        out.append(Candidate(h, rigid_inv(h) @ f, float(cost)))
+    out.sort(key=lambda c: c.cost)
+    return out
+
+
+def _shape_normal(shape, p, h=1e-5):
+    g = np.array([(shape.distance(p + e) - shape.distance(p - e)) / (2 * h) for e in np.eye(3) * h])
+    n = np.linalg.norm(g)
+    return g / n if n > 1e-12 else np.array([0.0, 0.0, 1.0])
+
+
+def _keep_off_object(skeleton, frames, armature_to_world, side, chain, shape, reach_frames, margin=0.003,
+                     sensors=None):
+    """On the way in, a hand sensor that would pass through the object gives the hand a
+    temporary goal pushed out along the surface normal (sec. 4.6.3's alternative, applied to the
+    object); the last frame (the grasp itself) is left alone."""
+    sensors = sensors or default_hand_sensors(skeleton, side)
+    radii = np.array([x.radius for x in sensors])
+    hand = skeleton.role_index(sided("hand", side))
+    for t in range(1, reach_frames):
+        for _ in range(6):
+            w = ik.fk(skeleton, frames[t], armature_to_world)
+            pts = sensor_centres(sensors, w, skeleton)
+            depth = radii - shape.distance(pts)
+            k = int(np.argmax(depth))
+            if depth[k] <= 0:
+                break
+            push = _shape_normal(shape, pts[k]) * (depth[k] + margin)
+            goal = w[hand].copy()
+            goal[:3, 3] += push
+            base = ik.chain_base(chain, w)
+            res = ik.solve(chain, frames[t], base, goal[:3, 3], goal[:3, :3], iterations=30)
+            frames[t] = res.basis
+
+
+# --- the whole grasp ------------------------------------------------------------------------
+@dataclass
+class HandGrasp:
+    side: str
+    grip: np.ndarray  # object frame in the hand bone frame
+    touching: dict  # sensor name -> depth at the end
+    fingers_touching: tuple
+    reach_error: float
+    sensors: list = field(default_factory=list)
+
+
+@dataclass
+class GraspResult:
+    gtype: str
+    primitive: str
+    hands: list
+    basis: np.ndarray  # (frames, J, 4, 4): reach then close
+    frame_count: int
+    reach_frames: int
+    close_frames: int
+    world: np.ndarray  # (J, 4, 4) final world frames
+
+
+def body_landmarks(skeleton, world):
+    chest = skeleton.role_index("chest")
+    head = skeleton.role_index("head")
+    pelvis = skeleton.role_index("pelvis")
+    c = world[chest if chest is not None else pelvis][:3, 3]
+    eye = world[head][:3, 3] if head is not None else c + [0, 0, 0.4]
+    return c, eye
+
+
+def choose_side(skeleton, world, shape):
+    c = shape_frame(shape)[:3, 3]
+    d = {s: np.linalg.norm(world[skeleton.role_index(sided("upper_arm", s))][:3, 3] - c) for s in ("L", "R")}
+    return min(d, key=d.get)
+
+
+def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, reach_frames=24,
+          close_frames=12, fps=24.0, pattern=None, with_spine=False, eye=None, two_hands=None, avoid_body=True,
+          hand_sensors=None):
+    """Reach for and close on `shape` (world). Returns a GraspResult with per-frame bases.
+    `hand_sensors` {side: sensors} replaces the bone-sized sensors (e.g. sized from the skin)."""
+    basis = np.array(basis, float)
+    world = ik.fk(skeleton, basis, armature_to_world)
+    side0 = choose_side(skeleton, world, shape) if side in (None, "AUTO") else side
+    geom0 = hand_geometry(skeleton, side0, world)
+    auto_type, hands = grasp_type(shape, geom0.size)
+    gtype = gtype or auto_type
+    if two_hands is not None:
+        hands = 2 if two_hands else 1
+    sides = [side0] if hands == 1 else ["L", "R"]
+    body_c, head = body_landmarks(skeleton, world)
+    eye = head if eye is None else np.asarray(eye, float)
+    goal = basis.copy()
+    results = []
+    chosen = {}
+    for s in sides:
+        hand = skeleton.role_index(sided("hand", s))
+        geom = hand_geometry(skeleton, s, world)
+        sens = (hand_sensors or {}).get(s) or default_hand_sensors(skeleton, s)
+        # every hand sensor in the hand's frame at the current (open) finger pose
+        inv = np.linalg.inv(world[hand])
+        cen = sensor_centres(sens, world, skeleton) @ inv[:3, :3].T + inv[:3, 3]
+        loc = np.column_stack((cen, [x.radius for x in sens]))
+        anchor, pinch_pat, pinch_axis = None, None, None
+        if gtype not in PINCHES or pattern is not None:
+            # the hand opens during the reach: thumb abducted, fingers straight
+            guess = geom.palm + geom.normal * 0.05
+            preshape = builtin_pattern(skeleton, s, world, geom, gtype, guess, basis=basis,
+                                       scales=OPEN_HAND)
+            pinch_pat = (None, preshape)
+        else:
+            aperture = 0.5 * float(np.sort(dimensions(shape))[0]) + 0.015
+            pinch_pat, preshape, anchor, pinch_axis = pinch_pattern(skeleton, s, basis, world, geom, gtype, aperture)
+            pinch_pat = (pinch_pat, preshape)
+        # the clearance test sees the pre-shaped hand
+        pre = basis.copy()
+        for j, r in preshape.items():
+            pre[j, :3, :3] = r
+        wpre = ik.fk(skeleton, pre, armature_to_world)
+        inv = np.linalg.inv(wpre[hand])
+        cen = sensor_centres(sens, wpre, skeleton) @ inv[:3, :3].T + inv[:3, 3]
+        loc = np.column_stack((cen, [x.radius for x in sens]))
+        cands = candidates(shape, gtype, geom, world[hand], eye, body_c, loc, anchor, pinch_axis)
+        if hands == 2:  # each hand on its own side of the object
+            obj_c = shape_frame(shape)[:3, 3]
+            lateral = world[skeleton.role_index(sided("upper_arm", s))][:3, 3] - body_c
+            lateral[2] = 0
+            lateral /= np.linalg.norm(lateral)
+            cands = [c for c in cands if (c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3] - obj_c) @ lateral
+                     > 0.5 * np.linalg.norm(c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3] - obj_c)]
+        chain = ik.Chain.arm(skeleton, s, point=geom.palm, with_spine=with_spine)
+        best = None
+        for c in cands[:40]:
+            target_r = c.hand_world[:3, :3]
+            target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
+            res = ik.solve(chain, goal, ik.chain_base(chain, ik.fk(skeleton, goal, armature_to_world)),
+                           target_p, target_r, iterations=80)
+            if res.position_error < 0.002 and res.rotation_error < np.radians(1.0):
+                best = (c, res)
+                break
+            if best is None or res.position_error < best[1].position_error:
+                best = (c, res)
+        if best is None:
+            raise HumanAnimError("no grasp frame found for the object")
+        c, res = best
+        # the approach: the palm first comes to a point backed off along its normal
+        n_w = c.hand_world[:3, :3] @ geom.normal
+        target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
+        approach = ik.solve(chain, res.basis, ik.chain_base(chain, ik.fk(skeleton, res.basis, armature_to_world)),
+                       target_p - n_w * APPROACH, c.hand_world[:3, :3], iterations=40)
+        goal = res.basis
+        if pinch_pat[0] is not None:  # the fingertips meet inside the object where it ended up
+            hw = ik.fk(skeleton, goal, armature_to_world)
+            aperture = extent_along(shape, hw[hand][:3, :3] @ pinch_axis) + 0.012
+            for _ in range(8):  # open wider until the pre-shaped fingers clear the object
+                closed, preshape, _, _ = pinch_pattern(skeleton, s, basis, world, geom, gtype, aperture, c.grip[:3, 3])
+                pre = goal.copy()
+                for j, r in preshape.items():
+                    pre[j, :3, :3] = r
+                wpre = ik.fk(skeleton, pre, armature_to_world)
+                depth = np.array([x.radius for x in sens]) - shape.distance(sensor_centres(sens, wpre, skeleton))
+                if depth.max() < -0.001:
+                    break
+                aperture += 0.01
+            pinch_pat = (closed, preshape)
+        chosen[s] = (chain, c, res, geom, pinch_pat, approach)
+    # reach: PD servo per DOF toward the IK posture
+    nfr = reach_frames + close_frames + 1
+    frames = np.repeat(basis[None], nfr, axis=0)
+    for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
+        th0 = chain.angles(basis)
+        n1 = max(1, int(round(reach_frames * 0.7)))
+        traj = np.vstack((pd_servo(th0, approach.theta, n1, fps),
+                          pd_servo(approach.theta, res.theta, reach_frames - n1, fps)[1:]))
+        for t in range(reach_frames + 1):
+            frames[t] = chain.apply(traj[t], frames[t])
+        frames[reach_frames:] = chain.apply(res.theta, frames[reach_frames])[None]
+        if pinch_pat is not None:  # fingers pre-shape during the reach
+            for j, r in pinch_pat[1].items():
+                rel = Rotation.from_matrix(basis[j, :3, :3]).inv() * Rotation.from_matrix(r)
+                for t in range(reach_frames + 1):
+                    x = t / reach_frames
+                    frames[t, j, :3, :3] = (Rotation.from_matrix(basis[j, :3, :3])
+                                            * Rotation.from_rotvec(rel.as_rotvec() * x * x * (3 - 2 * x))).as_matrix()
+                frames[reach_frames:, j, :3, :3] = r
+    for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
+        _keep_off_object(skeleton, frames, armature_to_world, s, chain, shape, reach_frames,
+                         sensors=(hand_sensors or {}).get(s))
+    if avoid_body:  # the arms keep out of the trunk and head (sec. 4.6) on every frame of the reach
+        frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, frames[:reach_frames + 1], armature_to_world,
+                                                              sides=tuple(chosen), with_spine=with_spine)
+        frames[reach_frames:] = frames[reach_frames][None]
+    final = frames[reach_frames]
+    world_f = ik.fk(skeleton, final, armature_to_world)
+    for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
+        hand = skeleton.role_index(sided("hand", s))
+        centre_local = np.linalg.inv(world_f[hand]) @ shape_frame(shape)
+        pat = pattern if pattern is not None else pinch_pat[0] if pinch_pat[0] is not None else builtin_pattern(
+            skeleton, s, world_f, geom, gtype, centre_local[:3, 3], basis=final)
+        if pattern is not None and not isinstance(pattern, dict):
+            pat = pattern_from_pose(skeleton, s, pattern)
+        track, touching, sensors = close_fingers(skeleton, s, final, world_f, pat, [shape], close_frames,
+                                                 sensors=(hand_sensors or {}).get(s))
+        for j, rots in track.items():
+            frames[reach_frames:, j, :3, :3] = rots
+        fingers = tuple(sorted({x.split(".")[0] for x in touching}))
+        results.append(HandGrasp(s, np.linalg.inv(world_f[hand]) @ shape_frame(shape), touching, fingers,
+                                 res.position_error, sensors))
+    world_end = ik.fk(skeleton, frames[-1], armature_to_world)
+    return GraspResult(gtype, kind(shape), results, frames, nfr, reach_frames, close_frames, world_end)

@@ -1,0 +1,223 @@
+"""Hands in Blender on the Rigify human metarig: grasp a cylinder, a sphere and a box (fingers
+touch the surface, none inside beyond 1 mm, keys in a new action, Child Of keyed, the source
+untouched), release, follow, hold, self-collisions, and the grasp command."""
+
+import json
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from conftest import fcurve_snapshot  # noqa: E402
+from humananim.humananim_addon import action_api, hands  # noqa: E402
+from humananim.humananim_addon.armature import armature_to_world, skeleton_from_armature  # noqa: E402
+from humananim.solver.hands.sensors import default_hand_sensors, sensor_centres  # noqa: E402
+
+
+def add_object(kind, location, size):
+    if kind == "CYLINDER":
+        bpy.ops.mesh.primitive_cylinder_add(radius=size / 2, depth=size * 2.5, location=location, vertices=48)
+    elif kind == "SPHERE":
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=size / 2, location=location, segments=48, ring_count=24)
+    else:
+        bpy.ops.mesh.primitive_cube_add(size=1.0, location=location)
+        bpy.context.active_object.scale = (size / 2, size * 0.75, size)
+        bpy.ops.object.transform_apply(location=False, rotation=False, scale=True)
+    return bpy.context.active_object
+
+
+def select(rig, target):
+    bpy.ops.object.select_all(action="DESELECT")
+    target.select_set(True)
+    rig.select_set(True)
+    bpy.context.view_layer.objects.active = rig
+
+
+def finger_distances(rig, scene, target, side, frame):
+    """Blender's own evaluated pose at `frame`: each hand sensor's gap to the object's mesh
+    primitive (negative inside)."""
+    scene.frame_set(frame)
+    bpy.context.view_layer.update()
+    sk = skeleton_from_armature(rig, scene)
+    basis = hands.pose_frames(rig, scene, sk, [frame])[0]
+    world = sk.world_frames(basis, armature_to_world(rig, scene))
+    con = target.constraints.get(hands.CONSTRAINT)
+    con.mute = True
+    shape = hands.object_shape(target, scene)
+    con.mute = False
+    sens = default_hand_sensors(sk, side)
+    gap = shape.distance(sensor_centres(sens, world, sk)) - np.array([s.radius for s in sens])
+    return {s.name: float(g) for s, g in zip(sens, gap)}
+
+
+@pytest.mark.parametrize("kind,size", [("CYLINDER", 0.05), ("SPHERE", 0.08), ("BOX", 0.04)])
+def test_grasp_selected_object(metarig, kind, size):
+    scene = bpy.context.scene
+    rig = metarig
+    target = add_object(kind, (-0.25, -0.35, 1.15), size)
+    before_objects = set(bpy.data.actions)
+    select(rig, target)
+    scene.humananim_hands.release_frame = 60
+    assert bpy.ops.humananim.grasp() == {"FINISHED"}
+    new = set(bpy.data.actions) - before_objects
+    action = rig.animation_data.action
+    assert action in new and action.name.startswith(target.name)
+    assert len(action_api.fcurves_of(action, rig)) > 0
+    con = target.constraints[hands.CONSTRAINT]
+    assert con.type == "CHILD_OF" and con.target == rig and con.subtarget in ("hand.L", "hand.R")
+    side = con.subtarget[-1]
+    fc = [f for f in action_api.fcurves_of(target.animation_data.action, target)
+          if f.data_path.endswith("influence")][0]
+    keys = sorted((k.co[0], k.co[1]) for k in fc.keyframe_points)
+    grasped = [f for f, v in keys if v == 1.0][0]
+    assert fc.evaluate(grasped - 1) == 0.0 and fc.evaluate(grasped) == 1.0 and fc.evaluate(59) == 1.0
+    assert fc.evaluate(60) == 0.0
+    # the fingers touch the mesh's primitive at the grasp frame, none inside beyond 1 mm
+    gaps = finger_distances(rig, scene, target, side, int(grasped))
+    assert min(gaps.values()) > -0.001
+    touching = {k.split(".")[0] for k, g in gaps.items() if g < 0.002}
+    assert "thumb" in touching and touching & {"index", "middle"}
+    # held: the object moves with the hand after the grasp (its world place follows the bone)
+    scene.frame_set(int(grasped))
+    m0 = np.array(target.matrix_world)
+    assert np.allclose(m0[:3, 3], (-0.25, -0.35, 1.15), atol=0.002)  # did not jump when taken
+
+
+def test_source_action_untouched_and_new_action(metarig):
+    scene = bpy.context.scene
+    rig = metarig
+    # a source action: a small keyed pose
+    rig.pose.bones["spine.003"].rotation_mode = "QUATERNION"
+    rig.pose.bones["spine.003"].keyframe_insert("rotation_quaternion", frame=1)
+    rig.pose.bones["spine.003"].keyframe_insert("rotation_quaternion", frame=40)
+    src = rig.animation_data.action
+    snap = fcurve_snapshot(src, rig)
+    target = add_object("CYLINDER", (-0.25, -0.35, 1.15), 0.05)
+    select(rig, target)
+    assert bpy.ops.humananim.grasp() == {"FINISHED"}
+    assert rig.animation_data.action != src
+    after = fcurve_snapshot(src, rig)
+    assert after.keys() == snap.keys() and all(np.array_equal(after[k], snap[k]) for k in snap)
+    assert src.use_fake_user
+
+
+def test_release_follow_hold_and_self_collisions(metarig):
+    scene = bpy.context.scene
+    rig = metarig
+    target = add_object("CYLINDER", (-0.25, -0.35, 1.15), 0.04)
+    select(rig, target)
+    props = scene.humananim_hands
+    props.grasp_type = "WRAP"
+    assert bpy.ops.humananim.grasp() == {"FINISHED"}
+    grasp_action = rig.animation_data.action
+    # the object leads: keyed motion of its own
+    target.location = (-0.25, -0.35, 1.15)
+    target.keyframe_insert("location", frame=40)
+    target.location = (-0.2, -0.4, 1.25)
+    target.keyframe_insert("location", frame=60)
+    props.frame_start, props.frame_end = 40, 60
+    assert bpy.ops.humananim.follow_object() == {"FINISHED"}
+    assert rig.animation_data.action != grasp_action
+    # release
+    bpy.context.view_layer.objects.active = target
+    scene.frame_set(70)
+    assert bpy.ops.humananim.release() == {"FINISHED"}
+    # remove self-collisions over a range
+    bpy.context.view_layer.objects.active = rig
+    props.frame_start, props.frame_end = 1, 5
+    assert bpy.ops.humananim.remove_self_collisions() == {"FINISHED"}
+    assert rig.animation_data.action.name.endswith("no_self_collision")
+
+
+def test_hold_another_character(metarig):
+    scene = bpy.context.scene
+    rig = metarig
+    bpy.ops.object.armature_human_metarig_add()
+    other = bpy.context.active_object
+    other.location = (-0.98, -0.37, 0.0)
+    other.rotation_euler = (0, 0, np.pi)
+    bpy.context.view_layer.objects.active = rig
+    props = scene.humananim_hands
+    props.other, props.other_bone, props.side = other, "hand.R", "R"
+    props.frame_end = 50
+    assert bpy.ops.humananim.hold() == {"FINISHED"}
+    assert rig.animation_data.action.name.startswith(rig.name + ".hold")
+
+
+def test_grasp_command(metarig, tmp_path):
+    from humananim.humananim_addon import cli
+    target = add_object("SPHERE", (-0.25, -0.35, 1.15), 0.06)
+    target.name = "Ball"
+    path = tmp_path / "scene.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    out = tmp_path / "out.blend"
+    import contextlib
+    import io
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = cli.main(["grasp", str(path), "--object", "Ball", "--out", str(out), "--json"])
+    assert code == 0
+    s = json.loads(buf.getvalue().strip().splitlines()[-1] if buf.getvalue().strip().startswith("{") is False
+                   else buf.getvalue())
+    assert s["command"] == "grasp" and s["object"] == "Ball" and out.exists()
+    assert s["max_penetration_mm"] <= 1.0 and s["max_finger_gap_mm"] <= 2.0
+    assert s["type"] in ("TRIPOD", "WRAP")
+    bpy.ops.wm.open_mainfile(filepath=str(out))
+    assert bpy.data.objects["Ball"].constraints.get(hands.CONSTRAINT) is not None
+
+
+def add_hand_skin(rig, radius=0.008):
+    """A skin of rings around the right hand's bones, weighted to them, deformed by the rig."""
+    verts, groups = [], []
+    names = [b.name for b in rig.data.bones if b.name.endswith(".R") and
+             (b.name.startswith(("f_", "thumb")) or b.name == "hand.R")]
+    for name in names:
+        b = rig.data.bones[name]
+        m = np.array(rig.matrix_world @ b.matrix_local)
+        for t in np.linspace(0, 1, 6):
+            for a in np.linspace(0, 2 * np.pi, 10, endpoint=False):
+                p = np.array([radius * np.cos(a), t * b.length, radius * np.sin(a), 1.0])
+                verts.append((m @ p)[:3])
+                groups.append(name)
+    mesh = bpy.data.meshes.new("skin")
+    mesh.from_pydata([tuple(v) for v in verts], [], [])
+    skin = bpy.data.objects.new("skin", mesh)
+    bpy.context.scene.collection.objects.link(skin)
+    for k, name in enumerate(groups):
+        g = skin.vertex_groups.get(name) or skin.vertex_groups.new(name=name)
+        g.add([k], 1.0, "REPLACE")
+    mod = skin.modifiers.new("Armature", "ARMATURE")
+    mod.object = rig
+    return skin
+
+
+def test_sensors_sized_from_the_skin(metarig):
+    from humananim.solver.progress import run_to_end
+    scene = bpy.context.scene
+    rig = metarig
+    add_hand_skin(rig)
+    target = add_object("CYLINDER", (-0.25, -0.35, 1.15), 0.05)
+    scene.humananim_hands.side = "R"
+    s = run_to_end(hands.run_grasp(rig, scene, target))
+    assert s["sensors_from"] == "skin"
+    assert s["max_penetration_mm"] <= 1.0 and s["max_finger_gap_mm"] <= 2.0
+    sk = hands.hand_skeleton(rig, scene)
+    world = sk.world_frames(hands.pose_frames(rig, scene, sk, [1])[0], armature_to_world(rig, scene))
+    sized = hands.hand_sensors_from_skin(rig, scene, sk, world)["R"]
+    assert all(abs(x.radius - 0.008) < 1e-4 for x in sized if x.finger != "palm")
+
+
+@pytest.mark.slow
+def test_generated_rigify_rig_is_refused_with_the_reason(generated_rigify_file):
+    """Its DEF- arm and finger bones follow the controls through constraints: keys on them would
+    do nothing, so the grasp is refused with the reason and nothing is written."""
+    path, name = generated_rigify_file
+    bpy.ops.wm.open_mainfile(filepath=path)
+    rig = bpy.data.objects[name]
+    target = add_object("SPHERE", (-0.25, -0.35, 1.15), 0.06)
+    select(rig, target)
+    n_actions = len(bpy.data.actions)
+    with pytest.raises(RuntimeError, match="constraints"):
+        bpy.ops.humananim.grasp()
+    assert len(bpy.data.actions) == n_actions and not target.constraints
