@@ -142,17 +142,11 @@ class CyberGlove(Device):
             self._write(POLL)
             data = self._ser.read(self._parser.size)
         else:
-            # wait for the rest of a record, not byte by byte: one wake-up per record
-            data = self._ser.read(max(self._ser.in_waiting, self._parser.size - len(self._parser.buf), 1))
+            data = self._read_stream()
         now = time.perf_counter()
-        if not data:
-            if now - self._last_data > self.watchdog:
-                raise DeviceError(f"{self.name}: no data for {self.watchdog:g} s")
+        records = self._records(data, now)
+        if records is None:
             return []
-        self._last_data = now
-        records = self._parser.feed(data)
-        self.garbage_bytes, self.lost = self._parser.garbage_bytes, self._parser.corrupt_records
-        self.resyncing = self._parser.resyncing
         if self._parser.errors:
             self.last_error = self._parser.errors[-1]
             if self.last_error == ERROR_CODES[ord("g")]:

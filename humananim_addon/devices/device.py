@@ -116,6 +116,24 @@ class Device:
                 pass
 
     # -- helpers for drivers -----------------------------------------------------------
+    def _read_stream(self):
+        """Bytes of a serial device in stream mode: wait for the rest of a record, not byte by
+        byte (one wake-up per record)."""
+        return self._ser.read(max(self._ser.in_waiting, self._parser.size - len(self._parser.buf), 1))
+
+    def _records(self, data, now):
+        """The records in `data` by the device's parser, its resync counters updated; None on
+        silence, a DeviceError after `watchdog` seconds of it."""
+        if not data:
+            if now - self._last_data > self.watchdog:
+                raise DeviceError(f"{self.name}: no data for {self.watchdog:g} s")
+            return None
+        self._last_data = now
+        records = self._parser.feed(data)
+        self.garbage_bytes, self.lost = self._parser.garbage_bytes, self._parser.corrupt_records
+        self.resyncing = self._parser.resyncing
+        return records
+
     def make_sample(self, channel, kind, data, t=None):
         self.seq += 1
         return Sample(self.name, channel, self.seq, time.perf_counter() if t is None else t, kind, data)

@@ -368,18 +368,11 @@ class FlockOfBirds(Device):
             want = self._parser.size * (len(self.birds) if self.group else 1)
             data = self._ser.read(want)
         else:
-            # wait for the rest of a record, not byte by byte: one wake-up per record
-            data = self._ser.read(max(self._ser.in_waiting, self._parser.size - len(self._parser.buf), 1))
+            data = self._read_stream()
         now = time.perf_counter()
-        if not data:
-            if now - self._last_data > self.watchdog:
-                raise DeviceError(f"{self.name}: no data for {self.watchdog:g} s")
+        records = self._records(data, now)
+        if records is None:
             return []
-        self._last_data = now
-        records = self._parser.feed(data)
-        self.garbage_bytes = self._parser.garbage_bytes
-        self.lost = self._parser.corrupt_records
-        self.resyncing = self._parser.resyncing
         samples = []
         for address, d in records:
             bird = self.birds[0] if address is None else address
