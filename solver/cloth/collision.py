@@ -146,12 +146,6 @@ class MeshBody:
         part = label[t[:, 0]]
         self.parts = [np.flatnonzero(part == p) for p in np.unique(part)]
         self.part_vertices = [np.unique(t[p]) for p in self.parts]
-        # the parts' vertices back to back, for per-part reductions in one call each
-        self._order = np.concatenate(self.part_vertices)
-        sizes = np.array([len(pv) for pv in self.part_vertices])
-        self._starts = np.r_[0, np.cumsum(sizes)[:-1]]
-        self._part_of = np.repeat(np.arange(len(self.parts)), sizes)
-        self._sizes = sizes
         self.v0 = self.v1 = None
         self._pose = None
 
@@ -173,26 +167,11 @@ class MeshBody:
         tri = v[self.triangles]
         fn = _cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         fn /= np.maximum(np.sqrt(_dot(fn, fn)), 1e-18)[:, None]
-        pv = v[self._order]
-        lo = np.minimum.reduceat(pv, self._starts, axis=0)
-        hi = np.maximum.reduceat(pv, self._starts, axis=0)
+        lo = np.array([v[verts].min(axis=0) for verts in self.part_vertices])
+        hi = np.array([v[verts].max(axis=0) for verts in self.part_vertices])
         self._pose = {"s": s, "v": v, "tri": tri, "fn": fn, "lo": lo, "hi": hi,
                       "trees": [None] * len(self.parts)}
-        self._pose.update(self._oriented_boxes(pv))
         return self._pose
-
-    def _oriented_boxes(self, pv):
-        """Per part a box along its principal axes holding all its vertices (so its triangles):
-        limbs lie diagonally, where an axis-aligned box takes in much empty space."""
-        centre = np.add.reduceat(pv, self._starts, axis=0) / self._sizes[:, None]
-        c = pv - centre[self._part_of]
-        outer = (c[:, :, None] * c[:, None, :]).reshape(-1, 9)
-        cov = np.add.reduceat(outer, self._starts, axis=0).reshape(-1, 3, 3)
-        _, axes = np.linalg.eigh(cov)  # (P, 3, 3), columns the axes
-        local = np.einsum("nk,nkj->nj", c, axes[self._part_of])
-        return {"centre": centre, "axes": axes,
-                "box_lo": np.minimum.reduceat(local, self._starts, axis=0),
-                "box_hi": np.maximum.reduceat(local, self._starts, axis=0)}
 
     def trees_at(self, s):
         """(vertices, [(triangles, tree, reach, lo, hi) per part]) at time s."""
@@ -214,13 +193,6 @@ class MeshBody:
         nearest triangles within reach. (rows (M,), global triangle ids (M, K), valid (M, K))."""
         md = max_distance
         near = np.all((points[:, None, :] >= pose["lo"] - md) & (points[:, None, :] <= pose["hi"] + md), axis=2)
-        cols = np.flatnonzero(near.any(axis=0))
-        if len(cols) == 0:
-            return None
-        # then the oriented boxes of the parts left (a point farther than md from a part's box
-        # along one of its axes is farther than md from the part)
-        local = np.einsum("npk,pkj->npj", points[:, None, :] - pose["centre"][cols], pose["axes"][cols])
-        near[:, cols] &= np.all((local >= pose["box_lo"][cols] - md) & (local <= pose["box_hi"][cols] + md), axis=2)
         rows_all, ids_all, valid_all = [], [], []
         for i in np.flatnonzero(near.any(axis=0)):
             tris, tree, reach = self._tree(pose, i)
