@@ -22,18 +22,26 @@ constraints), collision (including pushing the rendered surface out of the body)
 cloth's ms per frame, and the speed-ups. Also the cost of a trivial numpy operation on this
 machine, to tell how loaded it was (an unloaded desktop does ~0.3-0.6 us).
 
-Measured here (2 shared cores, load 2.5-6, numpy a+b ~0.6 us; 4 s of the walk, 120 frames; two
-runs, the second more loaded):
+Measured here (2 shared cores, load 2.5-6, numpy a+b ~0.6 us; 4 s of the walk, 120 frames), before
+the batched mesh queries (two runs, the second more loaded):
   skirt, capsules    66 -> 1,760 faces: simulation 3.6-5.1, collision 4.9-7.3, smoothing
                      1.8-2.5 = 10.4-14.9 ms/frame
   skirt, body mesh   66 -> 1,760 faces: 98-121 ms/frame (collision 90-111)
-  skirt, PN only (capsules): 17-18 ms/frame (run-to-run noise here exceeds the smoothing's cost)
   coat, capsules    300 -> 8,800 faces: 40.7-42.8 ms/frame; body mesh 247-293 ms/frame
   Blender cloth: skirt 1,760 faces 217-264 ms/frame, coat 8,800 faces 642-835 ms/frame
-  speed-up over Blender's cloth: 18-21x (skirt) and 16-20x (coat) with capsules, 1.8-2.7x and
-  2.6-2.9x with the skinned mesh as collider. The issue's 3 ms per frame for the thesis skirt is
-  not reached (10-15 ms with capsules on this machine); the skinned-mesh queries (a cKDTree per
-  mesh part per substep, exact point-triangle distances) are the slow part.
+After (the body mesh's parts near a point are queried in one batch: one closest-point evaluation
+per query instead of one per part, face normals once per substep; results equal to before on an
+overlapping-parts test), with the machine loaded by a parallel test run (numpy a+b 1.04 us;
+capsule figures are unchanged code and show the load: 27 ms/frame here vs 10-15 unloaded):
+  skirt, body mesh   66 -> 1,760 faces: 70 ms/frame (collision 59); a less loaded run of a
+                     close variant: 76 ms/frame (collision 65)
+  skirt, capsules    17-27 ms/frame; PN only 15-17
+  coat, capsules     42-58 ms/frame; body mesh 175 ms/frame (collision 155), deepest 0.00 mm
+  Blender cloth: skirt 1,760 faces 197-232 ms/frame, coat 8,800 faces 637-962 ms/frame
+  speed-up over Blender's cloth with the skinned mesh: 2.8x (skirt), 3.6x (coat); with capsules
+  7-13x (skirt, loaded) and 15-17x (coat). The issue's 3 ms per frame for the thesis skirt and
+  20x over Blender's cloth are not reached; the mesh path's cost is now the per-part cKDTree
+  queries (about 8 parts near the skirt per query, about 11 queries per frame).
 """
 
 import argparse

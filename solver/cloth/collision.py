@@ -91,22 +91,38 @@ class CapsuleBody:
         return np.minimum(phi_k, max_distance), normal, velocity
 
 
+def _cross(u, v):
+    """np.cross for (..., 3) arrays without its axis bookkeeping (a hot path here)."""
+    out = np.empty(np.broadcast_shapes(u.shape, v.shape))
+    out[..., 0] = u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1]
+    out[..., 1] = u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2]
+    out[..., 2] = u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+    return out
+
+
+def _dot(u, v):
+    return np.einsum("...i,...i->...", u, v)
+
+
 def closest_on_triangles(p, a, b, c):
     """Closest points on triangles abc to points p (all (..., 3)): (q, barycentric (..., 3))."""
     ab, ac = b - a, c - a
-    n = np.cross(ab, ac)
-    nn = np.maximum(np.einsum("...i,...i->...", n, n), 1e-30)
+    n = _cross(ab, ac)
+    nn = np.maximum(_dot(n, n), 1e-30)
     ap = p - a
-    beta = np.einsum("...i,...i->...", np.cross(ap, ac), n) / nn
-    gamma = np.einsum("...i,...i->...", np.cross(ab, ap), n) / nn
+    beta = _dot(_cross(ap, ac), n) / nn
+    gamma = _dot(_cross(ab, ap), n) / nn
     alpha = 1.0 - beta - gamma
     inside = (alpha >= 0.0) & (beta >= 0.0) & (gamma >= 0.0)
     q = a + beta[..., None] * ab + gamma[..., None] * ac
     bary = np.stack([alpha, beta, gamma], axis=-1)
+    if inside.all():
+        return q, bary
     best = np.where(inside, 0.0, np.inf)
     for start, end, i, j in ((a, b, 0, 1), (b, c, 1, 2), (c, a, 2, 0)):
         qe, t = closest_on_segments(p, start, end)
-        de = np.einsum("...i,...i->...", p - qe, p - qe)
+        pe = p - qe
+        de = _dot(pe, pe)
         take = ~inside & (de < best)
         best = np.where(take, de, best)
         q = np.where(take[..., None], qe, q)
@@ -131,81 +147,126 @@ class MeshBody:
         self.parts = [np.flatnonzero(part == p) for p in np.unique(part)]
         self.part_vertices = [np.unique(t[p]) for p in self.parts]
         self.v0 = self.v1 = None
-        self._trees_at = None
+        self._pose = None
 
     def set_motion(self, v0, v1=None, dt=1.0):
         """The pose at the frame's start and end."""
         self.v0 = np.asarray(v0, float)
         self.v1 = self.v0 if v1 is None else np.asarray(v1, float)
         self.dt = dt
-        self._trees_at = None
+        self._pose = None
+
+    def pose_at(self, s):
+        """The body at time s: vertices, unit face normals, per-part bounding boxes (P, 3) and a
+        slot per part for its tree (a cKDTree over the triangle centroids, built when a query
+        first comes near the part: the body moves several centimetres within a frame, so trees
+        are per substep)."""
+        if self._pose is not None and self._pose["s"] == s:
+            return self._pose
+        v = self.v0 + s * (self.v1 - self.v0)
+        tri = v[self.triangles]
+        fn = _cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        fn /= np.maximum(np.sqrt(_dot(fn, fn)), 1e-18)[:, None]
+        lo = np.array([v[verts].min(axis=0) for verts in self.part_vertices])
+        hi = np.array([v[verts].max(axis=0) for verts in self.part_vertices])
+        self._pose = {"s": s, "v": v, "tri": tri, "fn": fn, "lo": lo, "hi": hi,
+                      "trees": [None] * len(self.parts)}
+        return self._pose
 
     def trees_at(self, s):
-        """One tree per part over its triangles' centroids at time s (built once per substep:
-        the body moves several centimetres within a frame)."""
-        if self._trees_at is not None and self._trees_at[0] == s:
-            return self._trees_at[1:]
-        v = self.v0 + s * (self.v1 - self.v0)
-        trees = []
-        for tris, verts in zip(self.parts, self.part_vertices):
-            tri = v[self.triangles[tris]]
+        """(vertices, [(triangles, tree, reach, lo, hi) per part]) at time s."""
+        pose = self.pose_at(s)
+        return pose["v"], [self._tree(pose, i) + (pose["lo"][i], pose["hi"][i]) for i in range(len(self.parts))]
+
+    def _tree(self, pose, i):
+        if pose["trees"][i] is None:
+            tris = self.parts[i]
+            tri = pose["tri"][tris]
             centroids = tri.mean(axis=1)
             # a triangle can hold the closest point while its centroid is this far from it
-            reach = float(np.linalg.norm(tri - centroids[:, None], axis=2).max())
-            trees.append((tris, cKDTree(centroids), reach, v[verts].min(axis=0), v[verts].max(axis=0)))
-        self._trees_at = (s, v, trees)
-        return v, trees
+            reach = float(np.sqrt(((tri - centroids[:, None]) ** 2).sum(axis=2).max()))
+            pose["trees"][i] = (tris, cKDTree(centroids), reach)
+        return pose["trees"][i]
 
-    def query(self, points, s=1.0, max_distance=0.05):
-        """As CapsuleBody.query; points with no triangle within max_distance report phi =
-        max_distance (a lower bound of their distance, enough to know they are outside)."""
-        n = len(points)
-        phi = np.full(n, float(max_distance))
-        normal = np.zeros((n, 3))
-        normal[:, 2] = 1.0
-        velocity = np.zeros((n, 3))
-        v, trees = self.trees_at(s)
-        vel = (self.v1 - self.v0) / self.dt
-        for tris, tree, reach, lo, hi in trees:
-            near = np.all((points >= lo - max_distance) & (points <= hi + max_distance), axis=1)
-            if not near.any():
-                continue
-            rows = np.flatnonzero(near)
+    def _candidates(self, pose, points, max_distance):
+        """Broad phase: per part near the points (box test, all parts at once), its tree's K
+        nearest triangles within reach. (rows (M,), global triangle ids (M, K), valid (M, K))."""
+        md = max_distance
+        near = np.all((points[:, None, :] >= pose["lo"] - md) & (points[:, None, :] <= pose["hi"] + md), axis=2)
+        rows_all, ids_all, valid_all = [], [], []
+        for i in np.flatnonzero(near.any(axis=0)):
+            tris, tree, reach = self._tree(pose, i)
+            rows = np.flatnonzero(near[:, i])
             k = min(self.k, len(tris))
-            dist_c, idx = tree.query(points[rows], k=k, distance_upper_bound=max_distance + reach)
+            _, idx = tree.query(points[rows], k=k, distance_upper_bound=md + reach)
             idx = idx.reshape(len(rows), k)
             valid = idx < len(tris)
             found = valid[:, 0]
             if not found.any():
                 continue
-            rows, idx, valid = rows[found], idx[found], valid[found]
-            tri = self.triangles[tris[np.where(valid, idx, 0)]]  # (M, K, 3)
-            a, b, c = v[tri[..., 0]], v[tri[..., 1]], v[tri[..., 2]]
-            p = points[rows][:, None, :]
-            q, bary = closest_on_triangles(p, a, b, c)
-            d = p - q
-            dist = np.where(valid, np.sqrt(np.einsum("ijk,ijk->ij", d, d)), np.inf)
-            fn = np.cross(b - a, c - a)
-            fn /= np.maximum(np.linalg.norm(fn, axis=-1), 1e-18)[..., None]
-            nearest = np.argmin(dist, axis=1)
-            r = np.arange(len(rows))
-            best = dist[r, nearest]
-            # pseudo-normal: the normals of all candidates sharing the nearest point (an edge or a
-            # vertex), so the side is right where faces meet
-            tie = valid & (dist <= best[:, None] + 1e-7 + 1e-4 * best[:, None])
-            pseudo = np.einsum("ij,ijk->ik", tie.astype(float), fn)
-            dk = d[r, nearest]
-            sign = np.where(np.einsum("ij,ij->i", dk, pseudo) < 0.0, -1.0, 1.0)
-            signed = sign * best
-            take = signed < phi[rows]
-            if not take.any():
-                continue
-            rows, r, nearest = rows[take], r[take], nearest[take]
-            phi[rows] = signed[take]
-            pk = pseudo[take] / np.maximum(np.linalg.norm(pseudo[take], axis=1), 1e-18)[:, None]
-            far = best[take][:, None] > 1e-9
-            normal[rows] = np.where(far, sign[take][:, None] * dk[take] / np.maximum(best[take], 1e-12)[:, None], pk)
-            velocity[rows] = np.einsum("ij,ijk->ik", bary[r, nearest], vel[tri[r, nearest]])
+            idx, valid = idx[found], valid[found]
+            ids = tris[np.where(valid, idx, 0)]
+            if k < self.k:  # pad to K columns so parts stack
+                pad = self.k - k
+                ids = np.pad(ids, ((0, 0), (0, pad)), mode="edge")
+                valid = np.pad(valid, ((0, 0), (0, pad)), constant_values=False)
+            rows_all.append(rows[found])
+            ids_all.append(ids)
+            valid_all.append(valid)
+        if not rows_all:
+            return None
+        return np.concatenate(rows_all), np.concatenate(ids_all), np.concatenate(valid_all)
+
+    def query(self, points, s=1.0, max_distance=0.05):
+        """As CapsuleBody.query; points with no triangle within max_distance report phi =
+        max_distance (a lower bound of their distance, enough to know they are outside). The
+        candidates of every part near a point are evaluated in one batch; the point's phi is
+        the smallest signed distance over the parts (the union)."""
+        points = np.asarray(points, float)
+        n = len(points)
+        phi = np.full(n, float(max_distance))
+        normal = np.zeros((n, 3))
+        normal[:, 2] = 1.0
+        velocity = np.zeros((n, 3))
+        if n == 0:
+            return phi, normal, velocity
+        pose = self.pose_at(s)
+        cand = self._candidates(pose, points, max_distance)
+        if cand is None:
+            return phi, normal, velocity
+        rows, ids, valid = cand
+        tri = pose["tri"][ids]  # (M, K, 3, 3)
+        p = points[rows][:, None, :]
+        q, bary = closest_on_triangles(p, tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
+        d = p - q
+        dist = np.where(valid, np.sqrt(_dot(d, d)), np.inf)
+        fn = pose["fn"][ids]
+        nearest = np.argmin(dist, axis=1)
+        r = np.arange(len(rows))
+        best = dist[r, nearest]
+        # pseudo-normal: the normals of all candidates (of this part) sharing the nearest point
+        # (an edge or a vertex), so the side is right where faces meet
+        tie = valid & (dist <= best[:, None] + 1e-7 + 1e-4 * best[:, None])
+        pseudo = np.einsum("ij,ijk->ik", tie.astype(float), fn)
+        dk = d[r, nearest]
+        sign = np.where(_dot(dk, pseudo) < 0.0, -1.0, 1.0)
+        signed = sign * best
+        # the smallest signed distance per point over its parts, if below max_distance
+        order = np.lexsort((signed, rows))
+        first = np.r_[True, rows[order][1:] != rows[order][:-1]]
+        pick = order[first]
+        pick = pick[signed[pick] < max_distance]
+        if len(pick) == 0:
+            return phi, normal, velocity
+        out = rows[pick]
+        b = best[pick]
+        phi[out] = signed[pick]
+        pk = pseudo[pick] / np.maximum(np.sqrt(_dot(pseudo[pick], pseudo[pick])), 1e-18)[:, None]
+        far = b[:, None] > 1e-9
+        normal[out] = np.where(far, sign[pick][:, None] * dk[pick] / np.maximum(b, 1e-12)[:, None], pk)
+        vel = (self.v1 - self.v0) / self.dt
+        corners = self.triangles[ids[pick, nearest[pick]]]  # (m, 3)
+        velocity[out] = np.einsum("ij,ijk->ik", bary[pick, nearest[pick]], vel[corners])
         return phi, normal, velocity
 
 

@@ -81,6 +81,36 @@ def test_mesh_body_inside_outside_matches_the_capsules_it_tessellates():
     assert np.allclose(-phi[deep], exact[deep], atol=0.004)
 
 
+def test_mesh_body_batched_query_is_the_union_of_its_parts_queried_alone():
+    """All parts are queried in one batch: the result is each point's smallest signed distance
+    over the parts, with that part's normal and surface velocity."""
+    a = np.array([[0, 0, 0], [0.05, 0, 0.3], [-0.05, 0.02, 0.1]])
+    b = np.array([[0, 0, 0.5], [0.4, 0, 0.3], [-0.3, 0.02, -0.1]])
+    r = np.array([0.08, 0.06, 0.05])
+    parts = [capsule_mesh(a[k], b[k], r[k], segments=16, spacing=0.03) for k in range(3)]
+    offsets = np.cumsum([0] + [len(v) for v, _ in parts])
+    verts = np.vstack([v for v, _ in parts])
+    tris = np.vstack([t + o for (_, t), o in zip(parts, offsets)])
+    moved = verts + np.array([0.01, -0.02, 0.005])
+    body = MeshBody(tris, len(verts))
+    body.set_motion(verts, moved, 1 / 30)
+    pts = np.random.default_rng(5).uniform([-0.35, -0.15, -0.2], [0.5, 0.15, 0.6], size=(3000, 3))
+    phi, normal, vel = body.query(pts, 0.5)
+    alone = []
+    for k, (v, t) in enumerate(parts):
+        part = MeshBody(t, len(v))
+        part.set_motion(verts[offsets[k]:offsets[k + 1]], moved[offsets[k]:offsets[k + 1]], 1 / 30)
+        alone.append(part.query(pts, 0.5))
+    phis = np.array([q[0] for q in alone])
+    best = np.argmin(phis, axis=0)
+    cols = np.arange(len(pts))
+    assert np.array_equal(phi, phis[best, cols])
+    hit = phi < 0.05
+    assert hit.sum() > 500
+    assert np.allclose(normal[hit], np.array([q[1] for q in alone])[best, cols][hit])
+    assert np.allclose(vel[hit], np.array([q[2] for q in alone])[best, cols][hit])
+
+
 def _run_skirt(bodies_for, frames=60, **param_changes):
     mesh, pinned, capsules = walking_skirt()
     bodies = bodies_for(capsules)
