@@ -718,7 +718,12 @@ class _Loop:
         rhs = spring - bias_forces(m, d, q, v, f_ext=f_ext) - damp * v
         mat = h.copy()
         mat.flat[::m.nv + 1] += dt * damp
-        return v + dt * cho_solve(cho_factor(mat), rhs)
+        out = v + dt * cho_solve(cho_factor(mat), rhs)
+        # the velocity terms are explicit: a light segment spun fast (a toe, H_ii 2e-5 kg m^2)
+        # feeds them quadratically and the fall diverged (numpy 2, a 40 N s push); no joint of a
+        # body turns faster than RAGDOLL_JOINT_SPEED
+        out[6:] = np.clip(out[6:], -RAGDOLL_JOINT_SPEED, RAGDOLL_JOINT_SPEED)
+        return out
 
     # ---- contact impulses: colliders and the fallen body on the ground ----
 
@@ -824,6 +829,7 @@ def _cross(a, b):
 
 
 RETURN_SCALES = (0.5, 0.25, 0.0)
+RAGDOLL_JOINT_SPEED = 40.0  # rad/s (_Loop._ragdoll_velocity; strength.py's fastest joints: 40)
 _BALANCED = 1e-3  # m: a ZMP tolerance above this is an input allowance (_Loop._excess)
 # _Loop._slower_return: m beyond the input's own capture-point excursion (arms swung by passive
 # control move the centre of mass quickly without the body falling; a 150 N s push: 0.6 m)
