@@ -1,6 +1,7 @@
 """The articulated body: joint tree, rest frames, rotational DOF, limits and segment inertia."""
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -66,9 +67,10 @@ class Skeleton:
         pelvis = self.role_index("pelvis")
         return 0 if pelvis is None else pelvis
 
-    @property
+    @cached_property
     def rest_local(self):
-        """Rest frame of each joint relative to its parent's rest frame (armature space for roots)."""
+        """Rest frame of each joint relative to its parent's rest frame (armature space for roots);
+        computed once (limb IK asks for it on every solve; a skeleton's rest frames never change)."""
         local = self.rest.copy()
         has_parent = self.parents >= 0
         parent_rest = self.rest[self.parents[has_parent]]

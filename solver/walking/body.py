@@ -3,9 +3,6 @@ direction, hips, feet (heel, ball and toe tip on the sole), the analytic IK of i
 they reach without hyperextending. Everything comes from the rest pose (armature space, metres);
 roles name the bones (pelvis, thighs, shins, feet, toes, spine, arms)."""
 
-import copy
-from functools import cached_property
-
 import numpy as np
 
 from ..body_roles import SIDES, sided
@@ -62,20 +59,6 @@ def rotation_between(a, b):
     return axis_angle_matrix(safe, np.arctan2(s, c))
 
 
-class _RestCached(Skeleton):
-    """A Skeleton whose rest_local is computed once (the IK asks for it on every solve)."""
-
-    @cached_property
-    def rest_local(self):
-        return Skeleton.rest_local.fget(self)
-
-
-def cached(skeleton):
-    out = copy.copy(skeleton)
-    out.__class__ = _RestCached
-    return out
-
-
 class Foot:
     """One foot: its sole frame at rest (origin on the sole under the heel, columns right, forward,
     up) and the foot and toe bones relative to it."""
@@ -123,7 +106,7 @@ class Foot:
 
 class WalkerBody:
     def __init__(self, skeleton):
-        sk = self.skeleton = cached(skeleton)
+        sk = self.skeleton = skeleton
         missing = [r for r in ("pelvis",) + tuple(sided(r, s) for s in SIDES for r in ("thigh", "shin", "foot"))
                    if sk.role_index(r) is None]
         if missing:
