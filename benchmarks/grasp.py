@@ -73,7 +73,7 @@ def main(argv=None):
     with_body_ms, _ = timed(lambda: G.grasp(sk, basis, a2w, Cylinder(frame(SPOTS[0]), 0.03, 0.08)), 3)
     # one IK step
     ch = ik.Chain.arm(sk, "R")
-    world = ik.fk(sk, basis, a2w)
+    world = sk.world_frames(basis, a2w)
     base = ik.chain_base(ch, world)
     th = ch.angles(basis)
 

@@ -203,7 +203,7 @@ def run_grasp(obj, scene, target, props=None):
     gtype = None if props.grasp_type == "AUTO" else props.grasp_type
     keep = scene.frame_current
     scene.frame_set(start)  # the skin at the start pose
-    skin_sensors = hand_sensors_from_skin(obj, scene, skeleton, grasp_solver.ik.fk(skeleton, basis0, a2w))
+    skin_sensors = hand_sensors_from_skin(obj, scene, skeleton, skeleton.world_frames(basis0, a2w))
     scene.frame_set(keep)
     result = grasp_solver.grasp(skeleton, basis0, a2w, shape, side=props.side, gtype=gtype, reach_frames=reach,
                                 close_frames=close, fps=fps, pattern=pattern, with_spine=props.with_spine,

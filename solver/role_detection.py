@@ -698,7 +698,6 @@ def _structure_leg(rig, roles, used, side, path, forward):
 def _structure_arm(rig, roles, used, side, path, forward):
     if not path:
         return
-    H = rig.height
     names = {p: sided(p, side) for p in LIMB_ROLES["arm"]}
     hand = _first(roles, names["hand"])
     if hand is None:

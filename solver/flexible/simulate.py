@@ -165,7 +165,7 @@ class Simulator:
             collides = body.collides
         self.P = P = len(self.X0)
         D = body.mode_count
-        self.n = n = 6 + D
+        self.n = 6 + D
         self.Bflat = self.B.reshape(D, 3 * P)
         self.Bt = self.B.transpose(1, 2, 0).copy()              # (P, 3, D)
         self.mcol = self.m[:, None]

@@ -4,7 +4,6 @@ arm does not pass through the body while reaching."""
 
 import numpy as np
 
-from . import ik
 from .body import body_sensors, body_volumes, collisions
 from .grasp import TYPE_FINGERS
 from .sensors import sensor_centres
@@ -16,7 +15,7 @@ def grasp_measures(skeleton, result, shape, armature_to_world):
     for h in result.hands:
         radii = np.array([s.radius for s in h.sensors])
         for t in range(result.frame_count):
-            w = ik.fk(skeleton, result.basis[t], armature_to_world)
+            w = skeleton.world_frames(result.basis[t], armature_to_world)
             worst = max(worst, float(np.max(radii - shape.distance(sensor_centres(h.sensors, w, skeleton)))))
         gap = shape.distance(sensor_centres(h.sensors, result.world, skeleton)) - radii
         for f in TYPE_FINGERS[result.gtype]:
@@ -27,13 +26,13 @@ def grasp_measures(skeleton, result, shape, armature_to_world):
     out["finger_gaps_m"] = gaps
     out["max_finger_gap_m"] = max(gaps.values()) if gaps else np.inf
     # the reach does not pass through the body (the arms' sensors against the trunk and head)
-    rest_world = ik.fk(skeleton, result.basis[0], armature_to_world)
+    rest_world = skeleton.world_frames(result.basis[0], armature_to_world)
     vols = [v for v in body_volumes(skeleton, rest_world) if v.name in ("trunk", "head")]
     sens = [s for s in body_sensors(skeleton, rest_world) if s.limb == "arm"
             and any(s.chain_side == h.side for h in result.hands)]
     body = 0.0
     for t in range(result.frame_count):
-        w = ik.fk(skeleton, result.basis[t], armature_to_world)
+        w = skeleton.world_frames(result.basis[t], armature_to_world)
         for _, _, d, _ in collisions(skeleton, sens, w, vols):
             body = max(body, d)
     out["max_body_penetration_m"] = body

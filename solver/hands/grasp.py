@@ -239,7 +239,7 @@ def finger_chains(skeleton, side):
 
 
 def _finger_world(skeleton, chain, world, basis_rots, basis, rest_local=None):
-    rest_local = ik.rest_local(skeleton) if rest_local is None else rest_local
+    rest_local = skeleton.rest_local if rest_local is None else rest_local
     out = {}
     for j in chain:
         p = skeleton.parents[j]
@@ -265,9 +265,8 @@ def close_fingers(skeleton, side, basis, world, pattern, shapes, frames=12, tole
     bone's ancestors in the finger, the others go on. Returns the per-frame finger rotations
     {joint: (frames+1, 3, 3)}, the touching sensors and their depths."""
     sensors = sensors or default_hand_sensors(skeleton, side)
-    hand = skeleton.role_index(sided("hand", side))
     chains = finger_chains(skeleton, side)
-    rest_local = ik.rest_local(skeleton)
+    rest_local = skeleton.rest_local
     start = {j: basis[j, :3, :3].copy() for c in chains.values() for j in c}
     track = {j: [start[j]] for j in start}
     touching = {}
@@ -402,7 +401,6 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
                     t2 = np.cross(n, t1)
                     dirs.append((n, np.cos(roll) * t1 + np.sin(roll) * t2))
     elif isinstance(shape, Box):
-        half = np.asarray(shape.half)
         for a in range(3):
             for s in (-1, 1):
                 n = axes[:, a] * s
@@ -410,7 +408,6 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
                     if b != a:
                         for t in (-1, 1):
                             dirs.append((n, axes[:, b] * t))
-        del half
     else:
         z = axes[:, 2]
         if gtype == "DISK":
@@ -471,7 +468,7 @@ def _keep_off_object(skeleton, frames, armature_to_world, side, chain, shape, re
     hand = skeleton.role_index(sided("hand", side))
     for t in range(1, reach_frames):
         for _ in range(6):
-            w = ik.fk(skeleton, frames[t], armature_to_world)
+            w = skeleton.world_frames(frames[t], armature_to_world)
             pts = sensor_centres(sensors, w, skeleton)
             depth = radii - shape.distance(pts)
             k = int(np.argmax(depth))
@@ -529,7 +526,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
     """Reach for and close on `shape` (world). Returns a GraspResult with per-frame bases.
     `hand_sensors` {side: sensors} replaces the bone-sized sensors (e.g. sized from the skin)."""
     basis = np.array(basis, float)
-    world = ik.fk(skeleton, basis, armature_to_world)
+    world = skeleton.world_frames(basis, armature_to_world)
     side0 = choose_side(skeleton, world, shape) if side in (None, "AUTO") else side
     geom0 = hand_geometry(skeleton, side0, world)
     auto_type, hands = grasp_type(shape, geom0.size)
@@ -565,7 +562,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         pre = basis.copy()
         for j, r in preshape.items():
             pre[j, :3, :3] = r
-        wpre = ik.fk(skeleton, pre, armature_to_world)
+        wpre = skeleton.world_frames(pre, armature_to_world)
         inv = np.linalg.inv(wpre[hand])
         cen = sensor_centres(sens, wpre, skeleton) @ inv[:3, :3].T + inv[:3, 3]
         loc = np.column_stack((cen, [x.radius for x in sens]))
@@ -582,7 +579,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         for c in cands[:40]:
             target_r = c.hand_world[:3, :3]
             target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
-            res = ik.solve(chain, goal, ik.chain_base(chain, ik.fk(skeleton, goal, armature_to_world)),
+            res = ik.solve(chain, goal, ik.chain_base(chain, skeleton.world_frames(goal, armature_to_world)),
                            target_p, target_r, iterations=80)
             if res.position_error < 0.002 and res.rotation_error < np.radians(1.0):
                 best = (c, res)
@@ -595,18 +592,18 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         # the approach: the palm first comes to a point backed off along its normal
         n_w = c.hand_world[:3, :3] @ geom.normal
         target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
-        approach = ik.solve(chain, res.basis, ik.chain_base(chain, ik.fk(skeleton, res.basis, armature_to_world)),
+        approach = ik.solve(chain, res.basis, ik.chain_base(chain, skeleton.world_frames(res.basis, armature_to_world)),
                        target_p - n_w * APPROACH, c.hand_world[:3, :3], iterations=40)
         goal = res.basis
         if pinch_pat[0] is not None:  # the fingertips meet inside the object where it ended up
-            hw = ik.fk(skeleton, goal, armature_to_world)
+            hw = skeleton.world_frames(goal, armature_to_world)
             aperture = extent_along(shape, hw[hand][:3, :3] @ pinch_axis) + 0.012
             for _ in range(8):  # open wider until the pre-shaped fingers clear the object
                 closed, preshape, _, _ = pinch_pattern(skeleton, s, basis, world, geom, gtype, aperture, c.grip[:3, 3])
                 pre = goal.copy()
                 for j, r in preshape.items():
                     pre[j, :3, :3] = r
-                wpre = ik.fk(skeleton, pre, armature_to_world)
+                wpre = skeleton.world_frames(pre, armature_to_world)
                 depth = np.array([x.radius for x in sens]) - shape.distance(sensor_centres(sens, wpre, skeleton))
                 if depth.max() < -0.001:
                     break
@@ -640,7 +637,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
                                                               sides=tuple(chosen), with_spine=with_spine)
         frames[reach_frames:] = frames[reach_frames][None]
     final = frames[reach_frames]
-    world_f = ik.fk(skeleton, final, armature_to_world)
+    world_f = skeleton.world_frames(final, armature_to_world)
     for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
         hand = skeleton.role_index(sided("hand", s))
         centre_local = np.linalg.inv(world_f[hand]) @ shape_frame(shape)
@@ -655,5 +652,5 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         fingers = tuple(sorted({x.split(".")[0] for x in touching}))
         results.append(HandGrasp(s, np.linalg.inv(world_f[hand]) @ shape_frame(shape), touching, fingers,
                                  res.position_error, sensors))
-    world_end = ik.fk(skeleton, frames[-1], armature_to_world)
+    world_end = skeleton.world_frames(frames[-1], armature_to_world)
     return GraspResult(gtype, kind(shape), results, frames, nfr, reach_frames, close_frames, world_end)

@@ -76,30 +76,6 @@ def matrix_xyz(e):
     return out
 
 
-_REST_LOCAL = {}
-
-
-def rest_local(skeleton):
-    """The skeleton's rest_local, computed once per skeleton (it solves J 4x4 systems)."""
-    key = id(skeleton)
-    hit = _REST_LOCAL.get(key)
-    if hit is None or hit[0] is not skeleton.rest:
-        if len(_REST_LOCAL) > 32:
-            _REST_LOCAL.clear()
-        hit = _REST_LOCAL[key] = (skeleton.rest, skeleton.rest_local)
-    return hit[1]
-
-
-def fk(skeleton, basis, armature_to_world=None):
-    """World frames (J, 4, 4) of one pose, as Skeleton.world_frames, with the rest frames cached."""
-    local = rest_local(skeleton) @ np.asarray(basis, float)
-    world = np.empty_like(local)
-    base = np.eye(4) if armature_to_world is None else np.asarray(armature_to_world, float)
-    for j, p in enumerate(skeleton.parents):
-        world[j] = (base if p < 0 else world[p]) @ local[j]
-    return world
-
-
 def rot_log(r):
     """World axis-angle vector of a rotation matrix."""
     return Rotation.from_matrix(r).as_rotvec()
@@ -145,7 +121,7 @@ class Chain:
                      and (self.allowed is None or a in self.allowed.get(j, ()))]
         lim = np.array([sk.limits[self.joints[k], a] for k, a in self.dofs]).reshape(-1, 2)
         self.lower, self.upper = lim[:, 0], lim[:, 1]
-        self.rest_local = rest_local(sk)[self.joints]
+        self.rest_local = sk.rest_local[self.joints]
         self.n = len(self.dofs)
         self._k = np.array([k for k, _ in self.dofs], int)
         self._a = np.array([a for _, a in self.dofs], int)

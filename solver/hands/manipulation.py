@@ -39,7 +39,7 @@ def follow(skeleton, frames, armature_to_world, object_frames, grips, avoid_body
     object_frames = np.asarray(object_frames, float)
     if len(frames) != len(object_frames):
         raise HumanAnimError("the object's frames and the character's frames differ in number")
-    rest_world = ik.fk(skeleton, frames[0], armature_to_world)
+    rest_world = skeleton.world_frames(frames[0], armature_to_world)
     volumes = [v for v in body_volumes(skeleton, rest_world) if v.name in ("trunk", "head")] if avoid_body else []
     sensors = body_sensors(skeleton, rest_world)
     chains = {s: ik.Chain.arm(skeleton, s) for s in grips}
@@ -54,7 +54,7 @@ def follow(skeleton, frames, armature_to_world, object_frames, grips, avoid_body
                 cur = chains[s].apply(chains[s].angles(out[t - 1]), cur)
             cur, _, _, _ = correct_frame(skeleton, cur, armature_to_world, s, goal[:3, 3], goal[:3, :3], volumes,
                                          max_steps=max_steps, sensors=sensors)
-            w = ik.fk(skeleton, cur, armature_to_world)
+            w = skeleton.world_frames(cur, armature_to_world)
             rel = rigid_inv(w[hand]) @ object_frames[t]
             perr = max(perr, float(np.linalg.norm(rel[:3, 3] - grip[:3, 3])))
             rerr = max(rerr, float(np.linalg.norm(ik.rot_log(rel[:3, :3] @ np.asarray(grip)[:3, :3].T))))
@@ -87,7 +87,7 @@ def hold(holder, holder_basis, holder_a2w, other, other_frames, other_a2w, bone,
     frame. Step 2: the other moves (its frames, active), the holder follows by IK keeping the
     hold. Returns (holder frames: the grasp then the follow, grasp result, follow report)."""
     j = other.index(bone) if isinstance(bone, str) else int(bone)
-    other_world = [ik.fk(other, b, other_a2w) for b in other_frames]
+    other_world = [other.world_frames(b, other_a2w) for b in other_frames]
     shape = bone_primitive(other, other_world[0], j)
     g = grasp(holder, holder_basis, holder_a2w, shape, side=side, reach_frames=reach_frames,
               close_frames=close_frames, fps=fps, two_hands=False)

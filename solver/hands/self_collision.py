@@ -48,7 +48,7 @@ def correct_frame(skeleton, basis, armature_to_world, side, target_pos, target_r
     """One frame of table 4-1 for one arm. `method` 'SECONDARY' (default) moves the colliding
     elbow and forearm sensors in the null space; 'GOAL' uses temporary end-effector goals for
     every sensor (sec. 4.6.3). Returns (basis, depth before, depth after, steps)."""
-    world = ik.fk(skeleton, basis, armature_to_world)
+    world = skeleton.world_frames(basis, armature_to_world)
     hand = skeleton.role_index(sided("hand", side))
     chain = ik.Chain.arm(skeleton, side, point=np.zeros(3), with_spine=with_spine)
     sensors = [x for x in (sensors if sensors is not None else body_sensors(skeleton, world))
@@ -99,7 +99,7 @@ def correct_frame(skeleton, basis, armature_to_world, side, target_pos, target_r
         dq = ik.null_space_step(jac, dx, dz)
         theta = np.clip(theta + dq, chain.lower, chain.upper)
     out = chain.apply(theta, basis)
-    after_world = ik.fk(skeleton, out, armature_to_world)
+    after_world = skeleton.world_frames(out, armature_to_world)
     after = max([d for _, _, d, _ in _inside(skeleton, sensors, after_world, volumes, 0.0)], default=0.0)
     return out, before, after, steps
 
@@ -112,11 +112,11 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
     frames = np.array(frames, float)
     out = frames.copy()
     corrected, worst_before, worst_after, goal_err, steps = 0, 0.0, 0.0, 0.0, 0
-    rest_world = ik.fk(skeleton, frames[0], armature_to_world)
+    rest_world = skeleton.world_frames(frames[0], armature_to_world)
     volumes = [v for v in body_volumes(skeleton, rest_world) if v.name in ("trunk", "head")]
     sensors = body_sensors(skeleton, rest_world)  # sized once, on the first frame
     for t in range(len(frames)):
-        w_in = ik.fk(skeleton, frames[t], armature_to_world)
+        w_in = skeleton.world_frames(frames[t], armature_to_world)
         cur = out[t]
         for s in sides:
             hand = skeleton.role_index(sided("hand", s))
@@ -142,7 +142,7 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
             steps += n
             corrected += before > 0
             worst_before, worst_after = max(worst_before, before), max(worst_after, after)
-            hw = ik.fk(skeleton, cur, armature_to_world)[hand][:3, 3]
+            hw = skeleton.world_frames(cur, armature_to_world)[hand][:3, 3]
             radius = max(x.radius for x in sensors if x.joint == hand)
             clear = min(v.distance(tp) for v in volumes) > radius + margin
             if clear:

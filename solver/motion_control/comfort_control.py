@@ -24,7 +24,7 @@ import numpy as np
 
 from ..dynamics import spatial
 from ..dynamics.ground_contact import default_contacts
-from ..dynamics.inertia_matrix import external_forces, inertia_block
+from ..dynamics.inertia_matrix import inertia_block
 from ..dynamics.inverse_dynamics import rnea
 from ..dynamics.kinematics import motion_subspace, point_positions, segment_jacobian, update_frames
 from ..dynamics.strength import joint_angles

@@ -57,7 +57,7 @@ from scipy.ndimage import gaussian_filter1d
 from ..body_roles import SIDES
 from ..progress import run_to_end
 from ..trajectories import Trajectories
-from ..dynamics import kinematics, spatial
+from ..dynamics import kinematics
 from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories, motion_floor,
                                     weld_static_helpers)
 from ..dynamics.ground_contact import default_contacts, point_jacobians

@@ -8,7 +8,6 @@ import numpy as np
 from ..body_roles import SIDES, sided
 from ..errors import RigError
 from ..motion_control.limb_ik import LimbIK
-from ..skeleton import Skeleton
 
 KNEE_MIN = np.radians(2.0)  # the least knee flexion allowed: no hyperextension
 KNEE_STAND = np.radians(5.0)  # knee flexion when standing

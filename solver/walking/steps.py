@@ -148,7 +148,7 @@ def _plan_pass(body, path, progress, style, ground, first_side, fps, offsets):
         if (final or stopping) and steady is not None:
             # the last steps of a stop keep the rhythm of the walk (the body slows to a halt
             # under them) rather than stretching into ever slower cycles
-            rv, (dc, ds, db, dds) = steady, model.durations(steady, ht, style)
+            rv, (dc, ds, db, _) = steady, model.durations(steady, ht, style)
         steady = rv if rv > 0.6 * top or steady is None else steady
         new_offsets.append(np.nan if final else ds / 2)  # a final footprint is not placed by time
         running = bool(model.is_running(rv, ht, style))
