@@ -97,8 +97,8 @@ class Device:
                 self._safe_close()
                 self._stop.wait(self.reconnect_interval)
                 continue
+            self.buffer.push_many(samples)
             for s in samples:
-                self.buffer.push(s)
                 self._times.append(s.time)
                 self._channels.add(s.channel)
             self.status = "disconnected" if self.silent else "resyncing" if self.resyncing else "connected"

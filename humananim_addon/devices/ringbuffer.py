@@ -18,15 +18,21 @@ class RingBuffer:
         self._newest = None
 
     def push(self, item):
+        self.push_many((item,))
+
+    def push_many(self, items):
+        """Push items as one: a consumer draining meanwhile sees all of them or none (the birds of
+        one group-mode record must not be split between 'before recording' and the take)."""
         with self._lock:
-            self._items[self._head] = item
-            self._head = (self._head + 1) % self.capacity
-            if self._count == self.capacity:
-                self.dropped += 1  # overwrote the oldest unread sample
-            else:
-                self._count += 1
-            self.pushed += 1
-            self._newest = item
+            for item in items:
+                self._items[self._head] = item
+                self._head = (self._head + 1) % self.capacity
+                if self._count == self.capacity:
+                    self.dropped += 1  # overwrote the oldest unread sample
+                else:
+                    self._count += 1
+                self.pushed += 1
+                self._newest = item
 
     def drain(self):
         """Every unread sample, oldest first."""

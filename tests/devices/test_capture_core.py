@@ -2,6 +2,9 @@
 replay device and the grasping automaton."""
 
 import os
+import sys
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -30,6 +33,32 @@ def test_ring_buffer_is_bounded_and_counts_what_it_overwrites():
     for i in range(10):
         rb.push(i)
     assert rb.drain() == [6, 7, 8, 9] and rb.dropped == 6 and rb.newest() == 9 and rb.pushed == 13
+
+
+def test_a_record_pushed_at_once_is_never_split_by_a_drain_on_another_thread():
+    rb, done, drained = RingBuffer(100000), threading.Event(), []
+
+    def reader():
+        for record in range(20000):
+            rb.push_many([(record, bird) for bird in range(5)])
+            if record % 500 == 0:
+                time.sleep(0.001)  # let the drainer in (it also preempts at the switch interval)
+        done.set()
+
+    t = threading.Thread(target=reader)
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # the threads take turns often, as a loaded machine makes them
+    try:
+        t.start()
+        while not done.is_set():
+            drained.append(rb.drain())
+        t.join()
+    finally:
+        sys.setswitchinterval(interval)
+    drained.append(rb.drain())
+    assert rb.dropped == 0 and sum(map(len, drained)) == 100000
+    assert sum(1 for d in drained if d) > 10
+    assert all(len(d) % 5 == 0 and all(b == i % 5 for i, (_, b) in enumerate(d)) for d in drained)
 
 
 def _two_devices(rate, speed):
