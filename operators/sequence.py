@@ -10,7 +10,8 @@ compounding."""
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, StringProperty
 
-from ..humananim_addon import sequence
+from ..humananim_addon import action_api, sequence
+from ..humananim_addon.actions import scene_fps
 from ..solver.errors import MotionError
 from .common import JobOperator, run_reporting
 
@@ -100,7 +101,7 @@ class HUMANANIM_OT_equalize(SequenceOperator, bpy.types.Operator):
         if self.mode == "DENOISE":
             layout.prop(self, "cutoff_hz")
         else:
-            labels = sequence.band_labels(sequence.scene_fps(context.scene), self.levels)
+            labels = sequence.band_labels(scene_fps(context.scene), self.levels)
             col = layout.column(align=True)
             for i in range(self.levels):
                 col.prop(self, "gains", index=i, text=labels[i])
@@ -339,7 +340,7 @@ def analysed_group(context, obj, action):
     rotation (or location), else the first curve of the action."""
     scene = context.scene
     fc = getattr(context, "active_editable_fcurve", None)
-    curves = sequence.action_api.fcurves_of(action, obj)
+    curves = action_api.fcurves_of(action, obj)
     if fc is not None and any(c == fc for c in curves):
         sel = sequence.select_channels(obj, scene, action, "PATHS", paths=[fc.data_path])
         for g in sel.groups:

@@ -1,0 +1,92 @@
+"""Key compression to a tolerance (Huang 1996 §5.4)."""
+
+import time
+
+import numpy as np
+
+from ...solver.progress import run_to_end
+from ...solver.sequence import key_reduction, pyramid_compression
+from .channels import Group, action_frames, sample_group, unrolled
+from .measures import _base_summary, _ms, _tail_measure, group_errors, tail_errors
+from .writing import Output, set_keys
+
+
+def component_tolerances(group, degrees, centimetres, value_tolerance):
+    """Per-component tolerances so the whole property stays within the animator's figure: an
+    Euler triple within d degrees when each angle is within d/3; a quaternion within d degrees
+    when each component is within rad(d)/4 (|dq| <= 2 e, angle <= 2 |dq|); an axis-angle with
+    its angle within d/2 and its axis within rad(d)/4; a location within c cm when each
+    component is within c/sqrt(3)."""
+    rad = np.radians(degrees)
+    n = len(group.fcurves)
+    if group.kind == "euler":
+        return np.full(n, rad / 3.0)
+    if group.kind == "quaternion":
+        return np.full(n, rad / 4.0)
+    if group.kind == "axis_angle":
+        return np.array([rad / 2.0, rad / 4.0, rad / 4.0, rad / 4.0])
+    if group.kind == "location":
+        return np.full(n, 0.01 * centimetres / group.scale / (np.sqrt(3.0) if n > 1 else 1.0))
+    return np.full(n, float(value_tolerance))
+
+
+def iter_compress(obj, scene, source, sel, degrees=0.5, centimetres=0.5, value_tolerance=1e-3,
+                  method="HERMITE", replace=False, tail_cm=0.0):
+    """Fewer keys within the tolerances on every frame (Hermite key reduction, or pyramid levels),
+    as steps yielding progress; returns the summary with keys before/after and the largest errors.
+    `tail_cm` > 0 also bounds the largest error at any bone's tail and 10 cm beyond it: the
+    channel tolerances are scaled down until it holds."""
+    t0 = time.perf_counter()
+    frames = action_frames(source)
+    keys_before = sum(len(fc.keyframe_points) for fc in sel.fcurves)
+    samples = unrolled(sel.groups, [sample_group(g, frames) for g in sel.groups])
+    tols = [component_tolerances(g, degrees, centimetres, value_tolerance) for g in sel.groups]
+
+    def reduce(scale):
+        out = []
+        for g, x, tol in zip(sel.groups, samples, tols):
+            if method == "PYRAMID":
+                out.append(pyramid_compression.pyramid_keys(frames, x, tol * scale)[0])
+            else:
+                out.append(key_reduction.reduce_channels(frames, x, tol * scale))
+        return out
+
+    results = reduce(1.0)
+    yield 0.5
+    if tail_cm > 0.0 and obj.type == "ARMATURE":
+        measure = _tail_measure(obj, scene, source, sel.groups, frames)
+        results, _, _ = key_reduction.fit_to_error(lambda scale: results if scale == 1.0 else reduce(scale),
+                                                   measure, tail_cm)
+    yield 0.9
+    out = Output(obj, source, f"{source.name}.compressed", replace)
+    for g, keys in zip(sel.groups, results):
+        for i, k in enumerate(keys):
+            set_keys(out.fcurve(g.data_path, i, g.group_name), k)
+    out.copy_unprocessed(sel.others)
+    action = out.finish()
+    yield 0.95
+    keys_after = sum(len(k) for keys in results for k in keys)
+    new_groups = [Group(g.data_path, g.kind, [out.fcurve(g.data_path, i, g.group_name) for i in g.indices],
+                        g.defaults, g.bone, g.order, g.scale, g.group_name) for g in sel.groups]
+    played = [sample_group(g, frames) for g in new_groups]
+    errors = group_errors(sel.groups, samples, played)
+    summary = _base_summary(obj, source, sel, out)
+    summary.update(command="compress", method=method.lower(), frames=len(frames),
+                   tolerance_deg=degrees, tolerance_cm=centimetres, tolerance_tail_cm=tail_cm, keys_before=keys_before, keys_after=keys_after,
+                   ratio=round(keys_before / max(keys_after, 1), 2),
+                   max_error_deg=round(errors["deg"][0], 4), max_error_deg_at=errors["deg"][1],
+                   max_error_cm=round(errors["cm"][0], 4), max_error_cm_at=errors["cm"][1],
+                   max_error_value=round(errors["value"][0], 6))
+    if not replace:
+        tail = tail_errors(obj, scene, source, action, frames)
+    else:
+        tail = None  # the source was rewritten: compare with the samples instead
+    if tail is not None:
+        summary.update(tail_error_cm=round(tail.tail_cm, 4), tail_error_bone=tail.tail_bone,
+                       tail_10cm_error_cm=round(tail.point_cm, 4), tail_10cm_error_bone=tail.point_bone)
+    summary["ms"] = _ms(t0)
+    return summary
+
+
+def compress(*args, **kw):
+    return run_to_end(iter_compress(*args, **kw))
