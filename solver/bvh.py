@@ -26,6 +26,7 @@ class BVH:
     frame_time: float
     root_positions: np.ndarray  # (F, 3) root head in the world, Z up, scaled
     rotations: np.ndarray  # (F, J, 4) local rotations in Z-up world-aligned joint frames
+    values: np.ndarray = None  # (F, C) the channels as the file has them (file units, degrees, Y up)
 
     @property
     def fps(self):
@@ -131,7 +132,7 @@ def _convert(names, parents, offsets, ends, channels, frame_time, values, scale)
     root = int(np.flatnonzero(np.array(parents) < 0)[0])
     root_pos = root_pos @ c.T * scale + offsets[root]
     return BVH(tuple(names), np.array(parents), offsets, ends, tuple(channels), frame_time,
-               root_pos, rotations.make_continuous(rot))
+               root_pos, rotations.make_continuous(rot), values)
 
 
 def rest_heads(bvh):

@@ -8,9 +8,9 @@ from humananim.solver.sequence import channels, multiresolution_blend as mb
 
 def cmu(name, frames):
     bvh = data.load(name)
-    euler, orders = bvh.euler()
+    euler, orders = data.euler(bvh)
     e = np.degrees(channels.unroll_euler(euler, orders))[frames]
-    return np.concatenate((100 * bvh.root_position()[frames], e.reshape(len(e), -1)), axis=1)
+    return np.concatenate((100 * data.root_position(bvh)[frames], e.reshape(len(e), -1)), axis=1)
 
 
 def test_weights_for_overlap_and_inside_cases():

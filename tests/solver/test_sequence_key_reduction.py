@@ -10,9 +10,9 @@ RNG = np.random.default_rng(11)
 def cmu_blender_like(name="cmu_131_01.bvh", frames=slice(None)):
     """Unrolled Euler channels in radians and the root location in metres, with their kinds."""
     bvh = data.load(name)
-    euler, orders = bvh.euler()
+    euler, orders = data.euler(bvh)
     euler = channels.unroll_euler(euler[frames], orders)
-    x = np.concatenate((bvh.root_position()[frames], euler.reshape(len(euler), -1)), axis=1)
+    x = np.concatenate((data.root_position(bvh)[frames], euler.reshape(len(euler), -1)), axis=1)
     kinds = np.array(["location"] * 3 + ["rotation"] * (x.shape[1] - 3))
     return x, kinds
 

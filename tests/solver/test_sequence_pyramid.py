@@ -11,10 +11,10 @@ RNG = np.random.default_rng(3)
 def cmu_channels(name="cmu_131_01.bvh"):
     """Raw CMU channels (F, C): unrolled Euler angles (degrees) and the root position (metres)."""
     bvh = data.load(name)
-    euler, orders = bvh.euler()
+    euler, orders = data.euler(bvh)
     from humananim.solver.sequence import channels
     euler = np.degrees(channels.unroll_euler(euler, orders))
-    return np.concatenate((bvh.root_position(), euler.reshape(len(euler), -1)), axis=1)
+    return np.concatenate((data.root_position(bvh), euler.reshape(len(euler), -1)), axis=1)
 
 
 def test_kernel_is_normalised_and_equal_contribution():

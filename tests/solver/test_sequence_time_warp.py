@@ -18,7 +18,7 @@ def test_warp_hits_constraints_and_is_monotone():
 
 def test_warped_channels_show_the_original_at_the_constraint_times():
     bvh = data.load("cmu_131_01.bvh")
-    x = bvh.motion[:, 3:40]
+    x = bvh.values[:, 3:40]
     t = np.arange(len(x), dtype=float)
     warp = tw.TimeWarp([(0, 0), (300, 400), (994, 994)])
     y = tw.warp_channels(t, x, warp)
