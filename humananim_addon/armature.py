@@ -72,15 +72,16 @@ def joint_limits(obj, names):
     return dof, limits
 
 
-def skeleton_from_armature(obj, scene, total_mass=None, require=True):
-    """The solver's Skeleton of an armature object, with its roles and mass model."""
+def skeleton_from_armature(obj, scene, total_mass=None, require=True, detection=None):
+    """The solver's Skeleton of an armature object, with its roles and mass model. `detection`:
+    detect(obj) when the caller already has it (role detection is the slow part on big rigs)."""
     if obj is None or obj.type != "ARMATURE":
         raise RigError("select an armature object")
     if len(obj.data.bones) == 0:
         raise RigError(f"'{obj.name}' has no bones")
     scale = unit_scale(obj, scene)
     names, parents, rest, lengths, connected = bone_arrays(obj, scale)
-    detection = _detect(obj, names, parents, rest, lengths)
+    detection = detection or _detect(obj, names, parents, rest, lengths)
     roles = detection.roles.with_overrides(role_overrides(obj.data.humananim))
     unknown = [b for bones in roles.bones.values() for b in bones if b not in obj.data.bones]
     if unknown:

@@ -310,7 +310,7 @@ def rig_summary(obj, scene, total_mass=None):
               "bones": [b.name for b in obj.data.bones], "convention": detection.convention,
               "roles": roles.to_dict(), "missing_roles": roles.missing(), "segments": {}}
     try:
-        skeleton = skeleton_from_armature(obj, scene, total_mass)
+        skeleton = skeleton_from_armature(obj, scene, total_mass, detection=detection)
     except RigError as error:
         result["refused"] = str(error)
     else:
