@@ -4,7 +4,7 @@ import bpy
 
 from ..humananim_addon import capture
 from ..solver.errors import HumanAnimError
-from .common import active_armature
+from .common import RemoveActiveItem, active_armature
 
 
 def _report_error(op, error):
@@ -215,23 +215,16 @@ class HUMANANIM_OT_capture_add_device(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class HUMANANIM_OT_capture_remove_device(bpy.types.Operator):
+class HUMANANIM_OT_capture_remove_device(RemoveActiveItem, bpy.types.Operator):
     """Remove the selected capture device"""
 
     bl_idname = "humananim.capture_remove_device"
     bl_label = "Remove Device"
-    bl_options = {"REGISTER", "UNDO"}
+    settings, items, index = "humananim_capture", "devices", "device_index"
 
     @classmethod
     def poll(cls, context):
-        s = context.scene.humananim_capture
-        return capture.LIVE is None and 0 <= s.device_index < len(s.devices)
-
-    def execute(self, context):
-        s = context.scene.humananim_capture
-        s.devices.remove(s.device_index)
-        s.device_index = min(s.device_index, len(s.devices) - 1)
-        return {"FINISHED"}
+        return capture.LIVE is None and super().poll(context)
 
 
 CLASSES = (HUMANANIM_OT_capture_live, HUMANANIM_OT_capture_disconnect, HUMANANIM_OT_capture_record,

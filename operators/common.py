@@ -40,6 +40,47 @@ def _finish(operator, message):
     return {"FINISHED"}
 
 
+class AddOnActiveBone:
+    """Adds a force on the active bone at the current frame: an arrow Empty the animator then moves
+    and turns. A subclass names it (`what`) and says how (`add = staticmethod(f)`, f(obj, scene,
+    bone, frame))."""
+
+    bl_options = {"REGISTER", "UNDO"}
+    what = "force"
+
+    @classmethod
+    def poll(cls, context):
+        obj = active_armature(context)
+        return obj is not None and obj.data.bones.active is not None
+
+    def execute(self, context):
+        obj, scene = active_armature(context), context.scene
+        bone = obj.data.bones.active.name
+        self.add(obj, scene, bone, scene.frame_current)
+        self.report({"INFO"}, f"{self.what} on '{bone}' at frame {scene.frame_current}: move and turn the arrow")
+        return {"FINISHED"}
+
+
+class RemoveActiveItem:
+    """Removes the active item of a list in the scene's settings: the subclass names the settings
+    (`settings`), the collection (`items`) and its active index (`index`)."""
+
+    bl_options = {"REGISTER", "UNDO"}
+    settings = items = index = ""
+
+    @classmethod
+    def poll(cls, context):
+        props = getattr(context.scene, cls.settings)
+        return 0 <= getattr(props, cls.index) < len(getattr(props, cls.items))
+
+    def execute(self, context):
+        props = getattr(context.scene, self.settings)
+        items, i = getattr(props, self.items), getattr(props, self.index)
+        items.remove(i)
+        setattr(props, self.index, min(i, len(items) - 1))
+        return {"FINISHED"}
+
+
 class JobOperator:
     """An operator whose work is a generator `job(context)`: it yields progress in [0, 1] and
     returns the report message. It writes its result only after its last step, so Esc (which

@@ -3,7 +3,7 @@
 import bpy
 
 from ..humananim_addon import motion_control, overlay
-from .common import JobOperator, active_armature
+from .common import AddOnActiveBone, JobOperator, RemoveActiveItem, active_armature
 
 
 class HUMANANIM_OT_dynamic_control(JobOperator, bpy.types.Operator):
@@ -24,43 +24,21 @@ class HUMANANIM_OT_dynamic_control(JobOperator, bpy.types.Operator):
                 f"{100 * summary['max_balance_error_m']:.1f} cm, {summary['frames_falling']} frames falling")
 
 
-class HUMANANIM_OT_add_impulse(bpy.types.Operator):
+class HUMANANIM_OT_add_impulse(AddOnActiveBone, bpy.types.Operator):
     """Add an impulse on the active bone: an arrow Empty in front of it, pointing into the body"""
 
     bl_idname = "humananim.add_impulse"
     bl_label = "Add Impulse"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        obj = active_armature(context)
-        return obj is not None and obj.data.bones.active is not None
-
-    def execute(self, context):
-        obj, scene = active_armature(context), context.scene
-        bone = obj.data.bones.active.name
-        motion_control.add_impulse(obj, scene, bone, scene.frame_current)
-        self.report({"INFO"}, f"impulse on '{bone}' at frame {scene.frame_current}: move and turn the arrow")
-        return {"FINISHED"}
+    what = "impulse"
+    add = staticmethod(motion_control.add_impulse)
 
 
-class HUMANANIM_OT_remove_impulse(bpy.types.Operator):
+class HUMANANIM_OT_remove_impulse(RemoveActiveItem, bpy.types.Operator):
     """Remove the selected impulse (its arrow Empty stays in the scene)"""
 
     bl_idname = "humananim.remove_impulse"
     bl_label = "Remove Impulse"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        props = context.scene.humananim_control
-        return 0 <= props.impulse_index < len(props.impulses)
-
-    def execute(self, context):
-        props = context.scene.humananim_control
-        props.impulses.remove(props.impulse_index)
-        props.impulse_index = min(props.impulse_index, len(props.impulses) - 1)
-        return {"FINISHED"}
+    settings, items, index = "humananim_control", "impulses", "impulse_index"
 
 
 class HUMANANIM_OT_toggle_overlay(bpy.types.Operator):

@@ -3,7 +3,7 @@
 import bpy
 
 from ..humananim_addon import simulation
-from .common import JobOperator, active_armature
+from .common import AddOnActiveBone, JobOperator, RemoveActiveItem, active_armature
 
 
 class HUMANANIM_OT_simulate(JobOperator, bpy.types.Operator):
@@ -24,43 +24,21 @@ class HUMANANIM_OT_simulate(JobOperator, bpy.types.Operator):
                 f"{summary['peak_strength_usage']:.2f}")
 
 
-class HUMANANIM_OT_add_push(bpy.types.Operator):
+class HUMANANIM_OT_add_push(AddOnActiveBone, bpy.types.Operator):
     """Add a push on the active bone: an arrow Empty in front of it, pointing into the body"""
 
     bl_idname = "humananim.add_push"
     bl_label = "Add Push"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        obj = active_armature(context)
-        return obj is not None and obj.data.bones.active is not None
-
-    def execute(self, context):
-        obj, scene = active_armature(context), context.scene
-        bone = obj.data.bones.active.name
-        simulation.add_push(obj, scene, bone, scene.frame_current)
-        self.report({"INFO"}, f"push on '{bone}' at frame {scene.frame_current}: move and turn the arrow")
-        return {"FINISHED"}
+    what = "push"
+    add = staticmethod(simulation.add_push)
 
 
-class HUMANANIM_OT_remove_push(bpy.types.Operator):
+class HUMANANIM_OT_remove_push(RemoveActiveItem, bpy.types.Operator):
     """Remove the selected push (its arrow Empty stays in the scene)"""
 
     bl_idname = "humananim.remove_push"
     bl_label = "Remove Push"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        props = context.scene.humananim_simulation
-        return 0 <= props.push_index < len(props.pushes)
-
-    def execute(self, context):
-        props = context.scene.humananim_simulation
-        props.pushes.remove(props.push_index)
-        props.push_index = min(props.push_index, len(props.pushes) - 1)
-        return {"FINISHED"}
+    settings, items, index = "humananim_simulation", "pushes", "push_index"
 
 
 CLASSES = (HUMANANIM_OT_simulate, HUMANANIM_OT_add_push, HUMANANIM_OT_remove_push)
