@@ -2,9 +2,9 @@
 
 import bpy
 
-from . import capture, cloth, flexible, hands, motion_control, rig, sequence, simulate, synthesis, walking
+from . import capture, cloth, common, flexible, hands, motion_control, rig, sequence, simulate, synthesis, walking
 
-CLASSES = (rig.CLASSES + simulate.CLASSES + motion_control.CLASSES + sequence.CLASSES
+CLASSES = (common.CLASSES + rig.CLASSES + simulate.CLASSES + motion_control.CLASSES + sequence.CLASSES
            + cloth.CLASSES + flexible.CLASSES + walking.CLASSES + capture.CLASSES
            + hands.CLASSES + synthesis.CLASSES)
 

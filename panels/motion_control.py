@@ -3,14 +3,8 @@
 import bpy
 
 from ..humananim_addon import overlay
+from .common import draw_force_list
 from .rig import HumanAnimPanel
-
-
-class HUMANANIM_UL_impulses(bpy.types.UIList):
-    def draw_item(self, _context, layout, _data, item, _icon, _active, _prop):
-        row = layout.row(align=True)
-        row.label(text=f"{item.bone or '?'} @ {item.frame}", icon="FORCE_FORCE")
-        row.prop(item, "magnitude", text="")
 
 
 class VIEW3D_PT_humananim_control(HumanAnimPanel, bpy.types.Panel):
@@ -36,21 +30,8 @@ class VIEW3D_PT_humananim_control(HumanAnimPanel, bpy.types.Panel):
         if props.ground == "HEIGHT":
             col.prop(props, "ground_height")
         col.prop(context.scene, "gravity")
-        layout.label(text="Impulses and Forces")
-        row = layout.row()
-        row.template_list("HUMANANIM_UL_impulses", "", props, "impulses", props, "impulse_index", rows=2)
-        buttons = row.column(align=True)
-        buttons.operator("humananim.add_impulse", icon="ADD", text="")
-        buttons.operator("humananim.remove_impulse", icon="REMOVE", text="")
-        if 0 <= props.impulse_index < len(props.impulses):
-            item = props.impulses[props.impulse_index]
-            sub = layout.column()
-            sub.use_property_split = True
-            sub.prop(item, "empty")
-            sub.prop_search(item, "bone", context.active_object.data, "bones")
-            sub.prop(item, "frame")
-            sub.prop(item, "duration")
-            sub.prop(item, "magnitude", text="Impulse (N s)" if item.duration == 0.0 else "Force (N)")
+        draw_force_list(layout, context, props, "impulses", "impulse_index", "humananim.add_impulse",
+                        "humananim.remove_impulse", "Impulses and Forces")
         col = layout.column()
         col.use_property_split = True
         col.prop(props, "collider")
@@ -66,4 +47,4 @@ class VIEW3D_PT_humananim_control(HumanAnimPanel, bpy.types.Panel):
                         text="Hide Overlay" if overlay.is_enabled() else "Show Overlay")
 
 
-CLASSES = (HUMANANIM_UL_impulses, VIEW3D_PT_humananim_control)
+CLASSES = (VIEW3D_PT_humananim_control,)

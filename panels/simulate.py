@@ -2,14 +2,8 @@
 
 import bpy
 
+from .common import draw_force_list
 from .rig import HumanAnimPanel
-
-
-class HUMANANIM_UL_pushes(bpy.types.UIList):
-    def draw_item(self, _context, layout, _data, item, _icon, _active, _prop):
-        row = layout.row(align=True)
-        row.label(text=f"{item.bone or '?'} @ {item.frame}", icon="FORCE_FORCE")
-        row.prop(item, "magnitude", text="")
 
 
 class VIEW3D_PT_humananim_simulation(HumanAnimPanel, bpy.types.Panel):
@@ -34,23 +28,10 @@ class VIEW3D_PT_humananim_simulation(HumanAnimPanel, bpy.types.Panel):
         col.prop(props, "load_left")
         col.prop(props, "load_right")
         col.prop(context.scene, "gravity")
-        layout.label(text="Pushes")
-        row = layout.row()
-        row.template_list("HUMANANIM_UL_pushes", "", props, "pushes", props, "push_index", rows=2)
-        buttons = row.column(align=True)
-        buttons.operator("humananim.add_push", icon="ADD", text="")
-        buttons.operator("humananim.remove_push", icon="REMOVE", text="")
-        if 0 <= props.push_index < len(props.pushes):
-            item = props.pushes[props.push_index]
-            sub = layout.column()
-            sub.use_property_split = True
-            sub.prop(item, "empty")
-            sub.prop_search(item, "bone", context.active_object.data, "bones")
-            sub.prop(item, "frame")
-            sub.prop(item, "duration")
-            sub.prop(item, "magnitude")
+        draw_force_list(layout, context, props, "pushes", "push_index", "humananim.add_push",
+                        "humananim.remove_push", "Pushes")
         layout.prop(context.scene.humananim, "output")
         layout.operator("humananim.simulate", icon="PHYSICS")
 
 
-CLASSES = (HUMANANIM_UL_pushes, VIEW3D_PT_humananim_simulation)
+CLASSES = (VIEW3D_PT_humananim_simulation,)

@@ -5,6 +5,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
+from test_panels import draw_all  # noqa: E402
+
 
 @pytest.mark.parametrize("add, remove, settings, items, index", [
     ("add_push", "remove_push", "humananim_simulation", "pushes", "push_index"),
@@ -24,6 +26,8 @@ def test_add_on_the_active_bone_then_remove_the_selected(metarig, add, remove, s
     assert len(listed) == 2 and listed[0].bone == "spine.003" and listed[0].frame == 12
     arrows = {o.name for o in bpy.data.objects if o.type == "EMPTY"} - empties
     assert len(arrows) == 2
+    drawn = draw_all(bpy.context)  # the panel lists them and shows the selected one's settings
+    assert ("prop", items) in drawn and ("prop", "magnitude") in drawn and ("prop", "empty") in drawn
     setattr(props, index, 1)
     assert "FINISHED" in getattr(bpy.ops.humananim, remove)()
     assert len(listed) == 1 and getattr(props, index) == 0
