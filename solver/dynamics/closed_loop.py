@@ -136,112 +136,151 @@ def simulate(skeleton, trajectories, settings=None):
 def iter_simulate(skeleton, trajectories, settings=None):
     """simulate() as steps: yields the fraction of frames done, returns the Result."""
     st = settings or Settings()
-    tr = trajectories
     if st.weld_static_helpers:
-        skeleton = weld_static_helpers(skeleton, tr)
+        skeleton = weld_static_helpers(skeleton, trajectories)
     _require_connected_body(skeleton)
-    model = build_model(skeleton, reference_basis=tr.basis()[0], loads=st.loads, gravity=st.gravity,
-                        armature=st.armature,
-                        kinematic_mass=st.kinematic_fraction * (skeleton.total_mass + sum(st.loads.values())))
-    data = model.create_data()
-    qd, vd, ad, frame_dt = desired_motion(model, skeleton, tr)
-    if st.armature_ratio > 0.0:
-        model.set_armature(np.maximum(st.armature, st.armature_ratio * np.diag(crba(model, data, qd[0]))))
-    contacts = st.contacts if st.contacts is not None else default_contacts(model)
-    strength = default_strength(model) if st.strength is None else st.strength
-    strength = replace(strength, scale=strength.scale * st.strength_scale)
-    forward = forward_dynamics_dense if st.forward == "dense" else aba
-    control_dt = st.control_step or frame_dt / np.ceil(frame_dt * 120.0 - 1e-9)
-    substeps = max(1, int(np.ceil(control_dt / st.max_step - 1e-9)))
-    dt = control_dt / substeps
-    per_frame = max(1, int(round(frame_dt / control_dt)))
-    pushes = _pushes(model, st.pushes)
-    kp, kd = st.frequency ** 2, 2.0 * st.damping_ratio * st.frequency
-    dof_j, dof_s = model.dof_joint[6:], model.dof_slot[6:]
-    strength = strength.select(dof_j, dof_s)
-
-    nf = tr.frame_count
-    out_q = np.zeros((nf, model.nq))
-    torques = np.zeros((nf, model.nv - 6))
-    usage = np.zeros((nf, model.nv - 6))
-    available = np.zeros((nf, model.nv - 6, 2))
-    root_wrench = np.zeros((nf, 6))
-    contact_force = np.zeros((nf, 3))
-    zmps = np.full((nf, 2), np.nan)
-    mmps = np.full((nf, 2), np.nan)
-    q, v = qd[0].copy(), vd[0].copy()
+    run = _Run.prepare(skeleton, trajectories, st)
+    rec = _Recording(trajectories.frame_count, run.model)
+    q, v = run.qd[0].copy(), run.vd[0].copy()
     t = 0.0
-    for f in range(nf):
-        out_q[f] = q
-        if f == nf - 1:
-            w, x, force = st.ground.forces(model, data, q, v, contacts)
-            contact_force[f] = force.sum(axis=0)
+    for f in range(rec.frames):
+        rec.q[f] = q
+        if f == rec.frames - 1:
+            rec.contact_force[f] = st.ground.forces(run.model, run.data, q, v, run.contacts)[2].sum(axis=0)
             break
-        for k in range(per_frame):
-            alpha = k / per_frame  # desired state between frames, linearly blended
-            step = kinematics.difference(model, qd[f], qd[f + 1])
-            target_q = kinematics.integrate(model, qd[f], step * alpha)
-            target_v = (1 - alpha) * vd[f] + alpha * vd[f + 1]
-            # torques are held over the step: aim at the mean desired acceleration over it, that
-            # of its midpoint, or the motion lags half a control step behind
-            mid = alpha + 0.5 / per_frame
-            target_a = (1 - mid) * ad[f] + mid * ad[f + 1]
-            w, x, force = st.ground.forces(model, data, q, v, contacts)
-            err = kinematics.difference(model, q, target_q)
-            h_now = crba(model, data, q)
-            hdiag = np.diag(h_now)
-            passive = st.joint_damping * hdiag  # scale-free: light segments are not overdamped
-            passive[:6] = 0.0
-            if st.controller == "pd":
-                gains = st.tracking * hdiag
-                gains[:6] *= st.root_support
-                servo = _Servo(kp * gains, kd * gains, target_q, target_v, strength, dof_j, dof_s)
-                control, _, _ = servo(model, q, v, None)
-                command = target_a + kp * err + kd * (target_v - v)
-                required = control / np.maximum(st.tracking, 1e-12)
-            else:
-                command = target_a + kp * err + kd * (target_v - v)
-                # the contact forces are known to the controller (Huang) but change within a
-                # control step far faster than it (a toe on the penalty ground: ~1e3 rad/s), so
-                # their compensation is not held: the servo cancels its share of the current
-                # contact force at every step (implicitly, see step_implicit)
-                free = rnea(model, data, q, v, command) + passive * v  # the servo knows it
-                contact = _generalized_forces(model, data, q, w)
-                required = free - contact
-                angles = joint_angles(model, q)[dof_j, dof_s]
-                low, high = strength.limits(angles, v[6:])
-                share = np.full(model.nv, st.tracking)
-                share[:6] *= st.root_support
-                control, clamped = _clamp_consistently(share * required, share, low, high,
-                                                       lambda: h_now)
-                share[6:][clamped] = 0.0  # a clamped DOF feels the changes of the contact forces
-                servo = _InverseDynamics(control + share * contact, share, low, high)
+        for k in range(run.per_frame):
+            target = run.target(f, k)
+            servo, passive, record = run.servo(q, v, *target)
             if k == 0:
-                angles = joint_angles(model, q)[dof_j, dof_s]
-                torques[f] = control[6:]
-                usage[f] = strength.clamp(required[6:], angles, v[6:])[1]
-                available[f] = np.stack(strength.limits(angles, v[6:]), axis=-1)
-                root_wrench[f] = control[:6]
-                contact_force[f] = force.sum(axis=0)
-                zmps[f], mmps[f] = _balance(model, data, q, v, command, x, st.ground.height)
-            try:
-                with np.errstate(over="raise", invalid="raise"):
-                    for _ in range(substeps):
-                        push = _push_wrench(model, data, q, pushes, t) if pushes else None
-                        if st.forward == "implicit":
-                            q, v = step_implicit(model, data, q, v, servo, dt, st, contacts, push, passive)
-                        else:
-                            q, v = step_explicit(model, data, q, v, servo, dt, st, contacts, push, passive,
-                                                 forward)
-                        t += dt
-            except (np.linalg.LinAlgError, FloatingPointError) as exc:
-                raise SimulationError(_diverged(model, tr, f, v, str(exc))) from None
-            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))) or np.abs(v).max() > MAX_SPEED:
-                raise SimulationError(_diverged(model, tr, f, v))
-        yield (f + 1) / nf
-    return Result(trajectories=_to_trajectories(model, skeleton, tr, out_q), torques=torques,
-                  usage=usage, available=available, dof_names=model.dof_names[6:], root_wrench=root_wrench,
-                  contact_force=contact_force, zmp=zmps, mmp=mmps, model=model)
+                rec.store(f, run, q, v, *record)
+            q, v, t = run.advance(q, v, servo, passive, t, f)
+        yield (f + 1) / rec.frames
+    return rec.result(run, skeleton, trajectories)
+
+
+class _Run:
+    """What a simulation keeps from start to end: the model, the desired motion, the timing, the
+    gains and the strength model."""
+
+    @classmethod
+    def prepare(cls, skeleton, tr, st):
+        run = cls()
+        run.st, run.tr = st, tr
+        run.model = model = build_model(
+            skeleton, reference_basis=tr.basis()[0], loads=st.loads, gravity=st.gravity, armature=st.armature,
+            kinematic_mass=st.kinematic_fraction * (skeleton.total_mass + sum(st.loads.values())))
+        run.data = model.create_data()
+        run.qd, run.vd, run.ad, frame_dt = desired_motion(model, skeleton, tr)
+        if st.armature_ratio > 0.0:
+            model.set_armature(np.maximum(st.armature, st.armature_ratio * np.diag(crba(model, run.data, run.qd[0]))))
+        run.contacts = st.contacts if st.contacts is not None else default_contacts(model)
+        strength = default_strength(model) if st.strength is None else st.strength
+        strength = replace(strength, scale=strength.scale * st.strength_scale)
+        run.forward = forward_dynamics_dense if st.forward == "dense" else aba
+        run.control_dt = st.control_step or frame_dt / np.ceil(frame_dt * 120.0 - 1e-9)
+        run.substeps = max(1, int(np.ceil(run.control_dt / st.max_step - 1e-9)))
+        run.dt = run.control_dt / run.substeps
+        run.per_frame = max(1, int(round(frame_dt / run.control_dt)))
+        run.pushes = _pushes(model, st.pushes)
+        run.kp, run.kd = st.frequency ** 2, 2.0 * st.damping_ratio * st.frequency
+        run.dof_j, run.dof_s = model.dof_joint[6:], model.dof_slot[6:]
+        run.strength = strength.select(run.dof_j, run.dof_s)
+        return run
+
+    def target(self, f, k):
+        """Desired position, velocity and acceleration at control step k of frame f."""
+        qd, vd, ad = self.qd, self.vd, self.ad
+        alpha = k / self.per_frame  # desired state between frames, linearly blended
+        step = kinematics.difference(self.model, qd[f], qd[f + 1])
+        target_q = kinematics.integrate(self.model, qd[f], step * alpha)
+        target_v = (1 - alpha) * vd[f] + alpha * vd[f + 1]
+        # torques are held over the step: aim at the mean desired acceleration over it, that of
+        # its midpoint, or the motion lags half a control step behind
+        mid = alpha + 0.5 / self.per_frame
+        return target_q, target_v, (1 - mid) * ad[f] + mid * ad[f + 1]
+
+    def servo(self, q, v, target_q, target_v, target_a):
+        """The controller held over one control step, the passive damping, and what the frame
+        records: (control, required, command, contact points, contact forces)."""
+        model, data, st = self.model, self.data, self.st
+        w, x, force = st.ground.forces(model, data, q, v, self.contacts)
+        err = kinematics.difference(model, q, target_q)
+        h_now = crba(model, data, q)
+        hdiag = np.diag(h_now)
+        passive = st.joint_damping * hdiag  # scale-free: light segments are not overdamped
+        passive[:6] = 0.0
+        command = target_a + self.kp * err + self.kd * (target_v - v)
+        if st.controller == "pd":
+            gains = st.tracking * hdiag
+            gains[:6] *= st.root_support
+            servo = _Servo(self.kp * gains, self.kd * gains, target_q, target_v, self.strength, self.dof_j,
+                           self.dof_s)
+            control, _, _ = servo(model, q, v, None)
+            required = control / np.maximum(st.tracking, 1e-12)
+        else:
+            # the contact forces are known to the controller (Huang) but change within a control
+            # step far faster than it (a toe on the penalty ground: ~1e3 rad/s), so their
+            # compensation is not held: the servo cancels its share of the current contact force
+            # at every step (implicitly, see step_implicit)
+            free = rnea(model, data, q, v, command) + passive * v  # the servo knows it
+            contact = _generalized_forces(model, data, q, w)
+            required = free - contact
+            angles = joint_angles(model, q)[self.dof_j, self.dof_s]
+            low, high = self.strength.limits(angles, v[6:])
+            share = np.full(model.nv, st.tracking)
+            share[:6] *= st.root_support
+            control, clamped = _clamp_consistently(share * required, share, low, high, lambda: h_now)
+            share[6:][clamped] = 0.0  # a clamped DOF feels the changes of the contact forces
+            servo = _InverseDynamics(control + share * contact, share, low, high)
+        return servo, passive, (control, required, command, x, force)
+
+    def advance(self, q, v, servo, passive, t, f):
+        """One control step of forward dynamics in `substeps` small steps, to (q, v, t); a
+        blow-up is an error that names the frame."""
+        model, data, st = self.model, self.data, self.st
+        try:
+            with np.errstate(over="raise", invalid="raise"):
+                for _ in range(self.substeps):
+                    push = _push_wrench(model, data, q, self.pushes, t) if self.pushes else None
+                    if st.forward == "implicit":
+                        q, v = step_implicit(model, data, q, v, servo, self.dt, st, self.contacts, push, passive)
+                    else:
+                        q, v = step_explicit(model, data, q, v, servo, self.dt, st, self.contacts, push, passive,
+                                             self.forward)
+                    t += self.dt
+        except (np.linalg.LinAlgError, FloatingPointError) as exc:
+            raise SimulationError(_diverged(model, self.tr, f, v, str(exc))) from None
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))) or np.abs(v).max() > MAX_SPEED:
+            raise SimulationError(_diverged(model, self.tr, f, v))
+        return q, v, t
+
+
+class _Recording:
+    """Per-frame outputs, filled at the first control step of each frame."""
+
+    def __init__(self, frames, model):
+        n = model.nv - 6
+        self.frames = frames
+        self.q = np.zeros((frames, model.nq))
+        self.torques, self.usage = np.zeros((frames, n)), np.zeros((frames, n))
+        self.available = np.zeros((frames, n, 2))
+        self.root_wrench, self.contact_force = np.zeros((frames, 6)), np.zeros((frames, 3))
+        self.zmps, self.mmps = np.full((frames, 2), np.nan), np.full((frames, 2), np.nan)
+
+    def store(self, f, run, q, v, control, required, command, x, force):
+        angles = joint_angles(run.model, q)[run.dof_j, run.dof_s]
+        self.torques[f] = control[6:]
+        self.usage[f] = run.strength.clamp(required[6:], angles, v[6:])[1]
+        self.available[f] = np.stack(run.strength.limits(angles, v[6:]), axis=-1)
+        self.root_wrench[f] = control[:6]
+        self.contact_force[f] = force.sum(axis=0)
+        self.zmps[f], self.mmps[f] = _balance(run.model, run.data, q, v, command, x, run.st.ground.height)
+
+    def result(self, run, skeleton, tr):
+        return Result(trajectories=_to_trajectories(run.model, skeleton, tr, self.q), torques=self.torques,
+                      usage=self.usage, available=self.available, dof_names=run.model.dof_names[6:],
+                      root_wrench=self.root_wrench, contact_force=self.contact_force, zmp=self.zmps,
+                      mmp=self.mmps, model=run.model)
 
 
 MAX_SPEED = 1e3  # rad/s or m/s: beyond this the simulation has blown up
