@@ -94,18 +94,18 @@ class Kernel:
         G1 = np.zeros((D, P, 3, n))
         for k in range(D):
             G1[k, :, :, 3:6] = -skew(sim.B[k])
-        self.width = Wd = n + 1 + D
+        # many points: products past OpenBLAS's threading threshold (m n > 9216 for a matrix-vector
+        # product) go to two threads and cost several times more on small data; then G is updated
+        # column-wise from y instead (only its rotation columns -[y]x and y change with gamma), b
+        # is taken in two parts and Q z on its own (G's rows carry no room for it)
+        self.big = (1 + D) * 3 * P * (n + 1 + D) > 9000 or (3 * P + D + self.nz) * (n + 1 + D) > 9000
+        self.width = Wd = n + 1 + (0 if self.big else D)
         GY = np.zeros((1 + D, 3, P, Wd))
         GY[0, :, :, :n] = G0.transpose(1, 0, 2)
         GY[1:, :, :, :n] = G1.transpose(0, 2, 1, 3)
         GY[0, :, :, n] = sim.X0.T
         GY[1:, :, :, n] = sim.B.transpose(0, 2, 1)
         self.GY = GY.reshape(1 + D, -1)
-        # many points: products past OpenBLAS's threading threshold (m n > 9216 for a matrix-vector
-        # product) go to two threads and cost several times more on small data; then G is updated
-        # column-wise from y instead (only its rotation columns -[y]x and y change with gamma) and
-        # b is taken in two parts
-        self.big = (1 + D) * 3 * P * Wd > 9000 or (3 * P + D + self.nz) * Wd > 9000
         self.G_const = GY[0].reshape(-1).copy()
         self.Yp = np.vstack([sim.X0.T.reshape(1, 3 * P), sim.B.transpose(0, 2, 1).reshape(D, 3 * P)])
         self.m = sim.m.copy()
@@ -208,7 +208,7 @@ class Kernel:
         ZX = ALL[P3 + D:P3 + D + nz + n]
         bx = ALL[P3 + D + nz:]
         x = bx[:n]
-        qm = bx[n + 1:]                                          # the mode forces Q z (not Qp z)
+        qm = np.empty(D) if big else bx[n + 1:]                 # the mode forces Q z (not Qp z)
         z[0] = 1.0
         g1, gam, u, gd = z[:1 + D], z[1:1 + D], z[1 + D:], z[7 + D:]
         gam[:] = state.gamma
@@ -227,7 +227,10 @@ class Kernel:
         GQ = np.zeros((zrow + nz, Wd))
         GQ[P3 + np.arange(D), 6 + np.arange(D)] = 1.0
         GQ[zrow:, 6:n] = self.Qp.T
-        GQ[zrow:, n + 1:] = Q.T
+        if big:
+            Q = Q.copy()                                         # its column 0: the PD targets
+        else:
+            GQ[zrow:, n + 1:] = Q.T
         Gqe = GQ[:P3].reshape(3, P * Wd)
         GqeT = Gqe.reshape(P3, Wd).T
         Gq2 = GQ[:P3, :n]
@@ -241,7 +244,19 @@ class Kernel:
         WG3 = WG.reshape(3, P, n)
         Ab = np.empty((n, n))                                   # the system matrix, then its factor
         chol = CholeskySolver(Ab, x)
-        extra = [None, None]                                    # A's general-contact and limit terms
+        extra = [None, None, None]                              # A's general-contact, limit, ground terms
+        if big:
+            # many points: M(gamma) = sum m G^T G (rotation-free: R'^T R' = I) from its polynomial
+            # in gamma (constant sums over the points, simulate.Simulator.M_poly), the ground's
+            # share of A from the touching points alone
+            Mpoly = sim.M_poly
+            Mh_poly = Mpoly / h
+            Mh_poly[0] += A0.ravel()
+            MONO = np.zeros(1 + D + D * D)                      # [1, gamma, gamma gamma]
+            MONO[0] = 1.0
+            MONO2 = MONO[1 + D:].reshape(D, D)
+            Abf = Ab.reshape(-1)
+            EW = np.empty((3, P))
         # the table: rows anchors (2), y (3), v (3), v + y_dot (3), 1, contact force (3), mu f_n,
         # the plane's distance s, a' = w x (v + y_dot) - g (3); all in the plane frame
         BIG = np.zeros((20, P))
@@ -322,7 +337,10 @@ class Kernel:
 
         def set_pose(index):
             GQ[zrow, 6:n] = kpt[index]
-            GQ[zrow, n + 1:] = kpt[index]
+            if big:
+                Q[:, 0] = kpt[index]
+            else:
+                GQ[zrow, n + 1:] = kpt[index]
             return index
 
         def evaluate(Rl, zl, time, kind, du=None):
@@ -412,10 +430,12 @@ class Kernel:
                 np.subtract(Fq, m_h * Gq2.dot(du).reshape(3, P), out=Fq)
             if big:
                 np.add(Fflat.dot(GQF), z.dot(GQZ), out=bx)
+                Q.dot(z, out=qm)
+                qml = qm.tolist()
             else:
                 Fz.dot(GQ, out=bx)                              # [Gq^T F + Qp z, -, Q z]
-            bl = bx.tolist()
-            power = sum(map(abs, map(mul, bl[n + 1:], zl[7 + D:])))
+                qml = bx.tolist()[n + 1:]
+            power = sum(map(abs, map(mul, qml, zl[7 + D:])))
             if kind != 1:                                       # Q z, not Qp z
                 x[6:] += half_h_stiff * gd
             gl = zl[1:1 + D]
@@ -428,9 +448,19 @@ class Kernel:
                 power = float(np.abs((qm - limit * over) * gd).sum())
                 if kind == 1:
                     x[6:] -= 0.5 * h * lim * gd
+            if big:
+                MONO[1:1 + D] = gam
+                np.multiply.outer(gam, gam, out=MONO2)
             if kind != 1:
                 return None, power
-            if touching and contact:
+            if big:
+                extra[2] = None
+                if touching and contact:                       # the ground's weights beyond m / h
+                    idx = np.flatnonzero(touchf)
+                    np.subtract(W3e[:, :, 0], m_h, out=EW)
+                    Gt = Gq3[:, idx, :]
+                    extra[2] = Gt.reshape(-1, n).T.dot((Gt * EW[:, idx, None]).reshape(-1, n))
+            elif touching and contact:
                 np.multiply(Gq3, W3e, out=WG3)
             else:
                 np.multiply(Gq3, mq_step, out=WG3)
@@ -440,14 +470,23 @@ class Kernel:
 
         def system_matrix():
             """(M + h/2 C + h^2/4 K) / h into Ab from W Gq and the extra terms of the last evaluate."""
-            GqA.T.dot(WGA, out=Ab)                              # Gq^T W Gq + A0
+            if big:
+                MONO.dot(Mh_poly, out=Abf)                      # M / h + A0
+            else:
+                GqA.T.dot(WGA, out=Ab)                          # Gq^T W Gq + A0
             if extra[0] is not None:
                 np.add(Ab, extra[0], out=Ab)
+            if extra[2] is not None:
+                np.add(Ab, extra[2], out=Ab)
             if extra[1] is not None:
                 Ab[6 + np.arange(D), 6 + np.arange(D)] += 0.25 * h * extra[1]
             return Ab
 
         def mass_matrix():
+            """M at the last evaluation's gamma."""
+            if big:
+                MONO.dot(Mpoly, out=Abf)
+                return Ab
             np.multiply(Gq3, mq_thesis, out=WG3)
             Gq2.T.dot(WG, out=Ab)
             return Ab
