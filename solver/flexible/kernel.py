@@ -257,27 +257,30 @@ class Kernel:
             MONO2 = MONO[1 + D:].reshape(D, D)
             Abf = Ab.reshape(-1)
             EW = np.empty((3, P))
-        # the table: rows anchors (2), y (3), v (3), v + y_dot (3), 1, contact force (3), mu f_n,
-        # the plane's distance s, a' = w x (v + y_dot) - g (3); all in the plane frame
-        BIG = np.zeros((20, P))
-        BIG[11] = 1.0
-        VYC = BIG[2:11].reshape(3, P3)
-        U3T = np.zeros((3, Wd))                                  # rows: the y column, u, u with 2 gamma_dot
-        U3T[0, n] = 1.0
-        U2 = U3T[1:3, :n]
+        # the table: rows anchors (2), G du (3, the corrector's increment), y (3), v (3), v + y_dot (3),
+        # 1, contact force (3), mu f_n, the plane's distance s, a' = w x (v + y_dot) + G du / h - g
+        # (3); all in the plane frame
+        BIG = np.zeros((23, P))
+        BIG[14] = 1.0
+        VYC = BIG[2:14].reshape(4, P3)
+        U3T = np.zeros((4, Wd))                                  # rows: du, the y column, u, u with 2 gamma_dot
+        U3T[1, n] = 1.0
+        DU = U3T[0, :n]                                          # zero but in the corrector
+        U2 = U3T[2:4, :n]
         ones_twos = np.ones((2, n))
         ones_twos[1, 6:] = 2.0
-        anchor, Yq, Vq, B12 = BIG[0:2], BIG[2:5], BIG[5:8], BIG[:12]
-        f, fcap, dist, acc = BIG[12:15], BIG[12:16], BIG[16], BIG[17:20]
-        fnc, fB, ft = BIG[14:16], BIG[12:20], BIG[12:14]
-        # one matrix FW (8 x 12) takes BIG[:12] to the contact forces, mu f_n, s and a'; stored
+        anchor, Yq, Vq, B15 = BIG[0:2], BIG[5:8], BIG[8:11], BIG[:15]
+        f, fcap, cap, dist, acc = BIG[15:18], BIG[15:19], BIG[18], BIG[19], BIG[20:23]
+        fnc, fB, ft = BIG[17:19], BIG[15:23], BIG[15:17]
+        # one matrix FW (8 x 15) takes BIG[:15] to the contact forces, mu f_n, s and a'; stored
         # transposed, its last four rows (the v + y_dot and 1 columns: w x, the body origin, g) and
         # R' after them are what changes: one assignment a step from Python floats
-        PS = np.zeros(96 + 9)
-        FT = PS[:96].reshape(12, 8)
+        PS = np.zeros(120 + 9)
+        FT = PS[:120].reshape(15, 8)
         FW = FT.T
-        Rq = PS[96:].reshape(3, 3)
-        FT[4, 4] = 1.0                                           # s = y_z + t_z
+        Rq = PS[120:].reshape(3, 3)
+        FW[4, 7] = 1.0                                           # s = y_z + t_z
+        FW[5:8, 2:5] = np.eye(3) / h                             # a' += G du / h: - M du / h in F
         g0, g1_, g2 = (-self.g_plane).tolist()
         mrow = self.m[None, :]
         negm = -mrow
@@ -287,7 +290,8 @@ class Kernel:
         Rp, flat, org = self.Rp, self.flat, self.origin
         Rpl = Rp.ravel().tolist()
         contact = self.single
-        anchored_any = False
+        turn = 0
+        touchf = None
         k = muk = 0.0
         if contact:
             c = self.contacts
@@ -296,13 +300,13 @@ class Kernel:
             collidesf = c.collides.astype(float)
             all_collide = bool(c.collides.all())
             for i, damping in enumerate((ct, ct, cn)):
-                FW[i, 5 + i] = -damping
-                FW[i, 2 + i] = -k
+                FW[i, 8 + i] = -damping
+                FW[i, 5 + i] = -k
             FW[0, 0] = FW[1, 1] = k
-            FW[3, :8] = mu * FW[2, :8]
-            MV = np.zeros((2, 20))                             # a slid anchor: x_t + (f_t + ct v_t) / k
-            MV[0, [2, 12, 5]] = 1.0, 1.0 / k, ct / k
-            MV[1, [3, 13, 6]] = 1.0, 1.0 / k, ct / k
+            FW[3, :11] = mu * FW[2, :11]
+            MV = np.zeros((2, 23))                             # a slid anchor: x_t + (f_t + ct v_t) / k
+            MV[0, [5, 15, 8]] = 1.0, 1.0 / k, ct / k
+            MV[1, [6, 16, 9]] = 1.0, 1.0 / k, ct / k
             ftn = np.empty(P)
             moved = np.empty((2, P))
             hk = 0.5 * h * k
@@ -314,12 +318,13 @@ class Kernel:
             CW = np.array([[-hk, 0, 0], [-hk, 0, 0], [-hk, -hk, 0],
                            [a_stick, 0, 1 / h], [a_stick, 0, 1 / h], [a_stick + n_stick, n_slide, 1 / h]])
             CW[:, 1] -= CW[:, 0]
-            SB = np.zeros((3, P))
-            SB[2] = self.m
-            touchf, slidef = SB[0], SB[1]
+            # (touching, sliding, mass) rows: two tables used in turn, so the last evaluation's
+            # touching points (where anchors are set) stay at hand without a copy
+            SBs = (np.zeros((3, P)), np.zeros((3, P)))
+            for SB in SBs:
+                SB[2] = self.m
             MW = np.empty((6, P))
             KU, W3e = MW[:3], MW[3:, :, None]
-            notanch = np.ones(P)                               # 1 where no anchor is set
             newb = np.empty(P, bool)
             slideb = np.empty(P, bool)
             scale = np.empty(P)
@@ -343,11 +348,11 @@ class Kernel:
                 GQ[zrow, n + 1:] = kpt[index]
             return index
 
-        def evaluate(Rl, zl, time, kind, du=None):
+        def evaluate(Rl, zl, time, kind):
             """b at the current z and rigid frame into bx (and Q z after it), for kind 0 (thesis: b),
             1 (predictor: (b - h/2 K u), with the system matrix (M + h/2 C + h^2/4 K) / h returned)
-            or 2 (corrector: b - M du / h). Returns (A or None, power)."""
-            nonlocal anchored_any
+            or 2 (corrector: b - M du / h, du in DU). Returns (A or None, power)."""
+            nonlocal turn, touchf
             # the rotation into the plane frame, the body origin in it, w in it
             if flat:
                 Rql = Rl
@@ -365,7 +370,7 @@ class Kernel:
             a2 = Rql[6] * w0 + Rql[7] * w1 + Rql[8] * w2
             # FW's columns of v + y_dot (w x) and of 1 (the body origin's share of the springs and s;
             # -g), then R'
-            PS[64:] = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, a2, -a1, 0.0, 0.0, 0.0, 0.0, 0.0, -a2, 0.0, a0,
+            PS[88:] = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, a2, -a1, 0.0, 0.0, 0.0, 0.0, 0.0, -a2, 0.0, a0,
                        0.0, 0.0, 0.0, 0.0, 0.0, a1, -a0, 0.0,
                        -k * tx, -k * ty, -k * tz, -muk * tz, tz, g0, g1_, g2] + Rql
             # G, y (body), then plane frame; positions, velocities, v + y_dot
@@ -383,51 +388,48 @@ class Kernel:
             Rq.dot(Gb2, out=Gqe)
             np.multiply(u, ones_twos, out=U2)
             U3T.dot(GqeT, out=VYC)
-            FW.dot(B12, out=fB)                                 # springs and dampers from the anchors; s; a'
+            FW.dot(B15, out=fB)                                 # springs and dampers from the anchors; s; a'
             touching = False
             if contact:
+                SB = SBs[turn]
+                touchf, slidef, anchored = SB[0], SB[1], SBs[1 - turn][0]
+                turn = 1 - turn
                 np.less(dist, 0.0, out=touchf)
                 if not all_collide:
                     np.multiply(touchf, collidesf, out=touchf)
-                touching = np.count_nonzero(touchf) > 0
+                count = np.count_nonzero(touchf)
+                touching = count > 0
             if touching:
-                if touchf.dot(notanch):                        # the point of entry: where it crossed the plane
-                    np.logical_and(touchf, notanch, out=newb)
+                if touchf.dot(anchored) < count:               # the point of entry: where it crossed the plane
+                    np.greater(touchf, anchored, out=newb)
                     tp01[0, 0], tp01[1, 0] = tx, ty
                     np.copyto(anchor, Yq[0:2] + tp01, where=newb)
-                    FW[0:2].dot(B12, out=ft)
+                    FW[0:2].dot(B15, out=ft)
                 np.maximum(fnc, 0.0, out=fnc)                   # the ground only pushes
                 np.multiply(fcap, touchf, out=fcap)
                 np.hypot(f[0], f[1], out=ftn)
-                np.greater(ftn, BIG[15], out=slidef)
+                np.greater(ftn, cap, out=slidef)
                 if np.count_nonzero(slidef):                  # Coulomb: cap the friction force
                     np.greater(slidef, 0.0, out=slideb)
                     scale.fill(1.0)
-                    np.divide(BIG[15], ftn, out=scale, where=slideb)
+                    np.divide(cap, ftn, out=scale, where=slideb)
                     ft[...] *= scale
                     # slide the anchor so the spring alone gives the capped force next time
-                    MV[0, 11], MV[1, 11] = tx, ty
+                    MV[0, 14], MV[1, 14] = tx, ty
                     MV.dot(BIG, out=moved)
                     np.copyto(anchor, moved, where=slideb)
-                np.subtract(1.0, touchf, out=notanch)
-                anchored_any = True
-                np.multiply(acc, negm, out=Fq)                 # m (g - w x (v + y_dot))
+                np.multiply(acc, negm, out=Fq)                 # m (g - w x (v + y_dot) - G du / h)
                 np.add(Fq, f, out=Fq)
                 if kind == 1:
                     CW.dot(SB, out=MW)
                     np.multiply(Vq, KU, out=kv)                # - h/2 K u of the ground springs
                     np.add(Fq, kv, out=Fq)
             else:
-                if anchored_any:
-                    notanch.fill(1.0)
-                    anchored_any = False
                 np.multiply(acc, negm, out=Fq)
                 if general:
                     touching = self._general_contacts(Rq, t, Yq, Vq, Fq, kind == 1, h)
             if springs:
                 Fq[:, self.spring_idx] += self._spring_forces(t, Yq, Vq, time)
-            if kind == 2:                                       # - M du / h = - Gq^T m Gq du / h
-                np.subtract(Fq, m_h * Gq2.dot(du).reshape(3, P), out=Fq)
             if big:
                 np.add(Fflat.dot(GQF), z.dot(GQZ), out=bx)
                 Q.dot(z, out=qm)
@@ -531,19 +533,21 @@ class Kernel:
                 if midpoint:
                     # predictor u* = u + du; the implicit midpoint rule's corrector: one Newton step
                     # about the midpoint, with the predictor's matrix (its Cholesky factor reused)
-                    z0, du0, t0, q0 = z.copy(), x.copy(), t[:], q[:]
+                    DU[:] = x                                  # du rides in U3T: G du for - M du / h
+                    z0, t0, q0 = z.copy(), t[:], q[:]
                     T_mid.dot(ZX, out=ZM)
                     z[:] = ZMz
                     zml = ZM.tolist()
                     Rm = rigid_move(q, t, zml[nz:])
                     if ctl is not None and pose_mid[i] != current:
                         current = set_pose(pose_mid[i])
-                    _, power = evaluate(Rm, zml[:nz], time + 0.5 * h, 2, du0)
+                    _, power = evaluate(Rm, zml[:nz], time + 0.5 * h, 2)
                     if factored:
                         chol.resolve()                         # x <- A^-1 x with the predictor's factor
                     else:
                         x[:] = fallback_solve(A, x, time)
-                    np.add(du0, x, out=x)                      # u_new - u
+                    np.add(DU, x, out=x)                       # u_new - u
+                    DU.fill(0.0)
                     z[:] = z0
                     t[:], q[:] = t0, q0
             T_upd.dot(ZX, out=ZM)
