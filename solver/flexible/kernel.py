@@ -68,13 +68,20 @@ def rigid_move(q, t, mv):
     norm = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
     w, x, y, z = w * norm, x * norm, y * norm, z * norm
     q[0], q[1], q[2], q[3] = w, x, y, z
-    return rot_list(w, x, y, z)
+    # rot_list, inline (a call costs as much as a few products here)
+    x2, y2, z2 = x + x, y + y, z + z
+    xx, yy, zz, xy, xz, yz = x * x2, y * y2, z * z2, x * y2, x * z2, y * z2
+    wx, wy, wz = w * x2, w * y2, w * z2
+    return [1 - (yy + zz), xy - wz, xz + wy, xy + wz, 1 - (xx + zz), yz - wx, xz - wy, yz + wx, 1 - (xx + yy)]
 
 
 def rot_list(w, x, y, z):
-    return [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]
+    """R(q) as a flat list (row-major) for a unit quaternion; the factors 2 are exact, so the
+    products may be taken with 2 x instead."""
+    x2, y2, z2 = x + x, y + y, z + z
+    xx, yy, zz, xy, xz, yz = x * x2, y * y2, z * z2, x * y2, x * z2, y * z2
+    wx, wy, wz = w * x2, w * y2, w * z2
+    return [1 - (yy + zz), xy - wz, xz + wy, xy + wz, 1 - (xx + zz), yz - wx, xz - wy, yz + wx, 1 - (xx + yy)]
 
 
 class Kernel:
