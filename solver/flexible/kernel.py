@@ -3,26 +3,36 @@
 The reference step (Simulator.accelerations / Simulator.step) is written for reading: 60-110 small
 numpy calls a step. On a 10-coordinate character each call costs about a microsecond and the
 arithmetic almost nothing, so a step's time is its number of calls. Here the same equations are laid
-out so a step is about 35 calls on preallocated buffers, all in the ground plane's frame (the world
-frame when there is no ground or several planes):
+out so a semi-implicit step on the ground is 27 calls on preallocated buffers (a LAPACK solve
+among them), all in the ground plane's frame (the world frame when there is no ground or several
+planes):
 
 - The point Jacobians in body velocities, G = [I, -[y]x, B] (3P x n), and the body points y are
   linear in gamma: one product [1, gamma] . GY gives both, one more rotates them into the plane
   frame (Gq = R' G, R' = R_plane R), coordinate by coordinate: rows (x of all points, y of all, z).
-- One product of [u, u with gamma_dot doubled, the y column] with Gq gives the points' velocities,
-  positions and v + y_dot (the velocity terms are w x (v_point + y_dot)) as rows of one table.
-- One 6 x 12 matrix times that table (plus anchors and a row of ones) gives the penalty springs and
-  dampers of all points (masks, not index lists) and w x (v_point + y_dot) - g.
-- b = Gq^T F + Q z is one product of the stacked [F, z] with the stacked [Gq; Q^T], z = [1, gamma,
-  v, w, gamma_dot] (Q: the passive, PD and predictor mode forces; the PD targets in its 1-column).
-- The system matrix M + h/2 C + h^2/4 K is Gq^T (W Gq) + modes: in the plane frame the ground's
-  stiffness and damping are diagonal per point (tangential, normal), so they are per-row weights W
-  next to the masses; W itself is one 6 x 3 product of (sticking, sliding, mass).
+- One product of [du, the y column, u, u with gamma_dot doubled] with Gq gives the points' G du
+  (du: the corrector's increment, else 0), positions, velocities and v + y_dot (the velocity terms
+  are w x (v_point + y_dot)) as rows of one table.
+- One 8 x 15 matrix FW times that table (plus anchors and a row of ones) gives the penalty springs
+  and dampers of all points (masks, not index lists), mu f_n, the height over the plane and
+  w x (v_point + y_dot) + G du / h - g (so - M du / h comes with the inertial forces). What
+  changes in FW (w x, the body origin) and R' share one buffer, filled from Python floats once.
+- [b, Q z] = Gq^T F + [Qp, Q] z is one product of [F, 0, z] with the stacked [Gq; E; Qp^T | Q^T],
+  z = [1, gamma, v, w, gamma_dot] (Q: the passive and PD mode forces, the PD targets in its
+  1-column; Qp: the predictor's, with its - h/2 K u; E: see below).
+- The system matrix (M + h/2 C + h^2/4 K) / h is [Gq; E]^T [W Gq; A0] in one product: in the plane
+  frame the ground's stiffness and damping are diagonal per point (tangential, normal), so they are
+  per-row weights W next to the masses (W itself one 6 x 3 product of (touching, sliding, mass));
+  the unit rows E pick the modes' constant share A0.
 - The new state and the rigid motion's increment are one product of [z, du]; the rigid motion
   (quaternion, translation) is a few dozen float operations in plain Python, cheaper than numpy
   calls on 3- and 4-vectors.
 - One LAPACK Cholesky solve (dposv) a step, in place on preallocated buffers (lapack.py); the
   implicit corrector reuses its factor (dpotrs).
+- Many points (Kernel.big): the products are past the point where their arithmetic, not their
+  count, is the cost. M(gamma) then comes from its polynomial in gamma (sums over the points made
+  once: M = sum_ab c_a c_b M_ab, c = [1, gamma]; rotation-free, since R'^T R' = I) and the
+  ground's share of A from the touching points alone.
 
 Everything constant during a run (the gamma polynomial of G and y, the plane frame, the mode gains,
 the pose schedule of the controller) is prepared once."""
