@@ -124,6 +124,22 @@ class Kernel:
         GY[1:, :, :, n] = sim.B.transpose(0, 2, 1)
         self.GY = GY.reshape(1 + D, -1)
         self.G_const = GY[0].reshape(-1).copy()
+        if self.big:
+            # M(gamma) = sum_ab c_a c_b M_ab, c = [1, gamma], M_ab = sum_p m G_a,p^T G_b,p; the
+            # gamma parts G_k of G have only the rotation columns -[B_k]x
+            mw = np.tile(sim.m, 3)[:, None]                      # rows: x of all points, y, z
+            G0 = GY[0, :, :, :n].reshape(3 * P, n)
+            G1 = GY[1:, :, :, 3:6].transpose(1, 2, 0, 3).reshape(3 * P, 3 * D)
+            Mab = np.zeros((1 + D, 1 + D, n, n))
+            Mab[0, 0] = G0.T.dot(mw * G0)
+            X = G0.T.dot(mw * G1).reshape(n, D, 3)
+            Y = G1.T.dot(mw * G1).reshape(D, 3, D, 3)
+            for a in range(D):
+                Mab[0, 1 + a, :, 3:6] = X[:, a]
+                Mab[1 + a, 0, 3:6, :] = X[:, a].T
+                for b in range(D):
+                    Mab[1 + a, 1 + b, 3:6, 3:6] = Y[a, :, b]
+            self.M_cc = Mab.reshape((1 + D) ** 2, n * n)
         self.Yp = np.vstack([sim.X0.T.reshape(1, 3 * P), sim.B.transpose(0, 2, 1).reshape(D, 3 * P)])
         self.m = sim.m.copy()
         # mode forces: Q z = passive springs and dampers, PD (targets in column 0), limits aside
@@ -264,14 +280,13 @@ class Kernel:
         extra = [None, None, None]                              # A's general-contact, limit, ground terms
         if big:
             # many points: M(gamma) = sum m G^T G (rotation-free: R'^T R' = I) from its polynomial
-            # in gamma (constant sums over the points, simulate.Simulator.M_poly), the ground's
-            # share of A from the touching points alone
-            Mpoly = sim.M_poly
+            # in gamma (constant sums over the points, self.M_cc), the ground's share of A from the
+            # touching points alone
+            Mpoly = self.M_cc
             Mh_poly = Mpoly / h
-            Mh_poly[0] += A0.ravel()
-            MONO = np.zeros(1 + D + D * D)                      # [1, gamma, gamma gamma]
-            MONO[0] = 1.0
-            MONO2 = MONO[1 + D:].reshape(D, D)
+            Mh_poly[0] += A0.ravel()                            # c_0 c_0 = 1
+            MONO = np.empty((1 + D) ** 2)                       # c c
+            MONO2 = MONO.reshape(1 + D, 1 + D)
             Abf = Ab.reshape(-1)
             EW = np.empty((3, P))
         # the table: rows anchors (2), G du (3, the corrector's increment), y (3), v (3), v + y_dot (3),
@@ -468,8 +483,7 @@ class Kernel:
                 if kind == 1:
                     x[6:] -= 0.5 * h * lim * gd
             if big:
-                MONO[1:1 + D] = gam
-                np.multiply.outer(gam, gam, out=MONO2)
+                np.multiply.outer(g1, g1, out=MONO2)
             if kind != 1:
                 return None, power
             if big:
