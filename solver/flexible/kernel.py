@@ -324,6 +324,7 @@ class Kernel:
         contact = self.single
         turn = 0
         touchf = None
+        onesP = np.ones(P)
         k = muk = 0.0
         if contact:
             c = self.contacts
@@ -429,7 +430,7 @@ class Kernel:
                 np.less(dist, 0.0, out=touchf)
                 if not all_collide:
                     np.multiply(touchf, collidesf, out=touchf)
-                count = np.count_nonzero(touchf)
+                count = touchf.dot(onesP)                      # (np.count_nonzero wraps in Python)
                 touching = count > 0
             if touching:
                 if touchf.dot(anchored) < count:               # the point of entry: where it crossed the plane
@@ -441,7 +442,7 @@ class Kernel:
                 np.multiply(fcap, touchf, out=fcap)
                 np.hypot(f[0], f[1], out=ftn)
                 np.greater(ftn, cap, out=slidef)
-                if np.count_nonzero(slidef):                  # Coulomb: cap the friction force
+                if slidef.dot(onesP):                          # Coulomb: cap the friction force
                     np.greater(slidef, 0.0, out=slideb)
                     scale.fill(1.0)
                     np.divide(cap, ftn, out=scale, where=slideb)
