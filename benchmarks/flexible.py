@@ -22,9 +22,25 @@ before -> after the fused kernel (solver/flexible/kernel.py), same runs of this 
     200 points, 8 modes, semi-implicit  550-660 us/step (0.66-0.79 s) -> 150-180 us/step (0.18-0.22 s)
     200 points, 8 modes, implicit       900-1320 us/step (1.1-1.6 s)  -> 270-325 us/step (0.33-0.39 s)
     60 annealing trials                 13.7 s                        -> 1.9-2.9 s (same result)
-The aim of 20 ms (16 us a step) is not reached with numpy alone: a step is still about 35 numpy
-calls of ~1 us each (overhead, not arithmetic, on arrays of 11 points), plus a Cholesky solve
-through LAPACK (~4 us) and the rigid motion in plain Python (~4 us).
+Then fewer calls a step (kernel.py: 35 -> 27 for a semi-implicit step on the ground; the solve in
+place; - M du / h of the corrector inside the velocity product; for many points M from its
+polynomial in gamma and the ground's share of A from the touching points alone). Same trajectories
+(tests/solver/test_flexible_kernel_paths.py). Measured in one process, the previous kernel and
+this one taking turns (CPU time, best of 8; the machine at load 15-20 on 2 CPUs, so every figure
+is about twice what it is on a quiet machine, and the ratio is the thing to read):
+    thesis workload, semi-implicit      60-107 ms -> 49-92 ms     x1.17-1.23
+    thesis workload, implicit          141-229 ms -> 102-183 ms   x1.25-1.39
+    thesis workload, thesis scheme      57-99 ms  -> 51-83 ms     x1.12-1.19
+    200 points, 8 modes, semi-implicit  189-214 ms -> 164-188 ms  x1.00-1.31
+    200 points, 8 modes, implicit       158 -> 134 ms for 4 s simulated (same Simulator)  x1.18
+    one 12 s annealing trial (dt 0.02)  42.4 -> 28.9 ms           x1.47
+The aim of 20 ms (16 us a step) is still not reached with numpy alone, and can't be by trimming
+calls: at this load a step's floor is its numpy calls (27, ~1 us each however small the arrays),
+the LAPACK Cholesky solve (dposv in place: ~7 us, most of it the factorisation of the 10 x 10
+matrix itself: calling LAPACK through ctypes was measured no faster) and the rigid motion in
+plain Python (~100 float operations, ~7 us); half of each on a quiet machine. The floating-frame invariants (M(gamma) from
+constant sums over the points) replace the one product that gives M with another for 11 points;
+they pay off for many points, where they are used.
 """
 
 import argparse
