@@ -539,7 +539,10 @@ def control_rig(obj, skeleton, sides=("L", "R"), with_spine=False):
     if not any(_driven(pbs[skeleton.names[j]]) for j in joints):
         return None
     pelvis = skeleton.role_index("pelvis")
-    body = set() if pelvis is None else set(skeleton.ancestors(pelvis)) | {pelvis}
+    body = set()  # the pelvis and what moves it (a control rig's torso): the reach never moves them
+    if pelvis is not None:
+        body = set(skeleton.ancestors(pelvis)) | {pelvis}
+        body |= {skeleton.index(n) for n in _upstream(obj, skeleton.names[pelvis]) if skeleton.find(n) is not None}
     frozen = []
     for j in dict.fromkeys(joints):
         name = skeleton.names[j]
