@@ -759,6 +759,11 @@ class _ActionKeys:
             self.slot = self.writer.slot
         self._made = {}
 
+    def has(self, path, index):
+        return (path, index) in self._made or any(
+            fc.data_path == path and fc.array_index == index
+            for fc in (self.api.fcurves_of(self.action, self.obj) if self.writer is None else ()))
+
     def find(self, path, index, group):
         key = (path, index)
         if key in self._made:
@@ -802,7 +807,8 @@ def write_controls(obj, scene, skeleton, crig, frames, bases, name, keys=None):
         for i in range(values.shape[1]):
             _key_channel(keys.find, f"{path}.{prop}", i, c, frames, values[:, i])
         loc = b[:, :3, 3]
-        if not obj.data.bones[c].use_connect and not np.allclose(loc, 0.0, atol=1e-7):
+        keyed = keys.has(f"{path}.location", 0)  # the source's location keys are replaced too
+        if not obj.data.bones[c].use_connect and (keyed or not np.allclose(loc, 0.0, atol=1e-7)):
             for i in range(3):
                 _key_channel(keys.find, f"{path}.location", i, c, frames, loc[:, i])
     if first:
