@@ -1,7 +1,8 @@
 """Hands in Blender (Huang 1996 ch. 4): grasp the selected object, release it, follow its
 animation, hold another character's bone, remove self-collisions. Each writes a NEW action (the
 source action is only read); a grasped object gets a Child Of constraint to the hand with a keyed
-influence (1 while held, 0 from the release frame)."""
+influence (1 while held, 0 from the release frame). On a control rig (a generated Rigify rig) the
+solved role bones are keyed through the controls that carry them, with the IK/FK switch set to FK."""
 
 import re
 from dataclasses import dataclass, field, replace

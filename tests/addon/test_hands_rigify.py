@@ -85,6 +85,13 @@ def test_grasp_writes_the_fk_controls(rig, kind, size, spine):
     for finger in TYPE_FINGERS[s["type"]]:
         assert min(g for x, g in zip(sensors, gap) if x.finger == finger) < 0.002, finger
     assert s["max_penetration_mm"] <= 1.0 and s["max_finger_gap_mm"] <= 2.0
+    # and no sensor goes into the object on any frame of the reach and the closing, as Blender shows it
+    frames = np.arange(s["frames"][0], end + 1)
+    a2w = armature_to_world(rig, scene)
+    radii = np.array([x.radius for x in sensors])
+    for basis in hands.pose_frames(rig, scene, sk, frames):
+        w = sk.world_frames(basis, a2w)
+        assert (shape_now.distance(sensor_centres(sensors, w, sk)) - radii).min() > -0.001
     # the animator's action is as it was
     after = fcurve_snapshot(src, rig)
     assert after.keys() == snap.keys() and all(np.array_equal(after[k], snap[k]) for k in snap)
@@ -208,3 +215,27 @@ def test_hold_another_character_on_the_fk_controls(rig):
     grips = np.array(grips)
     assert np.linalg.norm(grips[:, :3, 3] - grips[0, :3, 3], axis=1).max() < 0.001
     assert max(angle(g, grips[0]) for g in grips) < 0.5
+
+
+def test_grasp_command_on_the_generated_rig(rig, tmp_path):
+    import contextlib
+    import io
+    import json
+    from humananim.humananim_addon import cli
+    name = rig.name
+    target = add_object("SPHERE", (-0.25, -0.35, 1.15), 0.06)
+    target.name = "Ball"
+    path, out = tmp_path / "scene.blend", tmp_path / "out.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = cli.main(["grasp", str(path), "--object", "Ball", "--armature", name, "--side", "R",
+                         "--start", str(START), "--out", str(out), "--json"])
+    assert code == 0
+    s = json.loads(buf.getvalue()[buf.getvalue().index("{"):])
+    assert "hand_fk.R" in s["controls"] and s["switches"] == {"upper_arm_parent.R:IK_FK": 1.0}
+    assert s["max_penetration_mm"] <= 1.0 and s["max_finger_gap_mm"] <= 2.0
+    bpy.ops.wm.open_mainfile(filepath=str(out))
+    saved = bpy.data.objects[name]
+    paths = {f.data_path for f in action_api.fcurves_of(saved.animation_data.action, saved)}
+    assert 'pose.bones["upper_arm_parent.R"]["IK_FK"]' in paths and 'pose.bones["hand_fk.R"].rotation_quaternion' in paths
