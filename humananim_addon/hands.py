@@ -819,7 +819,8 @@ def write_controls(obj, scene, skeleton, crig, frames, bases, name, keys=None):
             fc = keys.find(path, 0, bone)
             _key_channel(keys.find, path, 0, bone, frames, np.full(len(frames), float(value)), "CONSTANT")
             if abs(before - value) > 1e-9 and not any(abs(k.co[0] - (frames[0] - 1)) < 0.5 for k in fc.keyframe_points):
-                fc.keyframe_points.insert(float(frames[0] - 1), float(before), options={"FAST"}).interpolation = "CONSTANT"
+                kp = fc.keyframe_points.insert(float(frames[0] - 1), float(before), options={"FAST"})
+                kp.interpolation = "CONSTANT"
                 fc.update()
         if source is not None:
             source.use_fake_user = True
