@@ -57,5 +57,9 @@ def cmd_grasp(args):
                           f"  fingers touching: " + "; ".join(f"{k}: {', '.join(v)}" for k, v in
                                                              summary["fingers_touching"].items())
                           + f"\n  deepest finger {summary['max_penetration_mm']:.2f} mm, widest gap of a used finger "
-                            f"{summary['max_finger_gap_mm']:.2f} mm\n  wrote {out}")
+                            f"{summary['max_finger_gap_mm']:.2f} mm\n"
+                          + (f"  keyed on {len(summary['controls'])} controls of the control rig, switches "
+                             + ", ".join(f"{k} = {v:g}" for k, v in summary["switches"].items()) + "\n"
+                             if summary.get("controls") else "")
+                          + f"  wrote {out}")
     return summary
