@@ -311,6 +311,13 @@ def comfort_candidates(state, part, a):
     """Eq. 2.19-2.21: the part's acceleration of least norm that removes the stress of the
     stressed composite joints (bones) it can reach, all at once (least squares when they cannot
     all be relieved); an empty list when none is stressed."""
+    if part == "legs" and not state.feet.all():
+        # the legs are controlled through the pelvis for a figure "in a standing double-support
+        # phase" (Oshita sec. 2.5.2); in single support "the motion needs to be controlled ... in
+        # angular space. This is beyond the scope of this method" (sec. 2.5.4). Relieving the one
+        # supporting leg by accelerating the pelvis down unloads it for a step but bends its knee
+        # further, which needs more torque: CMU 131_01 with 6 kg per hand, knee collapsed 85 deg
+        return []
     domain = state.parts.lower if part == "legs" else state.parts.upper
     stress = joint_stress(required_torques(state, a)[0], state.limits, state.settings.torque_tolerance)
     rows = domain[stress[domain] != 0.0]

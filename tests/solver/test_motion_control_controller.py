@@ -10,10 +10,8 @@ Measured (this machine):
   (1) no input: squat 2e-4 deg RMS (3e-3 max), ZMP inside all along, nothing acts; CMU 131_01
       (120 fps, full control): 0.35 deg RMS on the tracked joints, planted contacts drift 1.1 mm;
       the supporting legs differ by 1.3 deg RMS because the capture's own foot skate is removed;
-  (2, 3) 15 kg in the hands: pure tracking over strength on 83 of 106 frames, with control on
-      none: passive, comfort and balance act on the arms and back, the back bends 7 deg and comes
-      back, no fall; 8 kg is within the default strength (nothing to do); at 80 % strength pure
-      tracking overloads the arms on 51 frames, comfort control on none;
+  (2, 3) loads in the hands: test_motion_control_experiments.py, on the thesis's squat (a box
+      held forward, trunk leaning over the knees: squat_scene.box_squat);
   (4) a frontal push on the chest: back within 2 deg of the input 0.77 s after 6 N s, 1.7 s after
       15 N s, with the ZMP kept inside; 150 N s: the figure falls (no NaN, lowest contact sphere
       above -1 cm);
@@ -29,7 +27,7 @@ import pytest
 
 from humananim.solver import rotations
 from humananim.solver.dynamics import build_model, default_contacts, desired_motion, point_positions
-from humananim.solver.motion_control import (Collider, ControlSettings, Impulse, LimbIK, Load, control,
+from humananim.solver.motion_control import (Collider, ControlSettings, Impulse, LimbIK, control,
                                              iter_control)
 from humananim.solver.trajectories import Trajectories
 
@@ -82,10 +80,6 @@ def errors(sk, tr, res):
 
 def rms(x):
     return float(np.sqrt(np.mean(np.square(x))))
-
-
-def hand_loads(sk, kg):
-    return tuple(Load(sk.roles.bone(f"hand.{s}"), kg / 2) for s in "LR")
 
 
 def lowest_sphere(sk, tr, res):
@@ -144,45 +138,6 @@ def test_1_no_input_tracks_cmu():
     assert not res.falling.any()
     print("CMU RMS tracked joints", rms(e[:, tracked]), "legs", rms(e[:, sorted(leg_bones(sk))]),
           "slide", res.foot_slide.max())
-
-
-def test_2_3_load_in_the_hands(squat, no_input):
-    sk, tr = squat
-    heavy = hand_loads(sk, 15.0)
-    tracked = control(sk, tr, ControlSettings(loads=heavy, tracking_only=True))
-    res = control(sk, tr, ControlSettings(loads=heavy))
-    over_tracked = (np.abs(tracked.stress).max(axis=(1, 2)) > 0).sum()
-    over = (np.abs(res.stress).max(axis=(1, 2)) > 0).sum()
-    assert over_tracked > 60 and over < over_tracked / 4  # measured 83 and 0 frames
-    acted = set(np.unique(res.control))
-    assert {1, 2} <= acted  # passive and comfort control acted (the overlay's yellow and blue)
-    e = errors(sk, tr, res)
-    spine = [list(np.flatnonzero(sk.mass > 0)).index(sk.index(b)) for b in sk.roles.chain("spine")[:3]]
-    back = e[:, spine].max(axis=1)
-    bent = np.flatnonzero(back > 3.0)
-    assert len(bent) and not res.falling.any()  # the back is forced to bend (measured 7 deg)
-    assert back[bent[0]:].min() < 1.0  # and it recovers to the input
-    assert e.max() < 60.0 and res.foot_slide.max() < 0.002
-    print("15 kg stressed frames", over_tracked, "->", over, "max error", e.max(), "back", back.max())
-
-
-def test_2_8kg_weaker_figure(squat):
-    """8 kg is within the default strength on every frame of this squat (nothing to do, the
-    output is the input); at 80 % strength pure tracking overloads the arms on half the frames and
-    comfort control moves the arms to relieve them (the thesis: "the arms were slightly
-    controlled")."""
-    sk, tr = squat
-    light = hand_loads(sk, 8.0)
-    assert rms(errors(sk, tr, control(sk, tr, ControlSettings(loads=light)))) < 0.2
-    tracked = control(sk, tr, ControlSettings(loads=light, strength_scale=0.8, tracking_only=True))
-    res = control(sk, tr, ControlSettings(loads=light, strength_scale=0.8))
-    over_tracked = (np.abs(tracked.stress).max(axis=(1, 2)) > 0).sum()
-    over = (np.abs(res.stress).max(axis=(1, 2)) > 0).sum()
-    assert over_tracked > 30 and over < over_tracked / 4  # measured 51 and 0 frames
-    arm = [sk.role_index(f"upper_arm.{s}") for s in "LR"]
-    assert (res.control[:, arm] == 2).any()  # comfort control moves the arms (the overlay's blue)
-    assert not res.falling.any() and res.foot_slide.max() < 0.002
-    print("8 kg at 80 %: stressed frames", over_tracked, "->", over)
 
 
 def push(sk, newton_seconds):
