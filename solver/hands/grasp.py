@@ -634,7 +634,8 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
                          sensors=(hand_sensors or {}).get(s))
     if avoid_body:  # the arms keep out of the trunk and head (sec. 4.6) on every frame of the reach
         frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, frames[:reach_frames + 1], armature_to_world,
-                                                              sides=tuple(chosen), with_spine=with_spine)
+                                                              sides=tuple(chosen), with_spine=with_spine,
+                                                              legs=())
         frames[reach_frames:] = frames[reach_frames][None]
     final = frames[reach_frames]
     world_f = skeleton.world_frames(final, armature_to_world)
