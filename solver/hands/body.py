@@ -100,8 +100,11 @@ def body_sensors(skeleton, world, paired=True):
 
 
 def sensor_points(skeleton, sensors, world):
-    return np.array([world[s.joint][:3, :3] @ [0, s.along * skeleton.lengths[s.joint], 0] + world[s.joint][:3, 3]
-                     for s in sensors])
+    """World centres (S, 3) of body sensors."""
+    j = np.array([s.joint for s in sensors], int)
+    local = np.zeros((len(sensors), 3))
+    local[:, 1] = [s.along * skeleton.lengths[s.joint] for s in sensors]
+    return (world[j, :3, :3] @ local[:, :, None])[:, :, 0] + world[j, :3, 3]
 
 
 def own_volume(sensor, volume):

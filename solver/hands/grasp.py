@@ -8,14 +8,13 @@ DOFs, the others go on, sec. 4.3.4)."""
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..body_roles import FINGERS, sided
 from ..errors import HumanAnimError
 from . import ik
 from .primitives import Box, Sphere, dimensions, kind, shape_frame
 from .self_collision import remove_self_collisions
-from .sensors import default_hand_sensors, sensor_centres
+from .sensors import default_hand_sensors, sensor_centres, sensor_layout
 
 TYPES = ("LATERAL", "PINCH", "TRIPOD", "WRAP", "DISK")
 # fingers each type closes on the object (the proof checks every one touches)
@@ -182,6 +181,23 @@ def pinch_pattern(skeleton, side, basis, world, geom, gtype, aperture, point_loc
     the other fingers curl toward the palm. The pre-shape opens the used tips `aperture` apart
     from the meeting point along the pinch axis, so they close onto the object from both sides.
     Returns (closed pattern, pre-shape, meeting point and pinch axis in the hand's frame)."""
+    return pinch_open(pinch_closed(skeleton, side, basis, world, geom, gtype, point_local), basis, aperture)
+
+
+@dataclass
+class PinchClosed:
+    """The closed part of a pinch pattern, which does not depend on the aperture."""
+    pattern: dict
+    solvers: dict  # finger -> (chain, base, closed basis)
+    tips: dict
+    used: list
+    normal_w: np.ndarray
+    meet_local: np.ndarray
+    u_w: np.ndarray
+    hand_inv: np.ndarray
+
+
+def pinch_closed(skeleton, side, basis, world, geom, gtype, point_local=None):
     hand = skeleton.role_index(sided("hand", side))
     h = world[hand]
     if point_local is None:
@@ -190,10 +206,9 @@ def pinch_pattern(skeleton, side, basis, world, geom, gtype, aperture, point_loc
     normal_w = h[:3, :3] @ geom.normal
     across_w = h[:3, :3] @ geom.across
     pattern = builtin_pattern(skeleton, side, world, geom, gtype, point_local, unused_curl=0.0, basis=basis)
-    preshape = dict(pattern)  # the fingers the type does not use stay open, out of the way
     chains = finger_chains(skeleton, side)
     used = [f for f in sorted(TYPE_FINGERS[gtype], key=lambda f: f != "thumb") if f in chains]
-    solvers, tips = {}, {}
+    solvers, tips, open_tip = {}, {}, {}
     for f in used:
         chain = chains[f]
         last = chain[-1]
@@ -208,28 +223,34 @@ def pinch_pattern(skeleton, side, basis, world, geom, gtype, aperture, point_loc
         res = ik.solve(ch, basis, base, target, iterations=60)
         for j in chain:
             pattern[j] = res.basis[j, :3, :3]
-        fr, _ = ch.frames(ch.euler(res.theta, basis), basis, base)
-        tips[f] = ch.effector(fr)[0]
+        tips[f] = ch.effector(ch.frames(ch.euler(res.theta, basis), basis, base)[0])[0]
+        open_tip[f] = ch.effector(ch.frames(ch.euler(ch.angles(basis), basis), basis, base)[0])[0]
         solvers[f] = (ch, base, res.basis)
         if f == "thumb":
             point = tips[f]
     meet = np.mean(list(tips.values()), axis=0)
     # pinch axis: from the thumb's tip toward the opposing fingers' tips, at the open hand
     others = [f for f in used if f != "thumb"]
-    open_tip = {f: solvers[f][0].effector(solvers[f][0].frames(solvers[f][0].euler(solvers[f][0].angles(basis), basis),
-                                                               basis, solvers[f][1])[0])[0] for f in used}
     u = np.mean([open_tip[f] for f in others], axis=0) - open_tip.get("thumb", meet) if others and "thumb" in used \
         else normal_w
     u = u - normal_w * (u @ normal_w) * 0.5
     u /= np.linalg.norm(u)
-    for f in used:
-        ch, base, closed = solvers[f]
+    inv = np.linalg.inv(h)
+    return PinchClosed(pattern, solvers, tips, used, normal_w, inv[:3, :3] @ meet + inv[:3, 3], u, inv)
+
+
+def pinch_open(closed, basis, aperture):
+    """The pre-shape of a closed pinch pattern at an aperture: (closed pattern, pre-shape, meeting
+    point and pinch axis in the hand's frame)."""
+    preshape = dict(closed.pattern)  # the fingers the type does not use stay open, out of the way
+    u, normal_w = closed.u_w, closed.normal_w
+    for f in closed.used:
+        ch, base, shut = closed.solvers[f]
         sign = -1.0 if f == "thumb" else 1.0
-        res = ik.solve(ch, closed, base, tips[f] + sign * u * aperture - normal_w * 0.3 * aperture, iterations=60)
+        res = ik.solve(ch, shut, base, closed.tips[f] + sign * u * aperture - normal_w * 0.3 * aperture, iterations=60)
         for j in ch.joints:
             preshape[j] = res.basis[j, :3, :3]
-    inv = np.linalg.inv(h)
-    return pattern, preshape, inv[:3, :3] @ meet + inv[:3, 3], inv[:3, :3] @ u
+    return dict(closed.pattern), preshape, closed.meet_local, closed.hand_inv[:3, :3] @ u
 
 
 # --- closing with sensors ----------------------------------------------------------------
@@ -265,50 +286,89 @@ def close_fingers(skeleton, side, basis, world, pattern, shapes, frames=12, tole
     bone's ancestors in the finger, the others go on. Returns the per-frame finger rotations
     {joint: (frames+1, 3, 3)}, the touching sensors and their depths."""
     sensors = sensors or default_hand_sensors(skeleton, side)
-    chains = finger_chains(skeleton, side)
-    rest_local = skeleton.rest_local
-    start = {j: basis[j, :3, :3].copy() for c in chains.values() for j in c}
-    track = {j: [start[j]] for j in start}
-    touching = {}
-    for f, chain in chains.items():
-        fs = [s for s in sensors if s.joint in chain]
-        share = {j: 0.0 for j in chain}
-        moving = set(chain)
+    track, touching = {}, {}
+    for f, chain in finger_chains(skeleton, side).items():
+        finger = _FingerClose(skeleton, chain, basis, world, pattern, [x for x in sensors if x.joint in chain],
+                              shapes)
+        shares = finger.close(frames, tolerance, touching)
+        rots = finger.rotations(shares)  # (frames+1, n, 3, 3)
+        for k, j in enumerate(chain):
+            track[j] = rots[:, k]
+    return track, touching, sensors
 
-        rel = {j: Rotation.from_matrix(start[j].T @ pattern.get(j, start[j])).as_rotvec() for j in chain}
 
-        def rots(sh):
-            return {j: start[j] @ ik.rodrigues(rel[j] * sh[j]) for j in chain}
+class _FingerClose:
+    """One finger's closing (sec. 4.3.4): each bone's share of its way from its start rotation to
+    the pattern's; forward kinematics and sensor depths for many share vectors at once."""
 
-        def depth(sh):
-            fr = _finger_world(skeleton, chain, world, rots(sh), basis, rest_local)
-            return _sensor_depths(skeleton, fs, fr, shapes) if fs else np.full(0, -1.0)
+    REFINE = 3  # levels of the search for the first touch within a step, each 16 samples
 
+    def __init__(self, skeleton, chain, basis, world, pattern, sensors, shapes):
+        self.chain, self.sensors, self.shapes = chain, sensors, shapes
+        self.start = np.array([basis[j, :3, :3] for j in chain])
+        self.rel = np.array([ik.rot_log(self.start[k].T @ pattern.get(j, self.start[k])) for k, j in enumerate(chain)])
+        rest = skeleton.rest_local[chain]
+        self.rest_r, self.rest_t = rest[:, :3, :3], rest[:, :3, 3]
+        self.bt = basis[chain, :3, 3]
+        # a parent outside the chain is fixed (the hand); inside, its index in the chain
+        self.parent = [chain.index(skeleton.parents[j]) if skeleton.parents[j] in chain else -1 for j in chain]
+        self.outer = [world[skeleton.parents[j]] for j in chain]
+        self.pos = np.array([chain.index(x.joint) for x in sensors], int)
+        self.local = sensor_layout(sensors, skeleton)[1] if sensors else np.zeros((0, 3))
+        self.radii = np.array([x.radius for x in sensors])
+
+    def rotations(self, shares):
+        """(..., n, 3, 3) rotations of share vectors (..., n)."""
+        return self.start @ ik.rodrigues(self.rel * np.asarray(shares)[..., None])
+
+    def depth(self, shares):
+        """(M, S) sensor depths in the objects (positive inside) of share vectors (M, n)."""
+        rots = self.rotations(shares)
+        m = len(shares)
+        wr, wp = np.empty(rots.shape), np.empty(rots.shape[:-1])
+        for k in range(len(self.chain)):
+            p = self.parent[k]
+            pr, pp = (wr[:, p], wp[:, p]) if p >= 0 else (self.outer[k][:3, :3], self.outer[k][:3, 3])
+            r = pr @ self.rest_r[k]
+            wp[:, k] = (pr @ self.rest_t[k]) + pp + r @ self.bt[k]
+            wr[:, k] = r @ rots[:, k]
+        if not len(self.sensors):
+            return np.full((m, 0), -1.0)
+        pts = (wr[:, self.pos] @ self.local[:, :, None])[..., 0] + wp[:, self.pos]
+        if not self.shapes:
+            return np.full((m, len(self.sensors)), -np.inf)
+        return np.max([self.radii - sh.distance(pts) for sh in self.shapes], axis=0)
+
+    def close(self, frames, tolerance, touching):
+        n = len(self.chain)
+        share = np.zeros(n)
+        moving = np.ones(n, bool)
+        out = [share.copy()]
+        step = 1.0 / frames
+        samples = np.arange(1, 16) / 16.0
         for _ in range(frames):
-            step = 1.0 / frames
-            trial = {j: min(1.0, share[j] + step) if j in moving else share[j] for j in chain}
-            if depth(trial).max(initial=-1) > 0:
+            trial = np.where(moving, np.minimum(1.0, share + step), share)
+            if self.depth(trial[None])[0].max(initial=-1) > 0:
+                # the first touch between share and trial: a search on 16 samples, refined
                 lo, hi = 0.0, 1.0
-                for _ in range(18):
-                    m = 0.5 * (lo + hi)
-                    t = {j: share[j] + m * (trial[j] - share[j]) for j in chain}
-                    if depth(t).max(initial=-1) > 0:
-                        hi = m
-                    else:
-                        lo = m
-                trial = {j: share[j] + lo * (trial[j] - share[j]) for j in chain}
+                for _ in range(self.REFINE):
+                    m = lo + (hi - lo) * samples
+                    d = self.depth(share + m[:, None] * (trial - share)).max(axis=1, initial=-1)
+                    first = int(np.argmax(d > 0)) if (d > 0).any() else len(m)
+                    lo, hi = (m[first - 1] if first > 0 else lo), (m[first] if first < len(m) else hi)
+                trial = share + lo * (trial - share)
             share = trial
-            d = depth(share)
-            for s, dv in zip(fs, d):
-                if dv > -tolerance:
-                    touching[s.name] = float(dv)
-                    stop = [s.joint] + [a for a in skeleton.ancestors(s.joint) if a in chain]
-                    moving -= set(stop)
-            moving -= {j for j in chain if share[j] >= 1.0}
-            r = rots(share)
-            for j in chain:
-                track[j].append(r[j])
-    return {j: np.array(v) for j, v in track.items()}, touching, sensors
+            d = self.depth(share[None])[0]
+            for k in np.flatnonzero(d > -tolerance):
+                touching[self.sensors[k].name] = float(d[k])
+                # the touching bone and its ancestors in the finger stop
+                j = self.pos[k]
+                while j >= 0:
+                    moving[j] = False
+                    j = self.parent[j]
+            moving &= share < 1.0
+            out.append(share.copy())
+        return np.array(out)
 
 
 # --- reach: PD servo per DOF (eq. 4-1) -------------------------------------------------------
@@ -343,45 +403,19 @@ class Candidate:
     cost: float
 
 
-def _hand_frame_for(geom, obj_frame, normal_w, across_w, offset, anchor=None):
-    """Hand bone frame whose palm normal is `normal_w` and across axis `across_w` (world), with
-    the anchor (palm centre, or the fingers' pinch point) at the object centre minus `offset`
-    along the normal."""
-    anchor = geom.palm if anchor is None else anchor
-    local_axes = np.column_stack((geom.normal, geom.across, geom.along))
-    along_w = np.sign(np.linalg.det(local_axes)) * np.cross(normal_w, across_w)
-    world_axes = np.column_stack((normal_w, across_w, along_w))
-    r = world_axes @ local_axes.T
-    anchor_w = obj_frame[:3, 3] - normal_w * offset
-    f = np.eye(4)
-    f[:3, :3] = r
-    f[:3, 3] = anchor_w - r @ anchor
-    return f
-
-
-def _offset_clear(geom, shape, frame_fn, normal_w, across_w, start, sensors_local):
-    """Move the object away from the palm until no hand sensor penetrates it (the thesis moves the
-    origin toward the border until no collision)."""
-    off = start
-    for _ in range(60):
-        h = frame_fn(normal_w, across_w, off)
-        pts = sensors_local[:, :3] @ h[:3, :3].T + h[:3, 3]
-        if np.all(shape.distance(pts) - sensors_local[:, 3] > 0.001):
-            return off, h
-        off += 0.003
-    return off, h
-
-
 def extent_along(shape, u):
-    """Half extent of a shape along a world direction."""
+    """Half extent of a shape along a world direction (or directions (..., 3))."""
     f = shape_frame(shape)[:3, :3]
-    lu = f.T @ u
+    u = np.asarray(u, float)
+    lu = u @ f  # f.T @ u, for any leading dimensions
     if isinstance(shape, Sphere):
-        return shape.radius
+        return shape.radius if u.ndim == 1 else np.full(u.shape[:-1], shape.radius)
     if isinstance(shape, Box):
-        return float(np.abs(lu) @ np.asarray(shape.half))
-    r = max(shape.radius, getattr(shape, "r0", 0.0), getattr(shape, "r1", 0.0))
-    return float(r * np.sqrt(max(0.0, 1 - lu[2] ** 2)) + shape.half * abs(lu[2]))
+        out = np.abs(lu) @ np.asarray(shape.half)
+    else:
+        r = max(shape.radius, getattr(shape, "r0", 0.0), getattr(shape, "r1", 0.0))
+        out = r * np.sqrt(np.maximum(0.0, 1 - lu[..., 2] ** 2)) + shape.half * np.abs(lu[..., 2])
+    return float(out) if u.ndim == 1 else out
 
 
 def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local, anchor=None, pinch_axis=None):
@@ -420,36 +454,63 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
                 for s in (-1, 1):
                     dirs.append((n, z * s))
     cur_palm = current_hand[:3, :3] @ geom.palm + current_hand[:3, 3]
-
-    def frame_fn(n, a, off):
-        return _hand_frame_for(geom, f, n, a, off, anchor)
-
-    for n, a in dirs:
-        a = a - n * (a @ n)
-        if np.linalg.norm(a) < 1e-6:
-            continue
-        a = a / np.linalg.norm(a)
-        off0 = 0.0 if anchor is not None else max(0.0, float(-shape.distance(f[:3, 3]))) + geom.palm_radius
-        off, h = _offset_clear(geom, shape, frame_fn, n, a, off0, sensors_local)
-        palm_w = h[:3, :3] @ geom.palm + h[:3, 3]
-        # the palm must not face away from the body: its normal points from the palm toward the object
-        away = palm_w - body_centre
-        away[2] = 0.0
-        if np.linalg.norm(away) > 1e-6 and n @ (away / np.linalg.norm(away)) > 0.5:
-            continue
-        # the thumb stays on the visible side: the thumb side (-across) faces the eye
-        thumb_dir = -(h[:3, :3] @ geom.across)
-        to_eye = eye - palm_w
-        if thumb_dir @ to_eye < -0.2 * np.linalg.norm(to_eye):
-            continue
-        dt = np.linalg.norm(palm_w - cur_palm)
-        dr = np.linalg.norm(ik.rot_log(h[:3, :3] @ current_hand[:3, :3].T))
-        cost = dt + 0.1 * dr
-        if pinch_axis is not None:  # pinch across the object's thinnest side
-            cost += 2.0 * (extent_along(shape, h[:3, :3] @ pinch_axis) - 0.5 * float(np.sort(dimensions(shape))[0]))
-        out.append(Candidate(h, rigid_inv(h) @ f, float(cost)))
-    out.sort(key=lambda c: c.cost)
+    if not dirs:
+        return out
+    # every direction at once: the hand frame of each (the palm normal n, the across axis a)
+    n = np.array([d[0] for d in dirs], float)
+    a = np.array([d[1] for d in dirs], float)
+    a = a - n * np.sum(a * n, axis=1)[:, None]
+    keep = np.linalg.norm(a, axis=1) >= 1e-6
+    n, a = n[keep], a[keep] / np.linalg.norm(a[keep], axis=1)[:, None]
+    local_axes = np.column_stack((geom.normal, geom.across, geom.along))
+    along_w = np.sign(np.linalg.det(local_axes)) * ik.cross(n, a)
+    rot = np.stack((n, a, along_w), axis=-1) @ local_axes.T  # (D, 3, 3)
+    anchor_l = geom.palm if anchor is None else anchor
+    off0 = 0.0 if anchor is not None else max(0.0, float(-shape.distance(f[:3, 3]))) + geom.palm_radius
+    t0 = f[:3, 3] - rot @ anchor_l  # the hand's origin at offset 0; an offset moves it along -n
+    off = _offsets_clear(shape, rot, t0, n, off0, sensors_local)
+    trans = t0 - n * off[:, None]
+    palm_w = rot @ geom.palm + trans
+    # the palm must not face away from the body: its normal points from the palm toward the object
+    away = palm_w - body_centre
+    away[:, 2] = 0.0
+    an = np.linalg.norm(away, axis=1)
+    facing = np.sum(n * away, axis=1) / np.where(an > 1e-6, an, 1.0)
+    ok = ~((an > 1e-6) & (facing > 0.5))
+    # the thumb stays on the visible side: the thumb side (-across) faces the eye
+    thumb_dir = -(rot @ geom.across)
+    to_eye = eye - palm_w
+    ok &= ~(np.sum(thumb_dir * to_eye, axis=1) < -0.2 * np.linalg.norm(to_eye, axis=1))
+    dt = np.linalg.norm(palm_w - cur_palm, axis=1)
+    dr = ik.rot_angle(rot @ current_hand[:3, :3].T)
+    cost = dt + 0.1 * dr
+    if pinch_axis is not None:  # pinch across the object's thinnest side
+        cost = cost + 2.0 * (extent_along(shape, rot @ pinch_axis) - 0.5 * float(np.sort(dimensions(shape))[0]))
+    for k in np.flatnonzero(ok)[np.argsort(cost[ok], kind="stable")]:
+        h = np.eye(4)
+        h[:3, :3], h[:3, 3] = rot[k], trans[k]
+        out.append(Candidate(h, rigid_inv(h) @ f, float(cost[k])))
     return out
+
+
+def _offsets_clear(shape, rot, t0, n, start, sensors_local, step=0.003, tries=60):
+    """Per hand frame, move the object away from the palm (the hand back along -n) in `step`s
+    until no hand sensor penetrates it (the thesis moves the origin toward the border until no
+    collision); all frames at once."""
+    pts0 = (rot[:, None] @ sensors_local[None, :, :3, None])[..., 0] + t0[:, None]  # (D, S, 3) at offset 0
+    radii = sensors_local[:, 3]
+    off = np.full(len(rot), float(start))
+    todo = np.ones(len(rot), bool)
+    for i in range(tries):
+        idx = np.flatnonzero(todo)
+        if not len(idx):
+            break
+        pts = pts0[idx] - n[idx, None] * off[idx, None, None]
+        clear = np.all(shape.distance(pts) - radii > 0.001, axis=-1)
+        todo[idx[clear]] = False
+        if i < tries - 1:
+            off[todo] += step
+    return off
 
 
 def _shape_normal(shape, p, h=1e-5):
@@ -459,16 +520,25 @@ def _shape_normal(shape, p, h=1e-5):
 
 
 def _keep_off_object(skeleton, frames, armature_to_world, side, chain, shape, reach_frames, margin=0.003,
-                     sensors=None):
+                     sensors=None, world=None, moved=()):
     """On the way in, a hand sensor that would pass through the object gives the hand a
     temporary goal pushed out along the surface normal (sec. 4.6.3's alternative, applied to the
-    object); the last frame (the grasp itself) is left alone."""
+    object); the last frame (the grasp itself) is left alone. `world` is the world of
+    `frames[0]`, where the frames differ from it only in the chain and the bones `moved`."""
     sensors = sensors or default_hand_sensors(skeleton, side)
     radii = np.array([x.radius for x in sensors])
     hand = skeleton.role_index(sided("hand", side))
-    for t in range(1, reach_frames):
+    if reach_frames < 2:
+        return
+    # every frame of the way in at once: only the chain and the hand below it move
+    if world is None:
+        world = skeleton.world_frames(frames[0], armature_to_world)
+    span = frames[1:reach_frames]
+    w_all = ik.update_world(skeleton, span, world, chain.joints + moved)
+    depth_all = radii - shape.distance(sensor_centres(sensors, w_all, skeleton))
+    for t in 1 + np.flatnonzero(depth_all.max(axis=1) > 0):
+        w = w_all[t - 1]
         for _ in range(6):
-            w = skeleton.world_frames(frames[t], armature_to_world)
             pts = sensor_centres(sensors, w, skeleton)
             depth = radii - shape.distance(pts)
             k = int(np.argmax(depth))
@@ -480,6 +550,7 @@ def _keep_off_object(skeleton, frames, armature_to_world, side, chain, shape, re
             base = ik.chain_base(chain, w)
             res = ik.solve(chain, frames[t], base, goal[:3, 3], goal[:3, :3], iterations=30)
             frames[t] = res.basis
+            w = ik.update_world(skeleton, frames[t], w, chain.joints)
 
 
 # --- the whole grasp ------------------------------------------------------------------------
@@ -543,10 +614,6 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         hand = skeleton.role_index(sided("hand", s))
         geom = hand_geometry(skeleton, s, world)
         sens = (hand_sensors or {}).get(s) or default_hand_sensors(skeleton, s)
-        # every hand sensor in the hand's frame at the current (open) finger pose
-        inv = np.linalg.inv(world[hand])
-        cen = sensor_centres(sens, world, skeleton) @ inv[:3, :3].T + inv[:3, 3]
-        loc = np.column_stack((cen, [x.radius for x in sens]))
         anchor, pinch_pat, pinch_axis = None, None, None
         if gtype not in PINCHES or pattern is not None:
             # the hand opens during the reach: thumb abducted, fingers straight
@@ -562,8 +629,8 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         pre = basis.copy()
         for j, r in preshape.items():
             pre[j, :3, :3] = r
-        wpre = skeleton.world_frames(pre, armature_to_world)
-        inv = np.linalg.inv(wpre[hand])
+        wpre = ik.update_world(skeleton, pre, world, list(preshape))
+        inv = rigid_inv(wpre[hand])
         cen = sensor_centres(sens, wpre, skeleton) @ inv[:3, :3].T + inv[:3, 3]
         loc = np.column_stack((cen, [x.radius for x in sens]))
         cands = candidates(shape, gtype, geom, world[hand], eye, body_c, loc, anchor, pinch_axis)
@@ -575,12 +642,13 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
             cands = [c for c in cands if (c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3] - obj_c) @ lateral
                      > 0.5 * np.linalg.norm(c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3] - obj_c)]
         chain = ik.Chain.arm(skeleton, s, point=geom.palm, with_spine=with_spine)
+        # the chain's base (above the shoulder or the pelvis) is moved by neither arm
+        base = ik.chain_base(chain, world)
         best = None
         for c in cands[:40]:
             target_r = c.hand_world[:3, :3]
             target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
-            res = ik.solve(chain, goal, ik.chain_base(chain, skeleton.world_frames(goal, armature_to_world)),
-                           target_p, target_r, iterations=80)
+            res = ik.solve(chain, goal, base, target_p, target_r, iterations=80)
             if res.position_error < 0.002 and res.rotation_error < np.radians(1.0):
                 best = (c, res)
                 break
@@ -592,18 +660,18 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         # the approach: the palm first comes to a point backed off along its normal
         n_w = c.hand_world[:3, :3] @ geom.normal
         target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
-        approach = ik.solve(chain, res.basis, ik.chain_base(chain, skeleton.world_frames(res.basis, armature_to_world)),
-                       target_p - n_w * APPROACH, c.hand_world[:3, :3], iterations=40)
+        approach = ik.solve(chain, res.basis, base, target_p - n_w * APPROACH, c.hand_world[:3, :3], iterations=40)
         goal = res.basis
         if pinch_pat[0] is not None:  # the fingertips meet inside the object where it ended up
-            hw = skeleton.world_frames(goal, armature_to_world)
+            hw = ik.update_world(skeleton, goal, world, chain.joints)
             aperture = extent_along(shape, hw[hand][:3, :3] @ pinch_axis) + 0.012
+            shut = pinch_closed(skeleton, s, basis, world, geom, gtype, c.grip[:3, 3])
             for _ in range(8):  # open wider until the pre-shaped fingers clear the object
-                closed, preshape, _, _ = pinch_pattern(skeleton, s, basis, world, geom, gtype, aperture, c.grip[:3, 3])
+                closed, preshape, _, _ = pinch_open(shut, basis, aperture)
                 pre = goal.copy()
                 for j, r in preshape.items():
                     pre[j, :3, :3] = r
-                wpre = skeleton.world_frames(pre, armature_to_world)
+                wpre = ik.update_world(skeleton, pre, hw, list(preshape))
                 depth = np.array([x.radius for x in sens]) - shape.distance(sensor_centres(sens, wpre, skeleton))
                 if depth.max() < -0.001:
                     break
@@ -621,17 +689,18 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         for t in range(reach_frames + 1):
             frames[t] = chain.apply(traj[t], frames[t])
         frames[reach_frames:] = chain.apply(res.theta, frames[reach_frames])[None]
-        if pinch_pat is not None:  # fingers pre-shape during the reach
+        if pinch_pat is not None:  # fingers pre-shape during the reach (a smooth-step slerp)
+            x = np.arange(reach_frames + 1) / reach_frames
+            ease = x * x * (3 - 2 * x)
             for j, r in pinch_pat[1].items():
-                rel = Rotation.from_matrix(basis[j, :3, :3]).inv() * Rotation.from_matrix(r)
-                for t in range(reach_frames + 1):
-                    x = t / reach_frames
-                    frames[t, j, :3, :3] = (Rotation.from_matrix(basis[j, :3, :3])
-                                            * Rotation.from_rotvec(rel.as_rotvec() * x * x * (3 - 2 * x))).as_matrix()
+                rel = ik.rot_log(basis[j, :3, :3].T @ r)
+                frames[:reach_frames + 1, j, :3, :3] = basis[j, :3, :3] @ ik.rodrigues(rel * ease[:, None])
                 frames[reach_frames:, j, :3, :3] = r
+    moved = sorted({j for v in chosen.values() for j in v[0].joints}
+                   | {j for v in chosen.values() if v[4] is not None for j in v[4][1]})
     for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
         _keep_off_object(skeleton, frames, armature_to_world, s, chain, shape, reach_frames,
-                         sensors=(hand_sensors or {}).get(s))
+                         sensors=(hand_sensors or {}).get(s), world=world, moved=moved)
     if avoid_body:  # the arms keep out of the trunk and head (sec. 4.6) on every frame of the reach
         frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, frames[:reach_frames + 1], armature_to_world,
                                                               sides=tuple(chosen), with_spine=with_spine,

@@ -40,33 +40,56 @@ class CorrectionReport:
     leg_frames_corrected: int = 0
 
 
-def _inside(skeleton, sensors, world, volumes, margin):
-    pts = sensor_points(skeleton, sensors, world)
+def _inside(skeleton, sensors, world, volumes, margin, pts=None):
+    """(sensor index, volume, depth, point) of every sensor within `margin` of a volume it is not
+    attached to; all sensors against one volume at once."""
+    if not sensors:
+        return []
+    pts = sensor_points(skeleton, sensors, world) if pts is None else pts
+    radii = np.array([s.radius for s in sensors])
     out = []
-    for i, s in enumerate(sensors):
-        for v in volumes:
-            if own_volume(s, v):
-                continue
-            d = s.radius - v.distance(pts[i])
-            if d > -margin:
-                out.append((i, v, float(d), pts[i]))
+    for v in volumes:
+        d = radii - v.distance(pts)
+        for i in np.flatnonzero(d > -margin):
+            if not own_volume(sensors[i], v):
+                out.append((int(i), v, float(d[i]), pts[i]))
+    out.sort(key=lambda h: h[0])  # sensor order, as the response sums them
     return out
 
 
+def joint_world(skeleton, basis, armature_to_world, j):
+    """World frame of one joint (its ancestors only, not the whole skeleton)."""
+    f = np.eye(4)
+    while j >= 0:
+        f = skeleton.rest_local[j] @ basis[j] @ f
+        j = skeleton.parents[j]
+    return f if armature_to_world is None else np.asarray(armature_to_world, float) @ f
+
+
 def correct_frame(skeleton, basis, armature_to_world, side, target_pos, target_rot, volumes=None,
-                  margin=0.01, max_steps=40, with_spine=False, method="SECONDARY", sensors=None):
+                  margin=0.01, max_steps=40, with_spine=False, method="SECONDARY", sensors=None, world=None):
     """One frame of table 4-1 for one arm. `method` 'SECONDARY' (default) moves the colliding
     elbow and forearm sensors in the null space; 'GOAL' uses temporary end-effector goals for
-    every sensor (sec. 4.6.3). Returns (basis, depth before, depth after, steps)."""
-    world = skeleton.world_frames(basis, armature_to_world)
+    every sensor (sec. 4.6.3). `world` (the basis's world frames) saves computing them.
+    Returns (basis, depth before, depth after, steps)."""
+    world = skeleton.world_frames(basis, armature_to_world) if world is None else world
     hand = skeleton.role_index(sided("hand", side))
-    chain = ik.Chain.arm(skeleton, side, point=np.zeros(3), with_spine=with_spine)
+    chain = _arm_chain(skeleton, side, with_spine)
     sensors = [x for x in (sensors if sensors is not None else body_sensors(skeleton, world))
                if x.limb == "arm" and x.chain_side == side and x.joint in chain.joints]
     if volumes is None:
         volumes = [v for v in body_volumes(skeleton, world) if v.name in ("trunk", "head")]
     return _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, volumes,
                           lambda x: x.joint == hand, target_pos, target_rot, margin, max_steps, method)
+
+
+def _arm_chain(skeleton, side, with_spine):
+    """The arm chain (wrist as the effector), made once per skeleton."""
+    cache = skeleton.__dict__.setdefault("_hands_chains", {})
+    key = ("arm", side, with_spine)
+    if key not in cache:
+        cache[key] = ik.Chain.arm(skeleton, side, point=np.zeros(3), with_spine=with_spine)
+    return cache[key]
 
 
 def leg_chain_joints(skeleton, side):
@@ -84,8 +107,11 @@ def leg_chain_joints(skeleton, side):
 
 
 def leg_chain(skeleton, side):
-    joints = leg_chain_joints(skeleton, side)
-    return ik.Chain(skeleton, joints, joints[-1], np.zeros(3))
+    cache = skeleton.__dict__.setdefault("_hands_chains", {})
+    if ("leg", side) not in cache:
+        joints = leg_chain_joints(skeleton, side)
+        cache["leg", side] = ik.Chain(skeleton, joints, joints[-1], np.zeros(3))
+    return cache["leg", side]
 
 
 LEG_END_SENSORS = ("ankle", "foot")
@@ -117,19 +143,26 @@ def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, vo
     place pushed out, and it stays there once clear, so a goal inside the body is left for good
     on that frame instead of being sought again."""
     base = ik.chain_base(chain, world)
-    theta = chain.angles(basis)
-    hit = _inside(skeleton, sensors, world, volumes, 0.0)
+    eul0 = ik.euler_xyz(basis[chain.joints, :3, :3])
+    theta = eul0[chain._k, chain._a]
+    # every sensor rides on a bone of the chain: its place from the chain's frames alone
+    pos = np.array([chain.joints.index(x.joint) for x in sensors], int)
+    local = np.array([[0.0, x.along * skeleton.lengths[x.joint], 0.0] for x in sensors]).reshape(-1, 3)
+    ends = np.array([bool(on_end(x)) or method == "GOAL" for x in sensors], bool)
+    dof_k = chain._k
+
+    def points(frames):
+        return (frames[pos, :3, :3] @ local[:, :, None])[:, :, 0] + frames[pos, :3, 3]
+
+    hit = _inside(skeleton, sensors, None, volumes, 0.0, pts=points(chain.frames(eul0, basis, base)[0]))
     before = max([d for _, _, d, _ in hit], default=0.0)
     goal = np.asarray(target_pos, float).copy()
     steps = 0
     for steps in range(1, max_steps + 1):
-        eul = chain.euler(theta, basis)
+        eul = eul0.copy()
+        eul[chain._k, chain._a] = theta
         frames, axes = chain.frames(eul, basis, base)
-        full = world.copy()
-        for k, j in enumerate(chain.joints):
-            full[j] = frames[k]
-        # descendants of the chain (fingers) follow the hand for the sensors on it
-        hit = _inside(skeleton, sensors, full, volumes, margin)
+        hit = _inside(skeleton, sensors, None, volumes, margin, pts=points(frames))
         x, r = chain.effector(frames)
         # temporary goal for the hand: pushed out along the response, else its own target
         if not sticky_goal:
@@ -137,19 +170,16 @@ def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, vo
         pushed = None
         dz = np.zeros(chain.n)
         for i, v, d, p in hit:
-            s = sensors[i]
             push = v.normal(p) * (d + margin)
-            if on_end(s) or method == "GOAL":
+            if ends[i]:
                 if sticky_goal:
                     pushed = (x if pushed is None else pushed) + push
                 else:
                     goal = goal + push
                 continue
             # secondary task on the sub-chain root..sensor (eq. 4-2)
-            k = chain.joints.index(s.joint)
             jac = chain.jacobian(frames, axes, target_point=p)[3:]
-            cols = np.array([kk <= k for kk, _ in chain.dofs])
-            jsub = jac * cols
+            jsub = jac * (dof_k <= pos[i])
             dz += np.linalg.pinv(jsub) @ push
         if pushed is not None:
             goal = pushed
@@ -166,10 +196,18 @@ def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, vo
             jac, dx = jac[3:], np.clip(ep, -0.05, 0.05)
         dq = ik.null_space_step(jac, dx, dz)
         theta = np.clip(theta + dq, chain.lower, chain.upper)
+        if np.abs(dq).max() < CONVERGED:  # a fixed point: the response and the goal balance
+            break
+    eul = eul0.copy()
+    eul[chain._k, chain._a] = theta
+    frames, _ = chain.frames(eul, basis, base)
     out = chain.apply(theta, basis)
-    after_world = skeleton.world_frames(out, armature_to_world)
-    after = max([d for _, _, d, _ in _inside(skeleton, sensors, after_world, volumes, 0.0)], default=0.0)
+    after = max([d for _, _, d, _ in _inside(skeleton, sensors, None, volumes, 0.0, pts=points(frames))],
+                default=0.0)
     return out, before, after, steps
+
+
+CONVERGED = 1e-6  # radians: a correction step this small ends the frame's iterations
 
 
 def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R"), targets=None, margin=0.01,
@@ -186,8 +224,9 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
     rest_world = skeleton.world_frames(frames[0], armature_to_world)
     volumes = [v for v in body_volumes(skeleton, rest_world) if v.name in ("trunk", "head")]
     sensors = body_sensors(skeleton, rest_world)  # sized once, on the first frame
+    world_in = skeleton.world_frames(frames, armature_to_world)  # every frame at once
     for t in range(len(frames)):
-        w_in = skeleton.world_frames(frames[t], armature_to_world)
+        w_in = world_in[t]
         cur = out[t]
         for s in sides:
             hand = skeleton.role_index(sided("hand", s))
@@ -201,19 +240,20 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
             # warm start from the previous corrected frame keeps the motion continuous
             start = cur.copy()
             if t > 0 and targets is not None:
-                chain = ik.Chain.arm(skeleton, s, with_spine=with_spine)
+                chain = _arm_chain(skeleton, s, with_spine)
                 start = chain.apply(chain.angles(out[t - 1]), cur)
             arm = [x for x in sensors if x.limb == "arm" and x.chain_side == s]
             near = _inside(skeleton, arm, w_in, volumes, margin)
             before = max([d for *_, d, _ in near if d > 0], default=0.0)
             if not near and targets is None:  # clear of the body, on its own target: nothing to do
                 continue
+            # the chain's base is not moved by either arm's correction: the input's world serves
             cur, _, after, n = correct_frame(skeleton, start, armature_to_world, s, tp, tr, volumes,
-                                             margin, max_steps, with_spine, method, sensors)
+                                             margin, max_steps, with_spine, method, sensors, world=w_in)
             steps += n
             corrected += before > 0
             worst_before, worst_after = max(worst_before, before), max(worst_after, after)
-            hw = skeleton.world_frames(cur, armature_to_world)[hand][:3, 3]
+            hw = joint_world(skeleton, cur, armature_to_world, hand)[:3, 3]
             radius = max(x.radius for x in sensors if x.joint == hand)
             clear = min(v.distance(tp) for v in volumes) > radius + margin
             if clear:
