@@ -44,7 +44,7 @@ class HandGeometry:
 def hand_geometry(skeleton, side, world):
     hand = skeleton.role_index(sided("hand", side))
     h = world[hand]
-    inv = np.linalg.inv(h)
+    inv = rigid_inv(h)
 
     def local(p):
         return inv[:3, :3] @ p + inv[:3, 3]
@@ -64,7 +64,7 @@ def hand_geometry(skeleton, side, world):
     across = root["pinky"] - root["index"]
     across -= along * (across @ along)
     across /= np.linalg.norm(across)
-    normal = np.cross(along, across)
+    normal = ik.cross(along, across)
     # the palm is the side the thumb's tip lies on
     if normal @ (tip["thumb"] - palm) < 0:
         normal = -normal
@@ -143,9 +143,9 @@ def builtin_pattern(skeleton, side, world, geom, gtype, centre_local, unused_cur
             # palm to the finger's knuckle); unused fingers curl toward the palm, out of the way
             aim = centre + across_w * (across_w @ (world[idx[0]][:3, 3] - centre)) if gtype in ("WRAP", "DISK") \
                 and f != "thumb" else centre
-            axis = np.cross(tip - p, aim - p) if f in used else np.cross(tip - p, h[:3, :3] @ geom.normal)
+            axis = ik.cross(tip - p, aim - p) if f in used else ik.cross(tip - p, h[:3, :3] @ geom.normal)
             if np.linalg.norm(axis) < 1e-9:
-                axis = np.cross(tip - p, h[:3, :3] @ geom.normal)
+                axis = ik.cross(tip - p, h[:3, :3] @ geom.normal)
             axis = axis / np.linalg.norm(axis)
             local_axis = world[j][:3, :3].T @ axis
             angle = share * angles[min(k, len(angles) - 1)]
@@ -169,7 +169,7 @@ APPROACH = 0.06  # metres the palm backs off along its normal before the final a
 
 def _flexion_axis(skeleton, j, world, normal_w, tip):
     """The bone's local axis closest to its flexion axis (the one that curls the tip palmward)."""
-    axis = np.cross(tip - world[j][:3, 3], normal_w)
+    axis = ik.cross(tip - world[j][:3, 3], normal_w)
     local = world[j][:3, :3].T @ axis
     return int(np.argmax(np.abs(local)))
 
@@ -235,7 +235,7 @@ def pinch_closed(skeleton, side, basis, world, geom, gtype, point_local=None):
         else normal_w
     u = u - normal_w * (u @ normal_w) * 0.5
     u /= np.linalg.norm(u)
-    inv = np.linalg.inv(h)
+    inv = rigid_inv(h)
     return PinchClosed(pattern, solvers, tips, used, normal_w, inv[:3, :3] @ meet + inv[:3, 3], u, inv)
 
 
@@ -348,7 +348,8 @@ class _FingerClose:
         samples = np.arange(1, 16) / 16.0
         for _ in range(frames):
             trial = np.where(moving, np.minimum(1.0, share + step), share)
-            if self.depth(trial[None])[0].max(initial=-1) > 0:
+            d = self.depth(trial[None])[0]
+            if d.max(initial=-1) > 0:
                 # the first touch between share and trial: a search on 16 samples, refined
                 lo, hi = 0.0, 1.0
                 for _ in range(self.REFINE):
@@ -357,8 +358,8 @@ class _FingerClose:
                     first = int(np.argmax(d > 0)) if (d > 0).any() else len(m)
                     lo, hi = (m[first - 1] if first > 0 else lo), (m[first] if first < len(m) else hi)
                 trial = share + lo * (trial - share)
+                d = self.depth(trial[None])[0]
             share = trial
-            d = self.depth(share[None])[0]
             for k in np.flatnonzero(d > -tolerance):
                 touching[self.sensors[k].name] = float(d[k])
                 # the touching bone and its ancestors in the finger stop
@@ -430,9 +431,9 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
             for ph in np.linspace(0, 2 * np.pi, 9)[:-1]:
                 n = np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
                 for roll in np.linspace(0, 2 * np.pi, 7)[:-1]:
-                    t1 = np.cross(n, [0, 0, 1.0])
+                    t1 = ik.cross(n, [0, 0, 1.0])
                     t1 /= np.linalg.norm(t1)
-                    t2 = np.cross(n, t1)
+                    t2 = ik.cross(n, t1)
                     dirs.append((n, np.cos(roll) * t1 + np.sin(roll) * t2))
     elif isinstance(shape, Box):
         for a in range(3):
@@ -710,7 +711,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
     world_f = skeleton.world_frames(final, armature_to_world)
     for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
         hand = skeleton.role_index(sided("hand", s))
-        centre_local = np.linalg.inv(world_f[hand]) @ shape_frame(shape)
+        centre_local = rigid_inv(world_f[hand]) @ shape_frame(shape)
         pat = pattern if pattern is not None else pinch_pat[0] if pinch_pat[0] is not None else builtin_pattern(
             skeleton, s, world_f, geom, gtype, centre_local[:3, 3], basis=final)
         if pattern is not None and not isinstance(pattern, dict):
@@ -720,7 +721,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         for j, rots in track.items():
             frames[reach_frames:, j, :3, :3] = rots
         fingers = tuple(sorted({x.split(".")[0] for x in touching}))
-        results.append(HandGrasp(s, np.linalg.inv(world_f[hand]) @ shape_frame(shape), touching, fingers,
+        results.append(HandGrasp(s, rigid_inv(world_f[hand]) @ shape_frame(shape), touching, fingers,
                                  res.position_error, sensors))
     world_end = skeleton.world_frames(frames[-1], armature_to_world)
     return GraspResult(gtype, kind(shape), results, frames, nfr, reach_frames, close_frames, world_end)

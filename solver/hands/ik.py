@@ -230,6 +230,7 @@ def null_space_step(jac, dx, dz=None, active=None, eye=None, **kw):
 
 
 STILL = 1e-7  # radians: a step that moves no DOF more than this ends the solve
+STALL = (1e-6, 1e-5)  # metres, radians: an iteration changing the errors less than this ends it
 
 
 @dataclass
@@ -259,14 +260,18 @@ def solve(chain, basis, base, target_pos, target_rot=None, secondary=None, itera
 
     it = 0
     zero3 = np.zeros(3)
+    prev = None
     for it in range(iterations):
         world, axes = pose(theta)
         x, r = chain.effector(world)
         ep = pos - x
         er = rot_log(target_rot @ r.T) if target_rot is not None else zero3
-        norm = np.sqrt(ep @ ep)
-        if norm < tol and np.sqrt(er @ er) < rot_tol and secondary is None:
+        norm, rnorm = np.sqrt(ep @ ep), np.sqrt(er @ er)
+        if norm < tol and rnorm < rot_tol and secondary is None:
             break
+        if secondary is None and prev is not None and abs(prev[0] - norm) < STALL[0] and abs(prev[1] - rnorm) < STALL[1]:
+            break  # an unreachable target: the error no longer changes
+        prev = (norm, rnorm)
         if norm > max_step:
             ep = ep * (max_step / norm)
         dx = np.concatenate((er * rot_weight, ep))[rows]

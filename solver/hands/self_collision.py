@@ -185,7 +185,10 @@ def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, vo
             goal = pushed
         ep = goal - x
         er = ik.rot_log(target_rot @ r.T) if target_rot is not None else np.zeros(3)
-        if not hit and np.linalg.norm(ep) < 2e-4 and np.linalg.norm(er) < 1e-3:
+        # done when every sensor keeps half the margin (the response aims at the whole margin,
+        # which it only approaches geometrically) and the effector is on its goal
+        clear = all(d <= -0.5 * margin for _, _, d, _ in hit)
+        if clear and np.linalg.norm(ep) < 2e-4 and np.linalg.norm(er) < 1e-3:
             break
         w = 0.15
         jac = chain.jacobian(frames, axes)
@@ -225,6 +228,7 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
     volumes = [v for v in body_volumes(skeleton, rest_world) if v.name in ("trunk", "head")]
     sensors = body_sensors(skeleton, rest_world)  # sized once, on the first frame
     world_in = skeleton.world_frames(frames, armature_to_world)  # every frame at once
+    shift = {}  # per arm, the change the correction made on the previous frame
     for t in range(len(frames)):
         w_in = world_in[t]
         cur = out[t]
@@ -239,17 +243,22 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
                 tp, tr = w_in[hand][:3, 3], w_in[hand][:3, :3]
             # warm start from the previous corrected frame keeps the motion continuous
             start = cur.copy()
+            chain = _arm_chain(skeleton, s, with_spine)
             if t > 0 and targets is not None:
-                chain = _arm_chain(skeleton, s, with_spine)
                 start = chain.apply(chain.angles(out[t - 1]), cur)
+            elif shift.get(s) is not None:  # the previous frame's correction, as a first guess
+                start = chain.apply(chain.angles(cur) + shift[s], cur)
+            shift[s] = None
             arm = [x for x in sensors if x.limb == "arm" and x.chain_side == s]
             near = _inside(skeleton, arm, w_in, volumes, margin)
             before = max([d for *_, d, _ in near if d > 0], default=0.0)
             if not near and targets is None:  # clear of the body, on its own target: nothing to do
                 continue
             # the chain's base is not moved by either arm's correction: the input's world serves
+            angles_in = chain.angles(cur)
             cur, _, after, n = correct_frame(skeleton, start, armature_to_world, s, tp, tr, volumes,
                                              margin, max_steps, with_spine, method, sensors, world=w_in)
+            shift[s] = chain.angles(cur) - angles_in
             steps += n
             corrected += before > 0
             worst_before, worst_after = max(worst_before, before), max(worst_after, after)
