@@ -197,7 +197,9 @@ class PinchClosed:
     hand_inv: np.ndarray
 
 
-def pinch_closed(skeleton, side, basis, world, geom, gtype, point_local=None):
+def pinch_closed(skeleton, side, basis, world, geom, gtype, point_local=None, warm=None):
+    """The closed pinch pattern (see `pinch_pattern`); `warm` (an earlier PinchClosed of the same
+    hand) starts each finger's IK from its closed pose there."""
     hand = skeleton.role_index(sided("hand", side))
     h = world[hand]
     if point_local is None:
@@ -220,10 +222,11 @@ def pinch_closed(skeleton, side, basis, world, geom, gtype, point_local=None):
         ch = ik.Chain(skeleton, chain, last, np.array([0, 0.8 * skeleton.lengths[last], 0]), allowed=allowed)
         base = world[skeleton.parents[chain[0]]]
         target = point + (across_w * 0.016 if f == "middle" else 0.0)
-        res = ik.solve(ch, basis, base, target, iterations=60)
+        start = basis if warm is None or f not in warm.solvers else warm.solvers[f][2]
+        res = ik.solve(ch, start, base, target, iterations=60)
         for j in chain:
             pattern[j] = res.basis[j, :3, :3]
-        tips[f] = ch.effector(ch.frames(ch.euler(res.theta, basis), basis, base)[0])[0]
+        tips[f] = ch.effector(ch.frames(ch.euler(res.theta, start), start, base)[0])[0]
         open_tip[f] = ch.effector(ch.frames(ch.euler(ch.angles(basis), basis), basis, base)[0])[0]
         solvers[f] = (ch, base, res.basis)
         if f == "thumb":
@@ -287,86 +290,110 @@ def close_fingers(skeleton, side, basis, world, pattern, shapes, frames=12, tole
     {joint: (frames+1, 3, 3)}, the touching sensors and their depths."""
     sensors = sensors or default_hand_sensors(skeleton, side)
     track, touching = {}, {}
+    # fingers whose chains have the same length close together (one batch per length)
+    groups = {}
     for f, chain in finger_chains(skeleton, side).items():
-        finger = _FingerClose(skeleton, chain, basis, world, pattern, [x for x in sensors if x.joint in chain],
-                              shapes)
-        shares = finger.close(frames, tolerance, touching)
-        rots = finger.rotations(shares)  # (frames+1, n, 3, 3)
-        for k, j in enumerate(chain):
-            track[j] = rots[:, k]
+        groups.setdefault(len(chain), []).append(chain)
+    for chains in groups.values():
+        hand = _FingersClose(skeleton, chains, basis, world, pattern, sensors, shapes)
+        shares = hand.close(frames, tolerance, touching)  # (frames+1, F, n)
+        rots = hand.rotations(shares)
+        for fi, chain in enumerate(chains):
+            for k, j in enumerate(chain):
+                track[j] = rots[:, fi, k]
     return track, touching, sensors
 
 
-class _FingerClose:
-    """One finger's closing (sec. 4.3.4): each bone's share of its way from its start rotation to
-    the pattern's; forward kinematics and sensor depths for many share vectors at once."""
+class _FingersClose:
+    """The closing of fingers with chains of one length (sec. 4.3.4): each bone's share of its way
+    from its start rotation to the pattern's; forward kinematics and sensor depths for many
+    share arrays (..., F, n) at once."""
 
-    REFINE = 3  # levels of the search for the first touch within a step, each 16 samples
+    SAMPLES = np.arange(1, 16) / 16.0  # the first touch within a step: 15 samples a level ...
+    REFINE = 3  # ... refined this many times
 
-    def __init__(self, skeleton, chain, basis, world, pattern, sensors, shapes):
-        self.chain, self.sensors, self.shapes = chain, sensors, shapes
-        self.start = np.array([basis[j, :3, :3] for j in chain])
-        self.rel = np.array([ik.rot_log(self.start[k].T @ pattern.get(j, self.start[k])) for k, j in enumerate(chain)])
-        rest = skeleton.rest_local[chain]
-        self.rest_r, self.rest_t = rest[:, :3, :3], rest[:, :3, 3]
-        self.bt = basis[chain, :3, 3]
-        # a parent outside the chain is fixed (the hand); inside, its index in the chain
-        self.parent = [chain.index(skeleton.parents[j]) if skeleton.parents[j] in chain else -1 for j in chain]
-        self.outer = [world[skeleton.parents[j]] for j in chain]
-        self.pos = np.array([chain.index(x.joint) for x in sensors], int)
-        self.local = sensor_layout(sensors, skeleton)[1] if sensors else np.zeros((0, 3))
-        self.radii = np.array([x.radius for x in sensors])
+    def __init__(self, skeleton, chains, basis, world, pattern, sensors, shapes):
+        self.chains, self.shapes = chains, shapes
+        nf, n = len(chains), len(chains[0])
+        self.start = np.array([[basis[j, :3, :3] for j in c] for c in chains])  # (F, n, 3, 3)
+        self.rel = np.array([[ik.rot_log(basis[j, :3, :3].T @ pattern.get(j, basis[j, :3, :3])) for j in c]
+                             for c in chains])
+        rest = np.array([skeleton.rest_local[c] for c in chains])
+        self.rest_r, self.rest_t = rest[..., :3, :3], rest[..., :3, 3]
+        self.bt = np.array([basis[c, :3, 3] for c in chains])
+        # parent of each bone: its index in the finger, or -1 with the (fixed) frame it hangs from
+        self.parent = np.array([[c.index(skeleton.parents[j]) if skeleton.parents[j] in c else -1 for j in c]
+                                for c in chains])
+        self.outer = np.array([[world[skeleton.parents[j]] for j in c] for c in chains])  # (F, n, 4, 4)
+        self.sensors = [[x for x in sensors if x.joint in c] for c in chains]
+        smax = max(1, max(len(x) for x in self.sensors))
+        self.pos = np.zeros((nf, smax), int)
+        self.local = np.zeros((nf, smax, 3))
+        self.radii = np.full((nf, smax), -np.inf)  # padding never touches
+        for fi, (c, ss) in enumerate(zip(chains, self.sensors)):
+            if ss:
+                self.pos[fi, :len(ss)] = [c.index(x.joint) for x in ss]
+                self.local[fi, :len(ss)] = sensor_layout(ss, skeleton)[1]
+                self.radii[fi, :len(ss)] = [x.radius for x in ss]
+        self._fi = np.arange(nf)[:, None]
+        self.n = n
 
     def rotations(self, shares):
-        """(..., n, 3, 3) rotations of share vectors (..., n)."""
+        """(..., F, n, 3, 3) rotations of share arrays (..., F, n)."""
         return self.start @ ik.rodrigues(self.rel * np.asarray(shares)[..., None])
 
     def depth(self, shares):
-        """(M, S) sensor depths in the objects (positive inside) of share vectors (M, n)."""
+        """(M, F, S) sensor depths in the objects (positive inside) of share arrays (M, F, n)."""
         rots = self.rotations(shares)
-        m = len(shares)
         wr, wp = np.empty(rots.shape), np.empty(rots.shape[:-1])
-        for k in range(len(self.chain)):
-            p = self.parent[k]
-            pr, pp = (wr[:, p], wp[:, p]) if p >= 0 else (self.outer[k][:3, :3], self.outer[k][:3, 3])
-            r = pr @ self.rest_r[k]
-            wp[:, k] = (pr @ self.rest_t[k]) + pp + r @ self.bt[k]
-            wr[:, k] = r @ rots[:, k]
-        if not len(self.sensors):
-            return np.full((m, 0), -1.0)
-        pts = (wr[:, self.pos] @ self.local[:, :, None])[..., 0] + wp[:, self.pos]
+        fi = np.arange(len(self.chains))
+        for k in range(self.n):
+            p = self.parent[:, k]
+            inner = p >= 0
+            pr = np.where(inner[:, None, None], wr[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, :3])
+            pp = np.where(inner[:, None], wp[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, 3])
+            r = pr @ self.rest_r[:, k]
+            wp[:, :, k] = (pr @ self.rest_t[:, k, :, None])[..., 0] + pp + (r @ self.bt[:, k, :, None])[..., 0]
+            wr[:, :, k] = r @ rots[:, :, k]
+        sr, sp = wr[:, self._fi, self.pos], wp[:, self._fi, self.pos]  # (M, F, S, ...)
+        pts = (sr @ self.local[..., None])[..., 0] + sp
         if not self.shapes:
-            return np.full((m, len(self.sensors)), -np.inf)
-        return np.max([self.radii - sh.distance(pts) for sh in self.shapes], axis=0)
+            return np.full(pts.shape[:-1], -np.inf)
+        d = np.max([self.radii - sh.distance(pts) for sh in self.shapes], axis=0)
+        return np.where(np.isfinite(self.radii), d, -np.inf)
 
     def close(self, frames, tolerance, touching):
-        n = len(self.chain)
-        share = np.zeros(n)
-        moving = np.ones(n, bool)
+        nf = len(self.chains)
+        share = np.zeros((nf, self.n))
+        moving = np.ones((nf, self.n), bool)
         out = [share.copy()]
         step = 1.0 / frames
-        samples = np.arange(1, 16) / 16.0
+        m0 = self.SAMPLES
         for _ in range(frames):
             trial = np.where(moving, np.minimum(1.0, share + step), share)
-            d = self.depth(trial[None])[0]
-            if d.max(initial=-1) > 0:
-                # the first touch between share and trial: a search on 16 samples, refined
-                lo, hi = 0.0, 1.0
+            d = self.depth(trial[None])[0]  # (F, S)
+            hit = d.max(axis=1) > 0
+            if hit.any():
+                # the first touch between share and trial, per finger that would sink in
+                lo, hi = np.zeros(nf), np.ones(nf)
                 for _ in range(self.REFINE):
-                    m = lo + (hi - lo) * samples
-                    d = self.depth(share + m[:, None] * (trial - share)).max(axis=1, initial=-1)
-                    first = int(np.argmax(d > 0)) if (d > 0).any() else len(m)
-                    lo, hi = (m[first - 1] if first > 0 else lo), (m[first] if first < len(m) else hi)
-                trial = share + lo * (trial - share)
+                    m = lo[None] + (hi - lo)[None] * m0[:, None]  # (K, F)
+                    dd = self.depth(share[None] + m[..., None] * (trial - share)[None]).max(axis=2) > 0
+                    first = np.where(dd.any(axis=0), np.argmax(dd, axis=0), len(m0))
+                    k = np.arange(nf)
+                    lo = np.where(first > 0, m[np.maximum(first - 1, 0), k], lo)
+                    hi = np.where(first < len(m0), m[np.minimum(first, len(m0) - 1), k], hi)
+                trial = np.where(hit[:, None], share + lo[:, None] * (trial - share), trial)
                 d = self.depth(trial[None])[0]
             share = trial
-            for k in np.flatnonzero(d > -tolerance):
-                touching[self.sensors[k].name] = float(d[k])
+            for fi, si in zip(*np.nonzero(d > -tolerance)):
+                sensor = self.sensors[fi][si]
+                touching[sensor.name] = float(d[fi, si])
                 # the touching bone and its ancestors in the finger stop
-                j = self.pos[k]
+                j = self.pos[fi, si]
                 while j >= 0:
-                    moving[j] = False
-                    j = self.parent[j]
+                    moving[fi, j] = False
+                    j = self.parent[fi, j]
             moving &= share < 1.0
             out.append(share.copy())
         return np.array(out)
@@ -624,7 +651,8 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
             pinch_pat = (None, preshape)
         else:
             aperture = 0.5 * float(np.sort(dimensions(shape))[0]) + 0.015
-            pinch_pat, preshape, anchor, pinch_axis = pinch_pattern(skeleton, s, basis, world, geom, gtype, aperture)
+            first = pinch_closed(skeleton, s, basis, world, geom, gtype)
+            pinch_pat, preshape, anchor, pinch_axis = pinch_open(first, basis, aperture)
             pinch_pat = (pinch_pat, preshape)
         # the clearance test sees the pre-shaped hand
         pre = basis.copy()
@@ -666,7 +694,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         if pinch_pat[0] is not None:  # the fingertips meet inside the object where it ended up
             hw = ik.update_world(skeleton, goal, world, chain.joints)
             aperture = extent_along(shape, hw[hand][:3, :3] @ pinch_axis) + 0.012
-            shut = pinch_closed(skeleton, s, basis, world, geom, gtype, c.grip[:3, 3])
+            shut = pinch_closed(skeleton, s, basis, world, geom, gtype, c.grip[:3, 3], warm=first)
             for _ in range(8):  # open wider until the pre-shaped fingers clear the object
                 closed, preshape, _, _ = pinch_open(shut, basis, aperture)
                 pre = goal.copy()
