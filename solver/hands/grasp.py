@@ -242,15 +242,22 @@ def pinch_closed(skeleton, side, basis, world, geom, gtype, point_local=None, wa
     return PinchClosed(pattern, solvers, tips, used, normal_w, inv[:3, :3] @ meet + inv[:3, 3], u, inv)
 
 
-def pinch_open(closed, basis, aperture):
+def pinch_open(closed, basis, aperture, warm=None):
     """The pre-shape of a closed pinch pattern at an aperture: (closed pattern, pre-shape, meeting
-    point and pinch axis in the hand's frame)."""
+    point and pinch axis in the hand's frame). `warm` (a pre-shape at another aperture) starts
+    the fingers' IK there."""
     preshape = dict(closed.pattern)  # the fingers the type does not use stay open, out of the way
     u, normal_w = closed.u_w, closed.normal_w
     for f in closed.used:
         ch, base, shut = closed.solvers[f]
         sign = -1.0 if f == "thumb" else 1.0
-        res = ik.solve(ch, shut, base, closed.tips[f] + sign * u * aperture - normal_w * 0.3 * aperture, iterations=60)
+        start = shut
+        if warm is not None:
+            start = shut.copy()
+            for j in ch.joints:
+                start[j, :3, :3] = warm[j]
+        res = ik.solve(ch, start, base, closed.tips[f] + sign * u * aperture - normal_w * 0.3 * aperture,
+                       iterations=60)
         for j in ch.joints:
             preshape[j] = res.basis[j, :3, :3]
     return dict(closed.pattern), preshape, closed.meet_local, closed.hand_inv[:3, :3] @ u
@@ -309,8 +316,8 @@ class _FingersClose:
     from its start rotation to the pattern's; forward kinematics and sensor depths for many
     share arrays (..., F, n) at once."""
 
-    SAMPLES = np.arange(1, 16) / 16.0  # the first touch within a step: 15 samples a level ...
-    REFINE = 3  # ... refined this many times
+    SAMPLES = np.arange(1, 32) / 32.0  # the first touch within a step: 31 samples a level ...
+    REFINE = 2  # ... refined once (1/1024 of the step)
 
     def __init__(self, skeleton, chains, basis, world, pattern, sensors, shapes):
         self.chains, self.shapes = chains, shapes
@@ -337,6 +344,7 @@ class _FingersClose:
                 self.radii[fi, :len(ss)] = [x.radius for x in ss]
         self._fi = np.arange(nf)[:, None]
         self.n = n
+        self.path = bool(np.all(self.parent == np.arange(n) - 1))
 
     def rotations(self, shares):
         """(..., F, n, 3, 3) rotations of share arrays (..., F, n)."""
@@ -349,9 +357,12 @@ class _FingersClose:
         fi = np.arange(len(self.chains))
         for k in range(self.n):
             p = self.parent[:, k]
-            inner = p >= 0
-            pr = np.where(inner[:, None, None], wr[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, :3])
-            pp = np.where(inner[:, None], wp[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, 3])
+            if self.path:  # each bone hangs from the one before, the first from the hand
+                pr, pp = (wr[:, :, k - 1], wp[:, :, k - 1]) if k else (self.outer[:, 0, :3, :3], self.outer[:, 0, :3, 3])
+            else:
+                inner = p >= 0
+                pr = np.where(inner[:, None, None], wr[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, :3])
+                pp = np.where(inner[:, None], wp[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, 3])
             r = pr @ self.rest_r[:, k]
             wp[:, :, k] = (pr @ self.rest_t[:, k, :, None])[..., 0] + pp + (r @ self.bt[:, k, :, None])[..., 0]
             wr[:, :, k] = r @ rots[:, :, k]
@@ -411,6 +422,19 @@ def pd_servo(q0, qd, frames, fps, qd_vel=None, damping=1.0, settle=10.0):
     k, kv = omega ** 2, 2 * damping * omega
     sub = 8
     dt = 1.0 / (fps * sub)
+    if qd_vel is None:
+        # every DOF has the same gains and a still goal: the substep is one linear map of
+        # (q - qd, v), the same for all; its powers give the trajectory without a loop over DOFs
+        a = np.array([[1.0 - k * dt * dt, (1.0 - kv * dt) * dt], [-k * dt, 1.0 - kv * dt]])
+        step = np.linalg.matrix_power(a, sub)
+        c, m = np.empty(frames + 1), np.eye(2)
+        c[0] = 1.0
+        for t in range(1, frames + 1):
+            m = step @ m
+            c[t] = m[0, 0]
+        out = qd + c[:, None] * (q0 - qd)
+        out[-1] = qd
+        return out
     q, v = q0.copy(), np.zeros_like(q0)
     out = [q.copy()]
     for _ in range(frames):
@@ -695,8 +719,9 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
             hw = ik.update_world(skeleton, goal, world, chain.joints)
             aperture = extent_along(shape, hw[hand][:3, :3] @ pinch_axis) + 0.012
             shut = pinch_closed(skeleton, s, basis, world, geom, gtype, c.grip[:3, 3], warm=first)
+            preshape = None
             for _ in range(8):  # open wider until the pre-shaped fingers clear the object
-                closed, preshape, _, _ = pinch_open(shut, basis, aperture)
+                closed, preshape, _, _ = pinch_open(shut, basis, aperture, warm=preshape)
                 pre = goal.copy()
                 for j, r in preshape.items():
                     pre[j, :3, :3] = r

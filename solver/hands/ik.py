@@ -139,6 +139,10 @@ class Chain:
         self._k = np.array([k for k, _ in self.dofs], int)
         self._a = np.array([a for _, a in self.dofs], int)
         self._tip_k = self.joints.index(self.tip)
+        # the damping thresholds are set for an arm (~0.6 m); a finger's Jacobian is ten times
+        # smaller and would be damped everywhere, creeping to its target
+        reach = sum(np.linalg.norm(self._rest_t[1:], axis=1)) + np.linalg.norm(self.point)
+        self.scale = float(np.clip(reach / 0.6, 0.5, 1.0))
 
     @classmethod
     def arm(cls, skeleton, side, point=(0, 0, 0), with_spine=False, tip=None):
@@ -281,7 +285,7 @@ def solve(chain, basis, base, target_pos, target_rot=None, secondary=None, itera
         dz = secondary(theta, world, axes) if secondary is not None else None
         active = None
         for _ in range(3):
-            dq = null_space_step(jac, dx, dz, active, eye=eye)
+            dq = null_space_step(jac, dx, dz, active, eye=eye, epsilon=0.02 * chain.scale, lam_max=0.05 * chain.scale)
             new = theta + dq
             out = ((new < chain.lower) & (dq < 0)) | ((new > chain.upper) & (dq > 0))
             if not out.any():

@@ -57,6 +57,25 @@ def _inside(skeleton, sensors, world, volumes, margin, pts=None):
     return out
 
 
+def _near_frames(skeleton, sensors, worlds, volumes, margin):
+    """Per frame of worlds (F, J, 4, 4): is a sensor within `margin` of a volume, and the depth of
+    the deepest one inside (0 when none); every frame at once."""
+    f = len(worlds)
+    if not sensors or not volumes:
+        return np.zeros(f, bool), np.zeros(f)
+    joints = np.array([x.joint for x in sensors], int)
+    local = np.array([[0.0, x.along * skeleton.lengths[x.joint], 0.0] for x in sensors])
+    w = worlds[:, joints]
+    pts = (w[..., :3, :3] @ local[:, :, None])[..., 0] + w[..., :3, 3]  # (F, S, 3)
+    radii = np.array([x.radius for x in sensors])
+    depth = np.full((f, len(sensors)), -np.inf)
+    for v in volumes:
+        own = np.array([own_volume(x, v) for x in sensors], bool)
+        depth = np.maximum(depth, np.where(own, -np.inf, radii - v.distance(pts)))
+    deepest = depth.max(axis=1)
+    return deepest > -margin, np.maximum(deepest, 0.0)
+
+
 def joint_world(skeleton, basis, armature_to_world, j):
     """World frame of one joint (its ancestors only, not the whole skeleton)."""
     f = np.eye(4)
@@ -229,6 +248,8 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
     sensors = body_sensors(skeleton, rest_world)  # sized once, on the first frame
     world_in = skeleton.world_frames(frames, armature_to_world)  # every frame at once
     shift = {}  # per arm, the change the correction made on the previous frame
+    arm_near = {s: _near_frames(skeleton, [x for x in sensors if x.limb == "arm" and x.chain_side == s], world_in,
+                                volumes, margin) for s in sides}
     for t in range(len(frames)):
         w_in = world_in[t]
         cur = out[t]
@@ -249,9 +270,7 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
             elif shift.get(s) is not None:  # the previous frame's correction, as a first guess
                 start = chain.apply(chain.angles(cur) + shift[s], cur)
             shift[s] = None
-            arm = [x for x in sensors if x.limb == "arm" and x.chain_side == s]
-            near = _inside(skeleton, arm, w_in, volumes, margin)
-            before = max([d for *_, d, _ in near if d > 0], default=0.0)
+            near, before = arm_near[s][0][t], arm_near[s][1][t]
             if not near and targets is None:  # clear of the body, on its own target: nothing to do
                 continue
             # the chain's base is not moved by either arm's correction: the input's world serves
