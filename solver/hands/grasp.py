@@ -345,27 +345,48 @@ class _FingersClose:
         self._fi = np.arange(nf)[:, None]
         self.n = n
         self.path = bool(np.all(self.parent == np.arange(n) - 1))
+        # exp(s rel) = I + sin(s th) K + (1 - cos(s th)) K^2 (K the unit axis's cross matrix):
+        # with the start and rest rotations folded in, a pose is three matrices' blend per bone
+        self.th = np.linalg.norm(self.rel, axis=-1)
+        axis = self.rel / np.where(self.th > 1e-12, self.th, 1.0)[..., None]
+        kk = np.zeros(axis.shape + (3,))
+        kk[..., 0, 1], kk[..., 0, 2], kk[..., 1, 2] = -axis[..., 2], axis[..., 1], -axis[..., 0]
+        kk = kk - np.swapaxes(kk, -1, -2)
+        self.s0, self.s1, self.s2 = self.start, self.start @ kk, self.start @ kk @ kk
+        self.a0, self.a1, self.a2 = self.rest_r @ self.s0, self.rest_r @ self.s1, self.rest_r @ self.s2
+        self.off = self.rest_t + (self.rest_r @ self.bt[..., None])[..., 0]
 
     def rotations(self, shares):
         """(..., F, n, 3, 3) rotations of share arrays (..., F, n)."""
-        return self.start @ ik.rodrigues(self.rel * np.asarray(shares)[..., None])
+        a = np.asarray(shares) * self.th
+        return self.s0 + np.sin(a)[..., None, None] * self.s1 + (1.0 - np.cos(a))[..., None, None] * self.s2
 
     def depth(self, shares):
         """(M, F, S) sensor depths in the objects (positive inside) of share arrays (M, F, n)."""
+        if self.path:  # each bone hangs from the one before, the first from the hand
+            a = np.asarray(shares) * self.th
+            loc = self.a0 + np.sin(a)[..., None, None] * self.a1 + (1.0 - np.cos(a))[..., None, None] * self.a2
+            wr, wp = np.empty(loc.shape), np.empty(loc.shape[:-1])
+            pr, pp = self.outer[:, 0, :3, :3], self.outer[:, 0, :3, 3]
+            for k in range(self.n):
+                wp[:, :, k] = (pr @ self.off[:, k, :, None])[..., 0] + pp
+                pr = wr[:, :, k] = pr @ loc[:, :, k]
+                pp = wp[:, :, k]
+            return self._depths(wr, wp)
         rots = self.rotations(shares)
         wr, wp = np.empty(rots.shape), np.empty(rots.shape[:-1])
         fi = np.arange(len(self.chains))
         for k in range(self.n):
             p = self.parent[:, k]
-            if self.path:  # each bone hangs from the one before, the first from the hand
-                pr, pp = (wr[:, :, k - 1], wp[:, :, k - 1]) if k else (self.outer[:, 0, :3, :3], self.outer[:, 0, :3, 3])
-            else:
-                inner = p >= 0
-                pr = np.where(inner[:, None, None], wr[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, :3])
-                pp = np.where(inner[:, None], wp[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, 3])
+            inner = p >= 0
+            pr = np.where(inner[:, None, None], wr[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, :3])
+            pp = np.where(inner[:, None], wp[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, 3])
             r = pr @ self.rest_r[:, k]
             wp[:, :, k] = (pr @ self.rest_t[:, k, :, None])[..., 0] + pp + (r @ self.bt[:, k, :, None])[..., 0]
             wr[:, :, k] = r @ rots[:, :, k]
+        return self._depths(wr, wp)
+
+    def _depths(self, wr, wp):
         sr, sp = wr[:, self._fi, self.pos], wp[:, self._fi, self.pos]  # (M, F, S, ...)
         pts = (sr @ self.local[..., None])[..., 0] + sp
         if not self.shapes:
@@ -756,12 +777,15 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         _keep_off_object(skeleton, frames, armature_to_world, s, chain, shape, reach_frames,
                          sensors=(hand_sensors or {}).get(s), world=world, moved=moved)
     if avoid_body:  # the arms keep out of the trunk and head (sec. 4.6) on every frame of the reach
-        frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, frames[:reach_frames + 1], armature_to_world,
+        # (the reach moves the arms and fingers only: their share of the kinematics, every frame at once)
+        reach = frames[:reach_frames + 1]
+        frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, reach, armature_to_world,
                                                               sides=tuple(chosen), with_spine=with_spine,
-                                                              legs=())
+                                                              legs=(), world=ik.update_world(skeleton, reach, world,
+                                                                                             moved))
         frames[reach_frames:] = frames[reach_frames][None]
     final = frames[reach_frames]
-    world_f = skeleton.world_frames(final, armature_to_world)
+    world_f = ik.update_world(skeleton, final, world, moved)
     for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
         hand = skeleton.role_index(sided("hand", s))
         centre_local = rigid_inv(world_f[hand]) @ shape_frame(shape)
@@ -776,5 +800,5 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         fingers = tuple(sorted({x.split(".")[0] for x in touching}))
         results.append(HandGrasp(s, rigid_inv(world_f[hand]) @ shape_frame(shape), touching, fingers,
                                  res.position_error, sensors))
-    world_end = skeleton.world_frames(frames[-1], armature_to_world)
+    world_end = ik.update_world(skeleton, frames[-1], world, moved)
     return GraspResult(gtype, kind(shape), results, frames, nfr, reach_frames, close_frames, world_end)

@@ -233,20 +233,22 @@ CONVERGED = 1e-6  # radians: a correction step this small ends the frame's itera
 
 
 def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R"), targets=None, margin=0.01,
-                           max_steps=40, with_spine=False, method="SECONDARY", legs=("L", "R"), leg_targets=None):
+                           max_steps=40, with_spine=False, method="SECONDARY", legs=("L", "R"), leg_targets=None,
+                           world=None):
     """Correct a motion (F, J, 4, 4) frame by frame: the arms of `sides`, then the legs of `legs`.
     The hand's target on each frame is its position and orientation in the input (or
     `targets[side]` = (positions (F, 3), rotations (F, 3, 3))); the foot's goal likewise (or
-    `leg_targets[side]`, the ankle's positions and the foot's rotations). Returns (corrected
-    frames, CorrectionReport)."""
+    `leg_targets[side]`, the ankle's positions and the foot's rotations). `world` (F, J, 4, 4),
+    the input's world frames, saves computing them. Returns (corrected frames, CorrectionReport)."""
     frames = np.array(frames, float)
     out = frames.copy()
     corrected, worst_before, worst_after, goal_err, steps = 0, 0.0, 0.0, 0.0, 0
     leg_corrected, foot_err = 0, 0.0
-    rest_world = skeleton.world_frames(frames[0], armature_to_world)
+    # `world`: the frames' world frames when the caller has them (F, J, 4, 4)
+    world_in = skeleton.world_frames(frames, armature_to_world) if world is None else np.asarray(world, float)
+    rest_world = world_in[0]
     volumes = [v for v in body_volumes(skeleton, rest_world) if v.name in ("trunk", "head")]
     sensors = body_sensors(skeleton, rest_world)  # sized once, on the first frame
-    world_in = skeleton.world_frames(frames, armature_to_world)  # every frame at once
     shift = {}  # per arm, the change the correction made on the previous frame
     arm_near = {s: _near_frames(skeleton, [x for x in sensors if x.limb == "arm" and x.chain_side == s], world_in,
                                 volumes, margin) for s in sides}
