@@ -499,14 +499,15 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
     out = []
     dirs = []
     if isinstance(shape, Sphere):
-        for th in np.linspace(0, np.pi, 6)[1:-1]:
-            for ph in np.linspace(0, 2 * np.pi, 9)[:-1]:
-                n = np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
-                for roll in np.linspace(0, 2 * np.pi, 7)[:-1]:
-                    t1 = ik.cross(n, [0, 0, 1.0])
-                    t1 /= np.linalg.norm(t1)
-                    t2 = ik.cross(n, t1)
-                    dirs.append((n, np.cos(roll) * t1 + np.sin(roll) * t2))
+        # palm normals over the sphere (4 latitudes x 8 longitudes), 6 rolls about each
+        th, ph, roll = np.meshgrid(np.linspace(0, np.pi, 6)[1:-1], np.linspace(0, 2 * np.pi, 9)[:-1],
+                                   np.linspace(0, 2 * np.pi, 7)[:-1], indexing="ij")
+        th, ph, roll = th.ravel(), ph.ravel(), roll.ravel()
+        n = np.stack((np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)), axis=-1)
+        t1 = ik.cross(n, [0, 0, 1.0])
+        t1 /= np.linalg.norm(t1, axis=1)[:, None]
+        t2 = ik.cross(n, t1)
+        dirs = list(zip(n, np.cos(roll)[:, None] * t1 + np.sin(roll)[:, None] * t2))
     elif isinstance(shape, Box):
         for a in range(3):
             for s in (-1, 1):
@@ -559,11 +560,15 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
     cost = dt + 0.1 * dr
     if pinch_axis is not None:  # pinch across the object's thinnest side
         cost = cost + 2.0 * (extent_along(shape, rot @ pinch_axis) - 0.5 * float(np.sort(dimensions(shape))[0]))
-    for k in np.flatnonzero(ok)[np.argsort(cost[ok], kind="stable")]:
-        h = np.eye(4)
-        h[:3, :3], h[:3, 3] = rot[k], trans[k]
-        out.append(Candidate(h, rigid_inv(h) @ f, float(cost[k])))
-    return out
+    order = np.flatnonzero(ok)[np.argsort(cost[ok], kind="stable")]
+    hw = np.zeros((len(order), 4, 4))
+    hw[:, :3, :3], hw[:, :3, 3], hw[:, 3, 3] = rot[order], trans[order], 1.0
+    inv = np.zeros_like(hw)  # the hands' inverses, all at once
+    inv[:, :3, :3] = np.swapaxes(rot[order], 1, 2)
+    inv[:, :3, 3] = -(inv[:, :3, :3] @ trans[order][:, :, None])[..., 0]
+    inv[:, 3, 3] = 1.0
+    grips = inv @ f
+    return [Candidate(hw[i], grips[i], float(cost[k])) for i, k in enumerate(order)]
 
 
 def _offsets_clear(shape, rot, t0, n, start, sensors_local, step=0.003, tries=60):
