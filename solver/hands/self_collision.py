@@ -76,17 +76,9 @@ def _near_frames(skeleton, sensors, worlds, volumes, margin):
     return deepest > -margin, np.maximum(deepest, 0.0)
 
 
-def joint_world(skeleton, basis, armature_to_world, j):
-    """World frame of one joint (its ancestors only, not the whole skeleton)."""
-    f = np.eye(4)
-    while j >= 0:
-        f = skeleton.rest_local[j] @ basis[j] @ f
-        j = skeleton.parents[j]
-    return f if armature_to_world is None else np.asarray(armature_to_world, float) @ f
-
-
 def correct_frame(skeleton, basis, armature_to_world, side, target_pos, target_rot, volumes=None,
-                  margin=0.01, max_steps=40, with_spine=False, method="SECONDARY", sensors=None, world=None):
+                  margin=0.01, max_steps=40, with_spine=False, method="SECONDARY", sensors=None, world=None,
+                  _full=False):
     """One frame of table 4-1 for one arm. `method` 'SECONDARY' (default) moves the colliding
     elbow and forearm sensors in the null space; 'GOAL' uses temporary end-effector goals for
     every sensor (sec. 4.6.3). `world` (the basis's world frames) saves computing them.
@@ -98,8 +90,9 @@ def correct_frame(skeleton, basis, armature_to_world, side, target_pos, target_r
                if x.limb == "arm" and x.chain_side == side and x.joint in chain.joints]
     if volumes is None:
         volumes = [v for v in body_volumes(skeleton, world) if v.name in ("trunk", "head")]
-    return _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, volumes,
-                          lambda x: x.joint == hand, target_pos, target_rot, margin, max_steps, method)
+    out = _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, volumes,
+                         lambda x: x.joint == hand, target_pos, target_rot, margin, max_steps, method)
+    return out if _full else out[:4]  # _full: also the chain's angles and the wrist (for the motion pass)
 
 
 def _arm_chain(skeleton, side, with_spine):
@@ -151,7 +144,7 @@ def correct_leg(skeleton, basis, armature_to_world, side, target_pos, target_rot
         volumes = [v for v in body_volumes(skeleton, world) if v.name != "head"]
     return _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, volumes,
                           lambda x: x.name.split(".")[0] in LEG_END_SENSORS, target_pos, target_rot, margin,
-                          max_steps, method, sticky_goal=True)
+                          max_steps, method, sticky_goal=True)[:4]
 
 
 def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, volumes, on_end, target_pos,
@@ -226,7 +219,7 @@ def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, vo
     out = chain.apply(theta, basis)
     after = max([d for _, _, d, _ in _inside(skeleton, sensors, None, volumes, 0.0, pts=points(frames))],
                 default=0.0)
-    return out, before, after, steps
+    return out, before, after, steps, theta, chain.effector(frames)[0]
 
 
 CONVERGED = 1e-6  # radians: a correction step this small ends the frame's iterations
@@ -264,26 +257,27 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
                 tr = None if targets[s][1] is None else targets[s][1][t]
             else:
                 tp, tr = w_in[hand][:3, 3], w_in[hand][:3, :3]
-            # warm start from the previous corrected frame keeps the motion continuous
-            start = cur.copy()
             chain = _arm_chain(skeleton, s, with_spine)
+            near, before = arm_near[s][0][t], arm_near[s][1][t]
+            if not near and targets is None:  # clear of the body, on its own target: nothing to do
+                shift[s] = None
+                continue
+            # warm start from the previous corrected frame keeps the motion continuous
+            angles_in = chain.angles(cur)
             if t > 0 and targets is not None:
                 start = chain.apply(chain.angles(out[t - 1]), cur)
             elif shift.get(s) is not None:  # the previous frame's correction, as a first guess
-                start = chain.apply(chain.angles(cur) + shift[s], cur)
-            shift[s] = None
-            near, before = arm_near[s][0][t], arm_near[s][1][t]
-            if not near and targets is None:  # clear of the body, on its own target: nothing to do
-                continue
+                start = chain.apply(angles_in + shift[s], cur)
+            else:
+                start = cur.copy()
             # the chain's base is not moved by either arm's correction: the input's world serves
-            angles_in = chain.angles(cur)
-            cur, _, after, n = correct_frame(skeleton, start, armature_to_world, s, tp, tr, volumes,
-                                             margin, max_steps, with_spine, method, sensors, world=w_in)
-            shift[s] = chain.angles(cur) - angles_in
+            cur, _, after, n, theta, hw = correct_frame(skeleton, start, armature_to_world, s, tp, tr, volumes,
+                                                        margin, max_steps, with_spine, method, sensors, world=w_in,
+                                                        _full=True)
+            shift[s] = theta - angles_in
             steps += n
             corrected += before > 0
             worst_before, worst_after = max(worst_before, before), max(worst_after, after)
-            hw = joint_world(skeleton, cur, armature_to_world, hand)[:3, 3]
             radius = max(x.radius for x in sensors if x.joint == hand)
             clear = min(v.distance(tp) for v in volumes) > radius + margin
             if clear:
