@@ -45,9 +45,9 @@ def euler_xyz(r):
 def matrix_xyz(e):
     """Rotations (..., 3, 3) of intrinsic X-Y-Z angles (..., 3)."""
     e = np.asarray(e, float)
-    ca, sa = np.cos(e[..., 0]), np.sin(e[..., 0])
-    cb, sb = np.cos(e[..., 1]), np.sin(e[..., 1])
-    cc, sc = np.cos(e[..., 2]), np.sin(e[..., 2])
+    c, s = np.cos(e), np.sin(e)
+    ca, cb, cc = c[..., 0], c[..., 1], c[..., 2]
+    sa, sb, sc = s[..., 0], s[..., 1], s[..., 2]
     out = np.empty(e.shape[:-1] + (3, 3))
     out[..., 0, 0] = cb * cc
     out[..., 0, 1] = -cb * sc
