@@ -166,8 +166,7 @@ def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, vo
     def points(frames):
         return (frames[pos, :3, :3] @ local[:, :, None])[:, :, 0] + frames[pos, :3, 3]
 
-    hit = _inside(skeleton, sensors, None, volumes, 0.0, pts=points(chain.frames(eul0, basis, base)[0]))
-    before = max([d for _, _, d, _ in hit], default=0.0)
+    before = None  # the depth at the start: from the first step's test (the same pose)
     goal = np.asarray(target_pos, float).copy()
     steps = 0
     for steps in range(1, max_steps + 1):
@@ -175,6 +174,8 @@ def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, vo
         eul[chain._k, chain._a] = theta
         frames, axes = chain.frames(eul, basis, base)
         hit = _inside(skeleton, sensors, None, volumes, margin, pts=points(frames))
+        if before is None:
+            before = max([d for _, _, d, _ in hit if d > 0], default=0.0)
         x, r = chain.effector(frames)
         # temporary goal for the hand: pushed out along the response, else its own target
         if not sticky_goal:
@@ -219,6 +220,8 @@ def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, vo
     out = chain.apply(theta, basis)
     after = max([d for _, _, d, _ in _inside(skeleton, sensors, None, volumes, 0.0, pts=points(frames))],
                 default=0.0)
+    if before is None:  # no step was taken
+        before = after
     return out, before, after, steps, theta, chain.effector(frames)[0]
 
 
