@@ -122,8 +122,9 @@ def builtin_pattern(skeleton, side, world, geom, gtype, centre_local, unused_cur
     h = world[hand]
     centre = h[:3, :3] @ centre_local + h[:3, 3]
     across_w = h[:3, :3] @ geom.across
-    out = {}
     used = TYPE_FINGERS[gtype]
+    normal_w = h[:3, :3] @ geom.normal
+    joints, tips, aims, uses, angle = [], [], [], [], []
     for f in FINGERS:
         names = skeleton.roles.chain(sided(f, side))
         if not names:
@@ -137,20 +138,31 @@ def builtin_pattern(skeleton, side, world, geom, gtype, centre_local, unused_cur
         angles = CLOSE_ANGLES[gtype]
         if f == "thumb":
             angles = tuple(0.7 * a for a in angles)
+        # each finger curls in its own plane toward the centre (the centre moved across the
+        # palm to the finger's knuckle); unused fingers curl toward the palm, out of the way
+        aim = centre + across_w * (across_w @ (world[idx[0]][:3, 3] - centre)) if gtype in ("WRAP", "DISK") \
+            and f != "thumb" else centre
         for k, j in enumerate(idx):
-            p = world[j][:3, 3]
-            # each finger curls in its own plane toward the centre (the centre moved across the
-            # palm to the finger's knuckle); unused fingers curl toward the palm, out of the way
-            aim = centre + across_w * (across_w @ (world[idx[0]][:3, 3] - centre)) if gtype in ("WRAP", "DISK") \
-                and f != "thumb" else centre
-            axis = ik.cross(tip - p, aim - p) if f in used else ik.cross(tip - p, h[:3, :3] @ geom.normal)
-            if np.linalg.norm(axis) < 1e-9:
-                axis = ik.cross(tip - p, h[:3, :3] @ geom.normal)
-            axis = axis / np.linalg.norm(axis)
-            local_axis = world[j][:3, :3].T @ axis
-            angle = share * angles[min(k, len(angles) - 1)]
-            out[j] = (np.eye(3) if basis is None else basis[j, :3, :3]) @ ik.rodrigues(local_axis * angle)
-    return out
+            joints.append(j)
+            tips.append(tip)
+            aims.append(aim)
+            uses.append(f in used)
+            angle.append(share * angles[min(k, len(angles) - 1)])
+    if not joints:
+        return {}
+    # every phalanx at once: the axis turning its finger's tip toward the aim (or the palm)
+    joints = np.array(joints)
+    p = world[joints, :3, 3]
+    tips = np.array(tips)
+    to_palm = ik.cross(tips - p, normal_w)
+    axis = np.where(np.array(uses)[:, None], ik.cross(tips - p, np.array(aims) - p), to_palm)
+    axis = np.where((np.linalg.norm(axis, axis=1) < 1e-9)[:, None], to_palm, axis)
+    axis /= np.linalg.norm(axis, axis=1)[:, None]
+    local_axis = (np.swapaxes(world[joints, :3, :3], 1, 2) @ axis[:, :, None])[..., 0]
+    turn = ik.rodrigues(local_axis * np.array(angle)[:, None])
+    start = np.broadcast_to(np.eye(3), turn.shape) if basis is None else basis[joints, :3, :3]
+    rots = start @ turn
+    return {int(j): rots[k] for k, j in enumerate(joints)}
 
 
 def pattern_from_pose(skeleton, side, pose_basis):
