@@ -14,8 +14,9 @@ followed frame of a keyframed hammer.
 CPU times (process time, best of 3 runs: the machine is shared, wall times swing 2-3x) for the
 issue's aim of a complete grasp under 50 ms. Measured 2026-11-22 on 2 cores at load average 16-20,
 the code before and after the speed work side by side, case by case in the same minute: one-hand
-grasps median 304 -> 36 ms (max 614 -> 62; 33 of 43 cases under 50 ms), two-hand grasps median 606
--> 46 ms (max 3175 -> 125 ms); a 6 cm cylinder 191 -> 20 ms; IK step 0.55 -> 0.16 ms; following a
+grasps median 257 -> 28 ms (max 647 -> 56 ms; 42 of 43 cases under 50 ms), two-hand grasps median
+595 -> 56 ms (max 2935 -> 106 ms, of which the reach's self-collision pass of both arms is ~40 ms);
+a 6 cm cylinder 191 -> 20 ms; IK step 0.55 -> 0.16 ms; following a
 held object 5.9 -> 2.2 ms per frame. Where the time went and what took it away: per-skeleton caches
 (chains, rest frames, the moved joints' forward kinematics instead of the whole body's), the grasp
 frame candidates scored as arrays, the fingers closed together (one batched depth per step, a
