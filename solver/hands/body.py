@@ -39,7 +39,7 @@ def shoulder_width(skeleton, world):
 
 
 def body_volumes(skeleton, world):
-    """Trunk (pelvis to neck), head, and thighs as capsules in world, from the bones."""
+    """Trunk (pelvis to neck), head, thighs and shins as capsules in world, from the bones."""
     w = shoulder_width(skeleton, world)
     pelvis = skeleton.role_index("pelvis")
     neck = skeleton.role_index("neck")
@@ -59,6 +59,9 @@ def body_volumes(skeleton, world):
         th, sh = skeleton.role_index(sided("thigh", s)), skeleton.role_index(sided("shin", s))
         if th is not None and sh is not None:
             out.append(Capsule(f"thigh.{s}", world[th][:3, 3], world[sh][:3, 3], 0.2 * w, (th,)))
+            # the shin, knee to ankle: what the other leg's knee, ankle and foot pass through
+            ankle = world[sh][:3, :3] @ [0, skeleton.lengths[sh], 0] + world[sh][:3, 3]
+            out.append(Capsule(f"shin.{s}", world[sh][:3, 3], ankle, 0.13 * w, (sh,)))
     return out
 
 
@@ -97,18 +100,26 @@ def body_sensors(skeleton, world, paired=True):
 
 
 def sensor_points(skeleton, sensors, world):
-    return np.array([world[s.joint][:3, :3] @ [0, s.along * skeleton.lengths[s.joint], 0] + world[s.joint][:3, 3]
-                     for s in sensors])
+    """World centres (S, 3) of body sensors."""
+    j = np.array([s.joint for s in sensors], int)
+    local = np.zeros((len(sensors), 3))
+    local[:, 1] = [s.along * skeleton.lengths[s.joint] for s in sensors]
+    return (world[j, :3, :3] @ local[:, :, None])[:, :, 0] + world[j, :3, 3]
+
+
+def own_volume(sensor, volume):
+    """A leg's sensors ride inside its own thigh and shin volumes: those are not tested."""
+    return sensor.limb == "leg" and volume.name in (f"thigh.{sensor.chain_side}", f"shin.{sensor.chain_side}")
 
 
 def collisions(skeleton, sensors, world, volumes, margin=0.0):
     """(sensor index, volume index, depth, response direction) of every sensor inside a volume it
-    is not attached to (a leg's sensors are not tested against its own thigh)."""
+    is not attached to (a leg's sensors are not tested against its own thigh and shin)."""
     pts = sensor_points(skeleton, sensors, world)
     out = []
     for i, s in enumerate(sensors):
         for k, v in enumerate(volumes):
-            if v.name == f"thigh.{s.chain_side}" and s.limb == "leg":
+            if own_volume(s, v):
                 continue
             d = s.radius - v.distance(pts[i])
             if d > -margin:

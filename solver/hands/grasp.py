@@ -8,14 +8,13 @@ DOFs, the others go on, sec. 4.3.4)."""
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..body_roles import FINGERS, sided
 from ..errors import HumanAnimError
 from . import ik
 from .primitives import Box, Sphere, dimensions, kind, shape_frame
 from .self_collision import remove_self_collisions
-from .sensors import default_hand_sensors, sensor_centres
+from .sensors import default_hand_sensors, sensor_centres, sensor_layout
 
 TYPES = ("LATERAL", "PINCH", "TRIPOD", "WRAP", "DISK")
 # fingers each type closes on the object (the proof checks every one touches)
@@ -45,7 +44,7 @@ class HandGeometry:
 def hand_geometry(skeleton, side, world):
     hand = skeleton.role_index(sided("hand", side))
     h = world[hand]
-    inv = np.linalg.inv(h)
+    inv = rigid_inv(h)
 
     def local(p):
         return inv[:3, :3] @ p + inv[:3, 3]
@@ -65,7 +64,7 @@ def hand_geometry(skeleton, side, world):
     across = root["pinky"] - root["index"]
     across -= along * (across @ along)
     across /= np.linalg.norm(across)
-    normal = np.cross(along, across)
+    normal = ik.cross(along, across)
     # the palm is the side the thumb's tip lies on
     if normal @ (tip["thumb"] - palm) < 0:
         normal = -normal
@@ -123,8 +122,9 @@ def builtin_pattern(skeleton, side, world, geom, gtype, centre_local, unused_cur
     h = world[hand]
     centre = h[:3, :3] @ centre_local + h[:3, 3]
     across_w = h[:3, :3] @ geom.across
-    out = {}
     used = TYPE_FINGERS[gtype]
+    normal_w = h[:3, :3] @ geom.normal
+    joints, tips, aims, uses, angle = [], [], [], [], []
     for f in FINGERS:
         names = skeleton.roles.chain(sided(f, side))
         if not names:
@@ -138,20 +138,31 @@ def builtin_pattern(skeleton, side, world, geom, gtype, centre_local, unused_cur
         angles = CLOSE_ANGLES[gtype]
         if f == "thumb":
             angles = tuple(0.7 * a for a in angles)
+        # each finger curls in its own plane toward the centre (the centre moved across the
+        # palm to the finger's knuckle); unused fingers curl toward the palm, out of the way
+        aim = centre + across_w * (across_w @ (world[idx[0]][:3, 3] - centre)) if gtype in ("WRAP", "DISK") \
+            and f != "thumb" else centre
         for k, j in enumerate(idx):
-            p = world[j][:3, 3]
-            # each finger curls in its own plane toward the centre (the centre moved across the
-            # palm to the finger's knuckle); unused fingers curl toward the palm, out of the way
-            aim = centre + across_w * (across_w @ (world[idx[0]][:3, 3] - centre)) if gtype in ("WRAP", "DISK") \
-                and f != "thumb" else centre
-            axis = np.cross(tip - p, aim - p) if f in used else np.cross(tip - p, h[:3, :3] @ geom.normal)
-            if np.linalg.norm(axis) < 1e-9:
-                axis = np.cross(tip - p, h[:3, :3] @ geom.normal)
-            axis = axis / np.linalg.norm(axis)
-            local_axis = world[j][:3, :3].T @ axis
-            angle = share * angles[min(k, len(angles) - 1)]
-            out[j] = (np.eye(3) if basis is None else basis[j, :3, :3]) @ ik.rodrigues(local_axis * angle)
-    return out
+            joints.append(j)
+            tips.append(tip)
+            aims.append(aim)
+            uses.append(f in used)
+            angle.append(share * angles[min(k, len(angles) - 1)])
+    if not joints:
+        return {}
+    # every phalanx at once: the axis turning its finger's tip toward the aim (or the palm)
+    joints = np.array(joints)
+    p = world[joints, :3, 3]
+    tips = np.array(tips)
+    to_palm = ik.cross(tips - p, normal_w)
+    axis = np.where(np.array(uses)[:, None], ik.cross(tips - p, np.array(aims) - p), to_palm)
+    axis = np.where((np.linalg.norm(axis, axis=1) < 1e-9)[:, None], to_palm, axis)
+    axis /= np.linalg.norm(axis, axis=1)[:, None]
+    local_axis = (np.swapaxes(world[joints, :3, :3], 1, 2) @ axis[:, :, None])[..., 0]
+    turn = ik.rodrigues(local_axis * np.array(angle)[:, None])
+    start = np.broadcast_to(np.eye(3), turn.shape) if basis is None else basis[joints, :3, :3]
+    rots = start @ turn
+    return {int(j): rots[k] for k, j in enumerate(joints)}
 
 
 def pattern_from_pose(skeleton, side, pose_basis):
@@ -170,7 +181,7 @@ APPROACH = 0.06  # metres the palm backs off along its normal before the final a
 
 def _flexion_axis(skeleton, j, world, normal_w, tip):
     """The bone's local axis closest to its flexion axis (the one that curls the tip palmward)."""
-    axis = np.cross(tip - world[j][:3, 3], normal_w)
+    axis = ik.cross(tip - world[j][:3, 3], normal_w)
     local = world[j][:3, :3].T @ axis
     return int(np.argmax(np.abs(local)))
 
@@ -182,6 +193,25 @@ def pinch_pattern(skeleton, side, basis, world, geom, gtype, aperture, point_loc
     the other fingers curl toward the palm. The pre-shape opens the used tips `aperture` apart
     from the meeting point along the pinch axis, so they close onto the object from both sides.
     Returns (closed pattern, pre-shape, meeting point and pinch axis in the hand's frame)."""
+    return pinch_open(pinch_closed(skeleton, side, basis, world, geom, gtype, point_local), basis, aperture)
+
+
+@dataclass
+class PinchClosed:
+    """The closed part of a pinch pattern, which does not depend on the aperture."""
+    pattern: dict
+    solvers: dict  # finger -> (chain, base, closed basis)
+    tips: dict
+    used: list
+    normal_w: np.ndarray
+    meet_local: np.ndarray
+    u_w: np.ndarray
+    hand_inv: np.ndarray
+
+
+def pinch_closed(skeleton, side, basis, world, geom, gtype, point_local=None, warm=None):
+    """The closed pinch pattern (see `pinch_pattern`); `warm` (an earlier PinchClosed of the same
+    hand) starts each finger's IK from its closed pose there."""
     hand = skeleton.role_index(sided("hand", side))
     h = world[hand]
     if point_local is None:
@@ -190,10 +220,9 @@ def pinch_pattern(skeleton, side, basis, world, geom, gtype, aperture, point_loc
     normal_w = h[:3, :3] @ geom.normal
     across_w = h[:3, :3] @ geom.across
     pattern = builtin_pattern(skeleton, side, world, geom, gtype, point_local, unused_curl=0.0, basis=basis)
-    preshape = dict(pattern)  # the fingers the type does not use stay open, out of the way
     chains = finger_chains(skeleton, side)
     used = [f for f in sorted(TYPE_FINGERS[gtype], key=lambda f: f != "thumb") if f in chains]
-    solvers, tips = {}, {}
+    solvers, tips, open_tip = {}, {}, {}
     for f in used:
         chain = chains[f]
         last = chain[-1]
@@ -205,31 +234,45 @@ def pinch_pattern(skeleton, side, basis, world, geom, gtype, aperture, point_loc
         ch = ik.Chain(skeleton, chain, last, np.array([0, 0.8 * skeleton.lengths[last], 0]), allowed=allowed)
         base = world[skeleton.parents[chain[0]]]
         target = point + (across_w * 0.016 if f == "middle" else 0.0)
-        res = ik.solve(ch, basis, base, target, iterations=60)
+        start = basis if warm is None or f not in warm.solvers else warm.solvers[f][2]
+        res = ik.solve(ch, start, base, target, iterations=60)
         for j in chain:
             pattern[j] = res.basis[j, :3, :3]
-        fr, _ = ch.frames(ch.euler(res.theta, basis), basis, base)
-        tips[f] = ch.effector(fr)[0]
+        tips[f] = ch.effector(ch.frames(ch.euler(res.theta, start), start, base)[0])[0]
+        open_tip[f] = ch.effector(ch.frames(ch.euler(ch.angles(basis), basis), basis, base)[0])[0]
         solvers[f] = (ch, base, res.basis)
         if f == "thumb":
             point = tips[f]
     meet = np.mean(list(tips.values()), axis=0)
     # pinch axis: from the thumb's tip toward the opposing fingers' tips, at the open hand
     others = [f for f in used if f != "thumb"]
-    open_tip = {f: solvers[f][0].effector(solvers[f][0].frames(solvers[f][0].euler(solvers[f][0].angles(basis), basis),
-                                                               basis, solvers[f][1])[0])[0] for f in used}
     u = np.mean([open_tip[f] for f in others], axis=0) - open_tip.get("thumb", meet) if others and "thumb" in used \
         else normal_w
     u = u - normal_w * (u @ normal_w) * 0.5
     u /= np.linalg.norm(u)
-    for f in used:
-        ch, base, closed = solvers[f]
+    inv = rigid_inv(h)
+    return PinchClosed(pattern, solvers, tips, used, normal_w, inv[:3, :3] @ meet + inv[:3, 3], u, inv)
+
+
+def pinch_open(closed, basis, aperture, warm=None):
+    """The pre-shape of a closed pinch pattern at an aperture: (closed pattern, pre-shape, meeting
+    point and pinch axis in the hand's frame). `warm` (a pre-shape at another aperture) starts
+    the fingers' IK there."""
+    preshape = dict(closed.pattern)  # the fingers the type does not use stay open, out of the way
+    u, normal_w = closed.u_w, closed.normal_w
+    for f in closed.used:
+        ch, base, shut = closed.solvers[f]
         sign = -1.0 if f == "thumb" else 1.0
-        res = ik.solve(ch, closed, base, tips[f] + sign * u * aperture - normal_w * 0.3 * aperture, iterations=60)
+        start = shut
+        if warm is not None:
+            start = shut.copy()
+            for j in ch.joints:
+                start[j, :3, :3] = warm[j]
+        res = ik.solve(ch, start, base, closed.tips[f] + sign * u * aperture - normal_w * 0.3 * aperture,
+                       iterations=60)
         for j in ch.joints:
             preshape[j] = res.basis[j, :3, :3]
-    inv = np.linalg.inv(h)
-    return pattern, preshape, inv[:3, :3] @ meet + inv[:3, 3], inv[:3, :3] @ u
+    return dict(closed.pattern), preshape, closed.meet_local, closed.hand_inv[:3, :3] @ u
 
 
 # --- closing with sensors ----------------------------------------------------------------
@@ -265,50 +308,139 @@ def close_fingers(skeleton, side, basis, world, pattern, shapes, frames=12, tole
     bone's ancestors in the finger, the others go on. Returns the per-frame finger rotations
     {joint: (frames+1, 3, 3)}, the touching sensors and their depths."""
     sensors = sensors or default_hand_sensors(skeleton, side)
-    chains = finger_chains(skeleton, side)
-    rest_local = skeleton.rest_local
-    start = {j: basis[j, :3, :3].copy() for c in chains.values() for j in c}
-    track = {j: [start[j]] for j in start}
-    touching = {}
-    for f, chain in chains.items():
-        fs = [s for s in sensors if s.joint in chain]
-        share = {j: 0.0 for j in chain}
-        moving = set(chain)
+    track, touching = {}, {}
+    # fingers whose chains have the same length close together (one batch per length)
+    groups = {}
+    for f, chain in finger_chains(skeleton, side).items():
+        groups.setdefault(len(chain), []).append(chain)
+    for chains in groups.values():
+        hand = _FingersClose(skeleton, chains, basis, world, pattern, sensors, shapes)
+        shares = hand.close(frames, tolerance, touching)  # (frames+1, F, n)
+        rots = hand.rotations(shares)
+        for fi, chain in enumerate(chains):
+            for k, j in enumerate(chain):
+                track[j] = rots[:, fi, k]
+    return track, touching, sensors
 
-        rel = {j: Rotation.from_matrix(start[j].T @ pattern.get(j, start[j])).as_rotvec() for j in chain}
 
-        def rots(sh):
-            return {j: start[j] @ ik.rodrigues(rel[j] * sh[j]) for j in chain}
+class _FingersClose:
+    """The closing of fingers with chains of one length (sec. 4.3.4): each bone's share of its way
+    from its start rotation to the pattern's; forward kinematics and sensor depths for many
+    share arrays (..., F, n) at once."""
 
-        def depth(sh):
-            fr = _finger_world(skeleton, chain, world, rots(sh), basis, rest_local)
-            return _sensor_depths(skeleton, fs, fr, shapes) if fs else np.full(0, -1.0)
+    SAMPLES = np.arange(1, 32) / 32.0  # the first touch within a step: 31 samples a level ...
+    REFINE = 2  # ... refined once (1/1024 of the step)
 
+    def __init__(self, skeleton, chains, basis, world, pattern, sensors, shapes):
+        self.chains, self.shapes = chains, shapes
+        nf, n = len(chains), len(chains[0])
+        self.start = np.array([[basis[j, :3, :3] for j in c] for c in chains])  # (F, n, 3, 3)
+        self.rel = np.array([[ik.rot_log(basis[j, :3, :3].T @ pattern.get(j, basis[j, :3, :3])) for j in c]
+                             for c in chains])
+        rest = np.array([skeleton.rest_local[c] for c in chains])
+        self.rest_r, self.rest_t = rest[..., :3, :3], rest[..., :3, 3]
+        self.bt = np.array([basis[c, :3, 3] for c in chains])
+        # parent of each bone: its index in the finger, or -1 with the (fixed) frame it hangs from
+        self.parent = np.array([[c.index(skeleton.parents[j]) if skeleton.parents[j] in c else -1 for j in c]
+                                for c in chains])
+        self.outer = np.array([[world[skeleton.parents[j]] for j in c] for c in chains])  # (F, n, 4, 4)
+        self.sensors = [[x for x in sensors if x.joint in c] for c in chains]
+        smax = max(1, max(len(x) for x in self.sensors))
+        self.pos = np.zeros((nf, smax), int)
+        self.local = np.zeros((nf, smax, 3))
+        self.radii = np.full((nf, smax), -np.inf)  # padding never touches
+        for fi, (c, ss) in enumerate(zip(chains, self.sensors)):
+            if ss:
+                self.pos[fi, :len(ss)] = [c.index(x.joint) for x in ss]
+                self.local[fi, :len(ss)] = sensor_layout(ss, skeleton)[1]
+                self.radii[fi, :len(ss)] = [x.radius for x in ss]
+        self._fi = np.arange(nf)[:, None]
+        self.n = n
+        self.path = bool(np.all(self.parent == np.arange(n) - 1))
+        # exp(s rel) = I + sin(s th) K + (1 - cos(s th)) K^2 (K the unit axis's cross matrix):
+        # with the start and rest rotations folded in, a pose is three matrices' blend per bone
+        self.th = np.linalg.norm(self.rel, axis=-1)
+        axis = self.rel / np.where(self.th > 1e-12, self.th, 1.0)[..., None]
+        kk = np.zeros(axis.shape + (3,))
+        kk[..., 0, 1], kk[..., 0, 2], kk[..., 1, 2] = -axis[..., 2], axis[..., 1], -axis[..., 0]
+        kk = kk - np.swapaxes(kk, -1, -2)
+        self.s0, self.s1, self.s2 = self.start, self.start @ kk, self.start @ kk @ kk
+        self.a0, self.a1, self.a2 = self.rest_r @ self.s0, self.rest_r @ self.s1, self.rest_r @ self.s2
+        self.off = self.rest_t + (self.rest_r @ self.bt[..., None])[..., 0]
+
+    def rotations(self, shares):
+        """(..., F, n, 3, 3) rotations of share arrays (..., F, n)."""
+        a = np.asarray(shares) * self.th
+        return self.s0 + np.sin(a)[..., None, None] * self.s1 + (1.0 - np.cos(a))[..., None, None] * self.s2
+
+    def depth(self, shares):
+        """(M, F, S) sensor depths in the objects (positive inside) of share arrays (M, F, n)."""
+        if self.path:  # each bone hangs from the one before, the first from the hand
+            a = np.asarray(shares) * self.th
+            loc = self.a0 + np.sin(a)[..., None, None] * self.a1 + (1.0 - np.cos(a))[..., None, None] * self.a2
+            wr, wp = np.empty(loc.shape), np.empty(loc.shape[:-1])
+            pr, pp = self.outer[:, 0, :3, :3], self.outer[:, 0, :3, 3]
+            for k in range(self.n):
+                wp[:, :, k] = (pr @ self.off[:, k, :, None])[..., 0] + pp
+                pr = wr[:, :, k] = pr @ loc[:, :, k]
+                pp = wp[:, :, k]
+            return self._depths(wr, wp)
+        rots = self.rotations(shares)
+        wr, wp = np.empty(rots.shape), np.empty(rots.shape[:-1])
+        fi = np.arange(len(self.chains))
+        for k in range(self.n):
+            p = self.parent[:, k]
+            inner = p >= 0
+            pr = np.where(inner[:, None, None], wr[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, :3])
+            pp = np.where(inner[:, None], wp[:, fi, np.maximum(p, 0)], self.outer[:, k, :3, 3])
+            r = pr @ self.rest_r[:, k]
+            wp[:, :, k] = (pr @ self.rest_t[:, k, :, None])[..., 0] + pp + (r @ self.bt[:, k, :, None])[..., 0]
+            wr[:, :, k] = r @ rots[:, :, k]
+        return self._depths(wr, wp)
+
+    def _depths(self, wr, wp):
+        sr, sp = wr[:, self._fi, self.pos], wp[:, self._fi, self.pos]  # (M, F, S, ...)
+        pts = (sr @ self.local[..., None])[..., 0] + sp
+        if not self.shapes:
+            return np.full(pts.shape[:-1], -np.inf)
+        d = np.max([self.radii - sh.distance(pts) for sh in self.shapes], axis=0)
+        return np.where(np.isfinite(self.radii), d, -np.inf)
+
+    def close(self, frames, tolerance, touching):
+        nf = len(self.chains)
+        share = np.zeros((nf, self.n))
+        moving = np.ones((nf, self.n), bool)
+        out = [share.copy()]
+        step = 1.0 / frames
+        m0 = self.SAMPLES
         for _ in range(frames):
-            step = 1.0 / frames
-            trial = {j: min(1.0, share[j] + step) if j in moving else share[j] for j in chain}
-            if depth(trial).max(initial=-1) > 0:
-                lo, hi = 0.0, 1.0
-                for _ in range(18):
-                    m = 0.5 * (lo + hi)
-                    t = {j: share[j] + m * (trial[j] - share[j]) for j in chain}
-                    if depth(t).max(initial=-1) > 0:
-                        hi = m
-                    else:
-                        lo = m
-                trial = {j: share[j] + lo * (trial[j] - share[j]) for j in chain}
+            trial = np.where(moving, np.minimum(1.0, share + step), share)
+            d = self.depth(trial[None])[0]  # (F, S)
+            hit = d.max(axis=1) > 0
+            if hit.any():
+                # the first touch between share and trial, per finger that would sink in
+                lo, hi = np.zeros(nf), np.ones(nf)
+                for _ in range(self.REFINE):
+                    m = lo[None] + (hi - lo)[None] * m0[:, None]  # (K, F)
+                    dd = self.depth(share[None] + m[..., None] * (trial - share)[None]).max(axis=2) > 0
+                    first = np.where(dd.any(axis=0), np.argmax(dd, axis=0), len(m0))
+                    k = np.arange(nf)
+                    lo = np.where(first > 0, m[np.maximum(first - 1, 0), k], lo)
+                    hi = np.where(first < len(m0), m[np.minimum(first, len(m0) - 1), k], hi)
+                trial = np.where(hit[:, None], share + lo[:, None] * (trial - share), trial)
+                d = self.depth(trial[None])[0]
             share = trial
-            d = depth(share)
-            for s, dv in zip(fs, d):
-                if dv > -tolerance:
-                    touching[s.name] = float(dv)
-                    stop = [s.joint] + [a for a in skeleton.ancestors(s.joint) if a in chain]
-                    moving -= set(stop)
-            moving -= {j for j in chain if share[j] >= 1.0}
-            r = rots(share)
-            for j in chain:
-                track[j].append(r[j])
-    return {j: np.array(v) for j, v in track.items()}, touching, sensors
+            for fi, si in zip(*np.nonzero(d > -tolerance)):
+                sensor = self.sensors[fi][si]
+                touching[sensor.name] = float(d[fi, si])
+                # the touching bone and its ancestors in the finger stop
+                j = self.pos[fi, si]
+                while j >= 0:
+                    moving[fi, j] = False
+                    j = self.parent[fi, j]
+            moving &= share < 1.0
+            out.append(share.copy())
+        return np.array(out)
 
 
 # --- reach: PD servo per DOF (eq. 4-1) -------------------------------------------------------
@@ -323,6 +455,19 @@ def pd_servo(q0, qd, frames, fps, qd_vel=None, damping=1.0, settle=10.0):
     k, kv = omega ** 2, 2 * damping * omega
     sub = 8
     dt = 1.0 / (fps * sub)
+    if qd_vel is None:
+        # every DOF has the same gains and a still goal: the substep is one linear map of
+        # (q - qd, v), the same for all; its powers give the trajectory without a loop over DOFs
+        a = np.array([[1.0 - k * dt * dt, (1.0 - kv * dt) * dt], [-k * dt, 1.0 - kv * dt]])
+        step = np.linalg.matrix_power(a, sub)
+        c, m = np.empty(frames + 1), np.eye(2)
+        c[0] = 1.0
+        for t in range(1, frames + 1):
+            m = step @ m
+            c[t] = m[0, 0]
+        out = qd + c[:, None] * (q0 - qd)
+        out[-1] = qd
+        return out
     q, v = q0.copy(), np.zeros_like(q0)
     out = [q.copy()]
     for _ in range(frames):
@@ -343,45 +488,19 @@ class Candidate:
     cost: float
 
 
-def _hand_frame_for(geom, obj_frame, normal_w, across_w, offset, anchor=None):
-    """Hand bone frame whose palm normal is `normal_w` and across axis `across_w` (world), with
-    the anchor (palm centre, or the fingers' pinch point) at the object centre minus `offset`
-    along the normal."""
-    anchor = geom.palm if anchor is None else anchor
-    local_axes = np.column_stack((geom.normal, geom.across, geom.along))
-    along_w = np.sign(np.linalg.det(local_axes)) * np.cross(normal_w, across_w)
-    world_axes = np.column_stack((normal_w, across_w, along_w))
-    r = world_axes @ local_axes.T
-    anchor_w = obj_frame[:3, 3] - normal_w * offset
-    f = np.eye(4)
-    f[:3, :3] = r
-    f[:3, 3] = anchor_w - r @ anchor
-    return f
-
-
-def _offset_clear(geom, shape, frame_fn, normal_w, across_w, start, sensors_local):
-    """Move the object away from the palm until no hand sensor penetrates it (the thesis moves the
-    origin toward the border until no collision)."""
-    off = start
-    for _ in range(60):
-        h = frame_fn(normal_w, across_w, off)
-        pts = sensors_local[:, :3] @ h[:3, :3].T + h[:3, 3]
-        if np.all(shape.distance(pts) - sensors_local[:, 3] > 0.001):
-            return off, h
-        off += 0.003
-    return off, h
-
-
 def extent_along(shape, u):
-    """Half extent of a shape along a world direction."""
+    """Half extent of a shape along a world direction (or directions (..., 3))."""
     f = shape_frame(shape)[:3, :3]
-    lu = f.T @ u
+    u = np.asarray(u, float)
+    lu = u @ f  # f.T @ u, for any leading dimensions
     if isinstance(shape, Sphere):
-        return shape.radius
+        return shape.radius if u.ndim == 1 else np.full(u.shape[:-1], shape.radius)
     if isinstance(shape, Box):
-        return float(np.abs(lu) @ np.asarray(shape.half))
-    r = max(shape.radius, getattr(shape, "r0", 0.0), getattr(shape, "r1", 0.0))
-    return float(r * np.sqrt(max(0.0, 1 - lu[2] ** 2)) + shape.half * abs(lu[2]))
+        out = np.abs(lu) @ np.asarray(shape.half)
+    else:
+        r = max(shape.radius, getattr(shape, "r0", 0.0), getattr(shape, "r1", 0.0))
+        out = r * np.sqrt(np.maximum(0.0, 1 - lu[..., 2] ** 2)) + shape.half * np.abs(lu[..., 2])
+    return float(out) if u.ndim == 1 else out
 
 
 def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local, anchor=None, pinch_axis=None):
@@ -392,14 +511,15 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
     out = []
     dirs = []
     if isinstance(shape, Sphere):
-        for th in np.linspace(0, np.pi, 6)[1:-1]:
-            for ph in np.linspace(0, 2 * np.pi, 9)[:-1]:
-                n = np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
-                for roll in np.linspace(0, 2 * np.pi, 7)[:-1]:
-                    t1 = np.cross(n, [0, 0, 1.0])
-                    t1 /= np.linalg.norm(t1)
-                    t2 = np.cross(n, t1)
-                    dirs.append((n, np.cos(roll) * t1 + np.sin(roll) * t2))
+        # palm normals over the sphere (4 latitudes x 8 longitudes), 6 rolls about each
+        th, ph, roll = np.meshgrid(np.linspace(0, np.pi, 6)[1:-1], np.linspace(0, 2 * np.pi, 9)[:-1],
+                                   np.linspace(0, 2 * np.pi, 7)[:-1], indexing="ij")
+        th, ph, roll = th.ravel(), ph.ravel(), roll.ravel()
+        n = np.stack((np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)), axis=-1)
+        t1 = ik.cross(n, [0, 0, 1.0])
+        t1 /= np.linalg.norm(t1, axis=1)[:, None]
+        t2 = ik.cross(n, t1)
+        dirs = list(zip(n, np.cos(roll)[:, None] * t1 + np.sin(roll)[:, None] * t2))
     elif isinstance(shape, Box):
         for a in range(3):
             for s in (-1, 1):
@@ -420,36 +540,67 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
                 for s in (-1, 1):
                     dirs.append((n, z * s))
     cur_palm = current_hand[:3, :3] @ geom.palm + current_hand[:3, 3]
+    if not dirs:
+        return out
+    # every direction at once: the hand frame of each (the palm normal n, the across axis a)
+    n = np.array([d[0] for d in dirs], float)
+    a = np.array([d[1] for d in dirs], float)
+    a = a - n * np.sum(a * n, axis=1)[:, None]
+    keep = np.linalg.norm(a, axis=1) >= 1e-6
+    n, a = n[keep], a[keep] / np.linalg.norm(a[keep], axis=1)[:, None]
+    local_axes = np.column_stack((geom.normal, geom.across, geom.along))
+    along_w = np.sign(np.linalg.det(local_axes)) * ik.cross(n, a)
+    rot = np.stack((n, a, along_w), axis=-1) @ local_axes.T  # (D, 3, 3)
+    anchor_l = geom.palm if anchor is None else anchor
+    off0 = 0.0 if anchor is not None else max(0.0, float(-shape.distance(f[:3, 3]))) + geom.palm_radius
+    t0 = f[:3, 3] - rot @ anchor_l  # the hand's origin at offset 0; an offset moves it along -n
+    off = _offsets_clear(shape, rot, t0, n, off0, sensors_local)
+    trans = t0 - n * off[:, None]
+    palm_w = rot @ geom.palm + trans
+    # the palm must not face away from the body: its normal points from the palm toward the object
+    away = palm_w - body_centre
+    away[:, 2] = 0.0
+    an = np.linalg.norm(away, axis=1)
+    facing = np.sum(n * away, axis=1) / np.where(an > 1e-6, an, 1.0)
+    ok = ~((an > 1e-6) & (facing > 0.5))
+    # the thumb stays on the visible side: the thumb side (-across) faces the eye
+    thumb_dir = -(rot @ geom.across)
+    to_eye = eye - palm_w
+    ok &= ~(np.sum(thumb_dir * to_eye, axis=1) < -0.2 * np.linalg.norm(to_eye, axis=1))
+    dt = np.linalg.norm(palm_w - cur_palm, axis=1)
+    dr = ik.rot_angle(rot @ current_hand[:3, :3].T)
+    cost = dt + 0.1 * dr
+    if pinch_axis is not None:  # pinch across the object's thinnest side
+        cost = cost + 2.0 * (extent_along(shape, rot @ pinch_axis) - 0.5 * float(np.sort(dimensions(shape))[0]))
+    order = np.flatnonzero(ok)[np.argsort(cost[ok], kind="stable")]
+    hw = np.zeros((len(order), 4, 4))
+    hw[:, :3, :3], hw[:, :3, 3], hw[:, 3, 3] = rot[order], trans[order], 1.0
+    inv = np.zeros_like(hw)  # the hands' inverses, all at once
+    inv[:, :3, :3] = np.swapaxes(rot[order], 1, 2)
+    inv[:, :3, 3] = -(inv[:, :3, :3] @ trans[order][:, :, None])[..., 0]
+    inv[:, 3, 3] = 1.0
+    grips = inv @ f
+    return [Candidate(hw[i], grips[i], float(cost[k])) for i, k in enumerate(order)]
 
-    def frame_fn(n, a, off):
-        return _hand_frame_for(geom, f, n, a, off, anchor)
 
-    for n, a in dirs:
-        a = a - n * (a @ n)
-        if np.linalg.norm(a) < 1e-6:
-            continue
-        a = a / np.linalg.norm(a)
-        off0 = 0.0 if anchor is not None else max(0.0, float(-shape.distance(f[:3, 3]))) + geom.palm_radius
-        off, h = _offset_clear(geom, shape, frame_fn, n, a, off0, sensors_local)
-        palm_w = h[:3, :3] @ geom.palm + h[:3, 3]
-        # the palm must not face away from the body: its normal points from the palm toward the object
-        away = palm_w - body_centre
-        away[2] = 0.0
-        if np.linalg.norm(away) > 1e-6 and n @ (away / np.linalg.norm(away)) > 0.5:
-            continue
-        # the thumb stays on the visible side: the thumb side (-across) faces the eye
-        thumb_dir = -(h[:3, :3] @ geom.across)
-        to_eye = eye - palm_w
-        if thumb_dir @ to_eye < -0.2 * np.linalg.norm(to_eye):
-            continue
-        dt = np.linalg.norm(palm_w - cur_palm)
-        dr = np.linalg.norm(ik.rot_log(h[:3, :3] @ current_hand[:3, :3].T))
-        cost = dt + 0.1 * dr
-        if pinch_axis is not None:  # pinch across the object's thinnest side
-            cost += 2.0 * (extent_along(shape, h[:3, :3] @ pinch_axis) - 0.5 * float(np.sort(dimensions(shape))[0]))
-        out.append(Candidate(h, rigid_inv(h) @ f, float(cost)))
-    out.sort(key=lambda c: c.cost)
-    return out
+def _offsets_clear(shape, rot, t0, n, start, sensors_local, step=0.003, tries=60):
+    """Per hand frame, move the object away from the palm (the hand back along -n) in `step`s
+    until no hand sensor penetrates it (the thesis moves the origin toward the border until no
+    collision); all frames at once."""
+    pts0 = (rot[:, None] @ sensors_local[None, :, :3, None])[..., 0] + t0[:, None]  # (D, S, 3) at offset 0
+    radii = sensors_local[:, 3]
+    off = np.full(len(rot), float(start))
+    todo = np.ones(len(rot), bool)
+    for i in range(tries):
+        idx = np.flatnonzero(todo)
+        if not len(idx):
+            break
+        pts = pts0[idx] - n[idx, None] * off[idx, None, None]
+        clear = np.all(shape.distance(pts) - radii > 0.001, axis=-1)
+        todo[idx[clear]] = False
+        if i < tries - 1:
+            off[todo] += step
+    return off
 
 
 def _shape_normal(shape, p, h=1e-5):
@@ -459,16 +610,25 @@ def _shape_normal(shape, p, h=1e-5):
 
 
 def _keep_off_object(skeleton, frames, armature_to_world, side, chain, shape, reach_frames, margin=0.003,
-                     sensors=None):
+                     sensors=None, world=None, moved=()):
     """On the way in, a hand sensor that would pass through the object gives the hand a
     temporary goal pushed out along the surface normal (sec. 4.6.3's alternative, applied to the
-    object); the last frame (the grasp itself) is left alone."""
+    object); the last frame (the grasp itself) is left alone. `world` is the world of
+    `frames[0]`, where the frames differ from it only in the chain and the bones `moved`."""
     sensors = sensors or default_hand_sensors(skeleton, side)
     radii = np.array([x.radius for x in sensors])
     hand = skeleton.role_index(sided("hand", side))
-    for t in range(1, reach_frames):
+    if reach_frames < 2:
+        return
+    # every frame of the way in at once: only the chain and the hand below it move
+    if world is None:
+        world = skeleton.world_frames(frames[0], armature_to_world)
+    span = frames[1:reach_frames]
+    w_all = ik.update_world(skeleton, span, world, chain.joints + moved)
+    depth_all = radii - shape.distance(sensor_centres(sensors, w_all, skeleton))
+    for t in 1 + np.flatnonzero(depth_all.max(axis=1) > 0):
+        w = w_all[t - 1]
         for _ in range(6):
-            w = skeleton.world_frames(frames[t], armature_to_world)
             pts = sensor_centres(sensors, w, skeleton)
             depth = radii - shape.distance(pts)
             k = int(np.argmax(depth))
@@ -480,6 +640,7 @@ def _keep_off_object(skeleton, frames, armature_to_world, side, chain, shape, re
             base = ik.chain_base(chain, w)
             res = ik.solve(chain, frames[t], base, goal[:3, 3], goal[:3, :3], iterations=30)
             frames[t] = res.basis
+            w = ik.update_world(skeleton, frames[t], w, chain.joints)
 
 
 # --- the whole grasp ------------------------------------------------------------------------
@@ -543,10 +704,6 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         hand = skeleton.role_index(sided("hand", s))
         geom = hand_geometry(skeleton, s, world)
         sens = (hand_sensors or {}).get(s) or default_hand_sensors(skeleton, s)
-        # every hand sensor in the hand's frame at the current (open) finger pose
-        inv = np.linalg.inv(world[hand])
-        cen = sensor_centres(sens, world, skeleton) @ inv[:3, :3].T + inv[:3, 3]
-        loc = np.column_stack((cen, [x.radius for x in sens]))
         anchor, pinch_pat, pinch_axis = None, None, None
         if gtype not in PINCHES or pattern is not None:
             # the hand opens during the reach: thumb abducted, fingers straight
@@ -556,14 +713,15 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
             pinch_pat = (None, preshape)
         else:
             aperture = 0.5 * float(np.sort(dimensions(shape))[0]) + 0.015
-            pinch_pat, preshape, anchor, pinch_axis = pinch_pattern(skeleton, s, basis, world, geom, gtype, aperture)
+            first = pinch_closed(skeleton, s, basis, world, geom, gtype)
+            pinch_pat, preshape, anchor, pinch_axis = pinch_open(first, basis, aperture)
             pinch_pat = (pinch_pat, preshape)
         # the clearance test sees the pre-shaped hand
         pre = basis.copy()
         for j, r in preshape.items():
             pre[j, :3, :3] = r
-        wpre = skeleton.world_frames(pre, armature_to_world)
-        inv = np.linalg.inv(wpre[hand])
+        wpre = ik.update_world(skeleton, pre, world, list(preshape))
+        inv = rigid_inv(wpre[hand])
         cen = sensor_centres(sens, wpre, skeleton) @ inv[:3, :3].T + inv[:3, 3]
         loc = np.column_stack((cen, [x.radius for x in sens]))
         cands = candidates(shape, gtype, geom, world[hand], eye, body_c, loc, anchor, pinch_axis)
@@ -575,12 +733,13 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
             cands = [c for c in cands if (c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3] - obj_c) @ lateral
                      > 0.5 * np.linalg.norm(c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3] - obj_c)]
         chain = ik.Chain.arm(skeleton, s, point=geom.palm, with_spine=with_spine)
+        # the chain's base (above the shoulder or the pelvis) is moved by neither arm
+        base = ik.chain_base(chain, world)
         best = None
         for c in cands[:40]:
             target_r = c.hand_world[:3, :3]
             target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
-            res = ik.solve(chain, goal, ik.chain_base(chain, skeleton.world_frames(goal, armature_to_world)),
-                           target_p, target_r, iterations=80)
+            res = ik.solve(chain, goal, base, target_p, target_r, iterations=80)
             if res.position_error < 0.002 and res.rotation_error < np.radians(1.0):
                 best = (c, res)
                 break
@@ -592,18 +751,19 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         # the approach: the palm first comes to a point backed off along its normal
         n_w = c.hand_world[:3, :3] @ geom.normal
         target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
-        approach = ik.solve(chain, res.basis, ik.chain_base(chain, skeleton.world_frames(res.basis, armature_to_world)),
-                       target_p - n_w * APPROACH, c.hand_world[:3, :3], iterations=40)
+        approach = ik.solve(chain, res.basis, base, target_p - n_w * APPROACH, c.hand_world[:3, :3], iterations=40)
         goal = res.basis
         if pinch_pat[0] is not None:  # the fingertips meet inside the object where it ended up
-            hw = skeleton.world_frames(goal, armature_to_world)
+            hw = ik.update_world(skeleton, goal, world, chain.joints)
             aperture = extent_along(shape, hw[hand][:3, :3] @ pinch_axis) + 0.012
+            shut = pinch_closed(skeleton, s, basis, world, geom, gtype, c.grip[:3, 3], warm=first)
+            preshape = None
             for _ in range(8):  # open wider until the pre-shaped fingers clear the object
-                closed, preshape, _, _ = pinch_pattern(skeleton, s, basis, world, geom, gtype, aperture, c.grip[:3, 3])
+                closed, preshape, _, _ = pinch_open(shut, basis, aperture, warm=preshape)
                 pre = goal.copy()
                 for j, r in preshape.items():
                     pre[j, :3, :3] = r
-                wpre = skeleton.world_frames(pre, armature_to_world)
+                wpre = ik.update_world(skeleton, pre, hw, list(preshape))
                 depth = np.array([x.radius for x in sens]) - shape.distance(sensor_centres(sens, wpre, skeleton))
                 if depth.max() < -0.001:
                     break
@@ -621,26 +781,31 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         for t in range(reach_frames + 1):
             frames[t] = chain.apply(traj[t], frames[t])
         frames[reach_frames:] = chain.apply(res.theta, frames[reach_frames])[None]
-        if pinch_pat is not None:  # fingers pre-shape during the reach
+        if pinch_pat is not None:  # fingers pre-shape during the reach (a smooth-step slerp)
+            x = np.arange(reach_frames + 1) / reach_frames
+            ease = x * x * (3 - 2 * x)
             for j, r in pinch_pat[1].items():
-                rel = Rotation.from_matrix(basis[j, :3, :3]).inv() * Rotation.from_matrix(r)
-                for t in range(reach_frames + 1):
-                    x = t / reach_frames
-                    frames[t, j, :3, :3] = (Rotation.from_matrix(basis[j, :3, :3])
-                                            * Rotation.from_rotvec(rel.as_rotvec() * x * x * (3 - 2 * x))).as_matrix()
+                rel = ik.rot_log(basis[j, :3, :3].T @ r)
+                frames[:reach_frames + 1, j, :3, :3] = basis[j, :3, :3] @ ik.rodrigues(rel * ease[:, None])
                 frames[reach_frames:, j, :3, :3] = r
+    moved = sorted({j for v in chosen.values() for j in v[0].joints}
+                   | {j for v in chosen.values() if v[4] is not None for j in v[4][1]})
     for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
         _keep_off_object(skeleton, frames, armature_to_world, s, chain, shape, reach_frames,
-                         sensors=(hand_sensors or {}).get(s))
+                         sensors=(hand_sensors or {}).get(s), world=world, moved=moved)
     if avoid_body:  # the arms keep out of the trunk and head (sec. 4.6) on every frame of the reach
-        frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, frames[:reach_frames + 1], armature_to_world,
-                                                              sides=tuple(chosen), with_spine=with_spine)
+        # (the reach moves the arms and fingers only: their share of the kinematics, every frame at once)
+        reach = frames[:reach_frames + 1]
+        frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, reach, armature_to_world,
+                                                              sides=tuple(chosen), with_spine=with_spine,
+                                                              legs=(), world=ik.update_world(skeleton, reach, world,
+                                                                                             moved))
         frames[reach_frames:] = frames[reach_frames][None]
     final = frames[reach_frames]
-    world_f = skeleton.world_frames(final, armature_to_world)
+    world_f = ik.update_world(skeleton, final, world, moved)
     for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
         hand = skeleton.role_index(sided("hand", s))
-        centre_local = np.linalg.inv(world_f[hand]) @ shape_frame(shape)
+        centre_local = rigid_inv(world_f[hand]) @ shape_frame(shape)
         pat = pattern if pattern is not None else pinch_pat[0] if pinch_pat[0] is not None else builtin_pattern(
             skeleton, s, world_f, geom, gtype, centre_local[:3, 3], basis=final)
         if pattern is not None and not isinstance(pattern, dict):
@@ -650,7 +815,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         for j, rots in track.items():
             frames[reach_frames:, j, :3, :3] = rots
         fingers = tuple(sorted({x.split(".")[0] for x in touching}))
-        results.append(HandGrasp(s, np.linalg.inv(world_f[hand]) @ shape_frame(shape), touching, fingers,
+        results.append(HandGrasp(s, rigid_inv(world_f[hand]) @ shape_frame(shape), touching, fingers,
                                  res.position_error, sensors))
-    world_end = skeleton.world_frames(frames[-1], armature_to_world)
+    world_end = ik.update_world(skeleton, frames[-1], world, moved)
     return GraspResult(gtype, kind(shape), results, frames, nfr, reach_frames, close_frames, world_end)

@@ -19,21 +19,6 @@ from ..body_roles import sided
 from ..errors import RigError
 
 
-def _rx(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-
-
-def _ry(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-
-
-def _rz(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
-
-
 def rodrigues(v):
     """Rotation matrices (..., 3, 3) of rotation vectors (..., 3)."""
     v = np.asarray(v, float)
@@ -60,9 +45,9 @@ def euler_xyz(r):
 def matrix_xyz(e):
     """Rotations (..., 3, 3) of intrinsic X-Y-Z angles (..., 3)."""
     e = np.asarray(e, float)
-    ca, sa = np.cos(e[..., 0]), np.sin(e[..., 0])
-    cb, sb = np.cos(e[..., 1]), np.sin(e[..., 1])
-    cc, sc = np.cos(e[..., 2]), np.sin(e[..., 2])
+    c, s = np.cos(e), np.sin(e)
+    ca, cb, cc = c[..., 0], c[..., 1], c[..., 2]
+    sa, sb, sc = s[..., 0], s[..., 1], s[..., 2]
     out = np.empty(e.shape[:-1] + (3, 3))
     out[..., 0, 0] = cb * cc
     out[..., 0, 1] = -cb * sc
@@ -76,9 +61,35 @@ def matrix_xyz(e):
     return out
 
 
+def cross(a, b):
+    """np.cross of (..., 3) arrays without its axis bookkeeping (a hot spot on small arrays)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    out = np.empty(np.broadcast(a, b).shape)
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def rot_angle(r):
+    """Angle (...,) of rotation matrices (..., 3, 3)."""
+    c = 0.5 * (r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2] - 1.0)
+    s = 0.5 * np.sqrt((r[..., 2, 1] - r[..., 1, 2]) ** 2 + (r[..., 0, 2] - r[..., 2, 0]) ** 2
+                      + (r[..., 1, 0] - r[..., 0, 1]) ** 2)
+    return np.arctan2(s, c)
+
+
 def rot_log(r):
     """World axis-angle vector of a rotation matrix."""
-    return Rotation.from_matrix(r).as_rotvec()
+    v = np.array((r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]))
+    s = 0.5 * np.sqrt(v @ v)
+    c = 0.5 * (r[0, 0] + r[1, 1] + r[2, 2] - 1.0)
+    th = np.arctan2(s, c)
+    if th < 1e-6:
+        return 0.5 * v
+    if th < np.pi - 1e-3:
+        return v * (th / (2.0 * s))
+    return Rotation.from_matrix(r).as_rotvec()  # near a half turn the skew part loses the axis
 
 
 def chain_joints(skeleton, side, with_spine=False):
@@ -122,9 +133,16 @@ class Chain:
         lim = np.array([sk.limits[self.joints[k], a] for k, a in self.dofs]).reshape(-1, 2)
         self.lower, self.upper = lim[:, 0], lim[:, 1]
         self.rest_local = sk.rest_local[self.joints]
+        self._rest_r = self.rest_local[:, :3, :3].copy()
+        self._rest_t = self.rest_local[:, :3, 3].copy()
         self.n = len(self.dofs)
         self._k = np.array([k for k, _ in self.dofs], int)
         self._a = np.array([a for _, a in self.dofs], int)
+        self._tip_k = self.joints.index(self.tip)
+        # the damping thresholds are set for an arm (~0.6 m); a finger's Jacobian is ten times
+        # smaller and would be damped everywhere, creeping to its target
+        reach = sum(np.linalg.norm(self._rest_t[1:], axis=1)) + np.linalg.norm(self.point)
+        self.scale = float(np.clip(reach / 0.6, 0.5, 1.0))
 
     @classmethod
     def arm(cls, skeleton, side, point=(0, 0, 0), with_spine=False, tip=None):
@@ -152,38 +170,38 @@ class Chain:
     def frames(self, eul, basis, base):
         """World frames of the chain's bones, and the world rotation of each DOF's axis."""
         n = len(self.joints)
-        world = np.empty((n, 4, 4))
-        axes = np.empty((n, 3, 3))  # per bone, the world directions of its X, Y', Z'' axes
-        parent = base
-        for k, j in enumerate(self.joints):
-            pre = parent @ self.rest_local[k]
-            tr = np.eye(4)
-            tr[:3, 3] = basis[j, :3, 3]
-            pre = pre @ tr
-            e = eul[k]
-            r = pre[:3, :3]
-            rx = r @ _rx(e[0])
-            rxy = rx @ _ry(e[1])
-            axes[k, 0] = r[:, 0]
-            axes[k, 1] = rx[:, 1]
-            axes[k, 2] = rxy[:, 2]
-            world[k] = pre
-            world[k, :3, :3] = rxy @ _rz(e[2])
-            parent = world[k]
+        local = matrix_xyz(eul)  # (n, 3, 3): Rx Ry Rz per bone
+        bt = basis[self.joints, :3, 3]
+        world = np.zeros((n, 4, 4))
+        world[:, 3, 3] = 1.0
+        pre = np.empty((n, 3, 3))  # each bone's rest orientation in world, before its own turn
+        pr, pp = base[:3, :3], base[:3, 3]
+        for k in range(n):
+            r = pr @ self._rest_r[k]
+            pp = pr @ self._rest_t[k] + pp + r @ bt[k]
+            pr = r @ local[k]
+            pre[k] = r
+            world[k, :3, :3] = pr
+            world[k, :3, 3] = pp
+        # the world directions of each bone's X, Y' and Z'' axes (intrinsic X-Y-Z)
+        axes = np.empty((n, 3, 3))
+        axes[:, 0] = pre[:, :, 0]
+        a = eul[:, 0]
+        axes[:, 1] = pre[:, :, 1] * np.cos(a)[:, None] + pre[:, :, 2] * np.sin(a)[:, None]
+        axes[:, 2] = world[:, :3, 2]
         return world, axes
 
     def effector(self, world):
-        f = world[self.joints.index(self.tip)]
+        f = world[self._tip_k]
         return f[:3, :3] @ self.point + f[:3, 3], f[:3, :3]
 
     def jacobian(self, world, axes, target_point=None):
         """(6, n): angular (rows 0-2) and linear velocity of a point (default the effector)."""
         x = self.effector(world)[0] if target_point is None else target_point
-        jac = np.zeros((6, self.n))
-        for i, (k, a) in enumerate(self.dofs):
-            w = axes[k, a]
-            jac[:3, i] = w
-            jac[3:, i] = np.cross(w, x - world[k, :3, 3])
+        w = axes[self._k, self._a]
+        jac = np.empty((6, self.n))
+        jac[:3] = w.T
+        jac[3:] = cross(w, x - world[self._k, :3, 3]).T
         return jac
 
 
@@ -196,16 +214,27 @@ def damped_pinv(jac, epsilon=0.02, lam_max=0.05):
     return (vt.T * (s / (s ** 2 + lam2))) @ u.T
 
 
-def null_space_step(jac, dx, dz=None, active=None, **kw):
+def null_space_step(jac, dx, dz=None, active=None, eye=None, **kw):
     """Eq. 2-1 with joint limits: columns of inactive DOFs are zeroed (they do not move)."""
     n = jac.shape[1]
-    mask = np.ones(n, bool) if active is None else active
+    if active is None:  # every DOF free: no masking
+        jp = damped_pinv(jac, **kw)
+        dq = jp @ dx
+        if dz is not None:
+            dz = np.asarray(dz)
+            dq = dq + dz - jp @ (jac @ dz)
+        return dq
+    mask = active
     jm = jac * mask
     jp = damped_pinv(jm, **kw)
     dq = jp @ dx
     if dz is not None:
-        dq = dq + (np.eye(n) - jp @ jm) @ (np.asarray(dz) * mask)
+        dq = dq + ((np.eye(n) if eye is None else eye) - jp @ jm) @ (np.asarray(dz) * mask)
     return dq * mask
+
+
+STILL = 1e-7  # radians: a step that moves no DOF more than this ends the solve
+STALL = (1e-6, 1e-5)  # metres, radians: an iteration changing the errors less than this ends it
 
 
 @dataclass
@@ -222,19 +251,31 @@ def solve(chain, basis, base, target_pos, target_rot=None, secondary=None, itera
     """Move the chain's effector to `target_pos` (and orientation `target_rot`, a 3x3 world
     rotation) from `basis`; `base` is the world frame of the chain's parent bone.
     `secondary(theta, world, axes) -> dz` (joint space) is the null-space task."""
-    theta = chain.angles(basis) if theta0 is None else np.array(theta0, float)
+    eul0 = euler_xyz(basis[chain.joints, :3, :3])  # the angles the chain does not drive stay
+    theta = eul0[chain._k, chain._a] if theta0 is None else np.array(theta0, float)
     pos = np.asarray(target_pos, float)
     rows = slice(0, 6) if target_rot is not None else slice(3, 6)
+    eye = np.eye(chain.n)
+
+    def pose(th):
+        eul = eul0.copy()
+        eul[chain._k, chain._a] = th
+        return chain.frames(eul, basis, base)
+
     it = 0
+    zero3 = np.zeros(3)
+    prev = None
     for it in range(iterations):
-        eul = chain.euler(theta, basis)
-        world, axes = chain.frames(eul, basis, base)
+        world, axes = pose(theta)
         x, r = chain.effector(world)
         ep = pos - x
-        er = rot_log(target_rot @ r.T) if target_rot is not None else np.zeros(3)
-        if np.linalg.norm(ep) < tol and np.linalg.norm(er) < rot_tol and secondary is None:
+        er = rot_log(target_rot @ r.T) if target_rot is not None else zero3
+        norm, rnorm = np.sqrt(ep @ ep), np.sqrt(er @ er)
+        if norm < tol and rnorm < rot_tol and secondary is None:
             break
-        norm = np.linalg.norm(ep)
+        if secondary is None and prev is not None and abs(prev[0] - norm) < STALL[0] and abs(prev[1] - rnorm) < STALL[1]:
+            break  # an unreachable target: the error no longer changes
+        prev = (norm, rnorm)
         if norm > max_step:
             ep = ep * (max_step / norm)
         dx = np.concatenate((er * rot_weight, ep))[rows]
@@ -242,20 +283,51 @@ def solve(chain, basis, base, target_pos, target_rot=None, secondary=None, itera
         jac[:3] *= rot_weight
         jac = jac[rows]
         dz = secondary(theta, world, axes) if secondary is not None else None
-        active = np.ones(chain.n, bool)
+        active = None
         for _ in range(3):
-            dq = null_space_step(jac, dx, dz, active)
+            dq = null_space_step(jac, dx, dz, active, eye=eye, epsilon=0.02 * chain.scale, lam_max=0.05 * chain.scale)
             new = theta + dq
             out = ((new < chain.lower) & (dq < 0)) | ((new > chain.upper) & (dq > 0))
             if not out.any():
                 break
-            active &= ~out
-        theta = np.clip(theta + dq, chain.lower, chain.upper)
-    eul = chain.euler(theta, basis)
-    world, _ = chain.frames(eul, basis, base)
+            active = ~out if active is None else active & ~out
+        new = np.clip(theta + dq, chain.lower, chain.upper)
+        moved = np.abs(new - theta).max(initial=0.0)
+        theta = new
+        if moved < STILL:  # converged (or stuck at a limit): more steps would not move it
+            break
+    world, _ = pose(theta)
     x, r = chain.effector(world)
     rerr = np.linalg.norm(rot_log(target_rot @ r.T)) if target_rot is not None else 0.0
     return IKResult(chain.apply(theta, basis), theta, float(np.linalg.norm(pos - x)), float(rerr), it + 1)
+
+
+def _below(skeleton, joints):
+    """The joints and every descendant, parents first (cached per skeleton)."""
+    cache = skeleton.__dict__.setdefault("_hands_below", {})
+    key = tuple(sorted(set(int(j) for j in joints)))
+    if key not in cache:
+        below = set(key)
+        for j in range(skeleton.joint_count):  # parents come before their children
+            if skeleton.parents[j] in below:
+                below.add(j)
+        cache[key] = [j for j in range(skeleton.joint_count) if j in below]
+    return cache[key]
+
+
+def update_world(skeleton, basis, world, joints):
+    """World frames (..., J, 4, 4) of `basis` (..., J, 4, 4) where only `joints` differ from the
+    pose whose world frames are `world`: those joints and their descendants are recomputed, the
+    others copied (a hand's or a chain's share of forward kinematics, not the whole body's)."""
+    basis = np.asarray(basis, float)
+    out = np.array(np.broadcast_to(world, basis.shape))
+    rest_local, parents = skeleton.rest_local, skeleton.parents
+    for j in _below(skeleton, joints):
+        p = parents[j]
+        if p < 0:
+            raise ValueError("update_world needs joints below a root")
+        out[..., j, :, :] = out[..., p, :, :] @ (rest_local[j] @ basis[..., j, :, :])
+    return out
 
 
 def chain_base(chain, world_all):

@@ -60,14 +60,18 @@ def sensors_from_mesh(skeleton, sensors, world, vertices, owner):
     return out
 
 
+def sensor_layout(sensors, skeleton):
+    """(joints (S,), centres in their bones' frames (S, 3)) of the sensors."""
+    joints = np.array([s.joint for s in sensors], int)
+    local = np.array([[0.0, s.along * skeleton.lengths[s.joint], 0.0] for s in sensors]).reshape(-1, 3)
+    return joints, local + np.array([s.offset for s in sensors], float).reshape(-1, 3)
+
+
 def sensor_centres(sensors, world, skeleton):
-    """World centres (S, 3) of the sensors for world joint frames (J, 4, 4)."""
-    out = np.empty((len(sensors), 3))
-    for i, s in enumerate(sensors):
-        frame = world[s.joint]
-        local = np.array([0.0, s.along * skeleton.lengths[s.joint], 0.0]) + np.asarray(s.offset)
-        out[i] = frame[:3, :3] @ local + frame[:3, 3]
-    return out
+    """World centres (..., S, 3) of the sensors for world joint frames (..., J, 4, 4)."""
+    joints, local = sensor_layout(sensors, skeleton)
+    f = np.asarray(world)[..., joints, :, :]
+    return (f[..., :3, :3] @ local[:, :, None])[..., 0] + f[..., :3, 3]
 
 
 @dataclass

@@ -74,3 +74,28 @@ EXPECTED = {
 def expected(name, size):
     """Large objects (20 cm and more across their smallest side) take two hands."""
     return EXPECTED.get((name, size), ("WRAP", 2))
+
+
+def crossed_legs(sk, basis, frames=30, cross=0.45, lift=0.1, extend=0.7):
+    """Keyframed legs on the metarig: both legs go from standing to a seated pose (hips and knees
+    flexed 1.5 rad, the pelvis left where it is) over the first half, then the left leg crosses
+    over the right (its hip turns `cross` rad, its knee opens `extend` rad) and its knee and shin
+    go through the right thigh and knee. With `extend` 0 the left ankle ends inside the right
+    shin too (its goal is inside the body)."""
+    from humananim.solver.hands.ik import matrix_xyz
+
+    idx = {r: sk.role_index(r) for r in ("thigh.L", "shin.L", "thigh.R", "shin.R")}
+    half = frames // 2
+    out = []
+    for t in range(frames):
+        s1, s2 = min(1.0, t / half), max(0.0, (t - half) / (frames - 1 - half))
+        s1, s2 = s1 * s1 * (3 - 2 * s1), s2 * s2 * (3 - 2 * s2)
+        b = basis.copy()
+        for side in ("L", "R"):
+            th, sh = idx[f"thigh.{side}"], idx[f"shin.{side}"]
+            b[th, :3, :3] = basis[th, :3, :3] @ matrix_xyz([-1.5 * s1, 0, 0])
+            b[sh, :3, :3] = basis[sh, :3, :3] @ matrix_xyz([1.5 * s1, 0, 0])
+        b[idx["thigh.L"], :3, :3] = b[idx["thigh.L"], :3, :3] @ matrix_xyz([-lift * s2, 0, cross * s2])
+        b[idx["shin.L"], :3, :3] = b[idx["shin.L"], :3, :3] @ matrix_xyz([-extend * s2, 0, 0])
+        out.append(b)
+    return np.array(out)
