@@ -390,7 +390,8 @@ def run_hold(obj, scene, props=None):
 
 
 def run_self_collisions(obj, scene, props=None):
-    """Job: the arms kept out of the trunk and head over the frame range (table 4-1)."""
+    """Job: the arms kept out of the trunk and head, and the legs out of each other and the trunk,
+    over the frame range (table 4-1)."""
     props = props or scene.humananim_hands
     skeleton = hand_skeleton(obj, scene)
     frames = np.arange(props.frame_start, props.frame_end + 1)
@@ -406,8 +407,11 @@ def run_self_collisions(obj, scene, props=None):
     yield 0.9
     action = write_result(obj, scene, rig_skeleton, crig, frames, base, out, f"{obj.name}.no_self_collision")
     return {"action": action.name, "frames": [int(frames[0]), int(frames[-1])],
-            "frames_corrected": rep.frames_corrected, "max_depth_before_mm": round(1000 * rep.max_depth_before, 2),
-            "max_depth_after_mm": round(1000 * rep.max_depth_after, 2)}
+            "frames_corrected": rep.frames_corrected, "leg_frames_corrected": rep.leg_frames_corrected,
+            "max_depth_before_mm": round(1000 * rep.max_depth_before, 2),
+            "max_depth_after_mm": round(1000 * rep.max_depth_after, 2),
+            "max_hand_error_mm": round(1000 * rep.max_goal_error, 2),
+            "max_foot_error_mm": round(1000 * rep.max_foot_error, 2)}
 
 
 # --- control rigs (a generated Rigify rig) ---------------------------------------------------

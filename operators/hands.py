@@ -87,8 +87,8 @@ class HUMANANIM_OT_hold(JobOperator, bpy.types.Operator):
 
 
 class HUMANANIM_OT_remove_self_collisions(JobOperator, bpy.types.Operator):
-    """Keep the arms out of the trunk and head over the frame range (sensors at elbows, forearms and hands,
-    corrected in the null space of the hands' own motion)"""
+    """Keep the arms out of the trunk and head, and the legs out of each other, over the frame range (sensors
+    at elbows, hands, knees and feet, corrected while hands and feet keep their goals)"""
 
     bl_idname = "humananim.remove_self_collisions"
     bl_label = "Remove Self-Collisions"
@@ -99,7 +99,8 @@ class HUMANANIM_OT_remove_self_collisions(JobOperator, bpy.types.Operator):
 
     def job(self, context):
         s = yield from hands.run_self_collisions(active_armature(context), context.scene)
-        return (f"'{s['action']}': {s['frames_corrected']} frames corrected, deepest "
+        return (f"'{s['action']}': {s['frames_corrected']} frames corrected ({s['leg_frames_corrected']} for "
+                f"the legs), deepest "
                 f"{s['max_depth_before_mm']:.0f} mm -> {s['max_depth_after_mm']:.0f} mm")
 
 

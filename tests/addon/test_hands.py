@@ -3,6 +3,7 @@ touch the surface, none inside beyond 1 mm, keys in a new action, Child Of keyed
 untouched), release, follow, hold, self-collisions, and the grasp command."""
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -85,7 +86,6 @@ def test_grasp_selected_object(metarig, kind, size):
 
 
 def test_source_action_untouched_and_new_action(metarig):
-    scene = bpy.context.scene
     rig = metarig
     # a source action: a small keyed pose
     rig.pose.bones["spine.003"].rotation_mode = "QUATERNION"
@@ -207,3 +207,43 @@ def test_sensors_sized_from_the_skin(metarig):
     sized = hands.hand_sensors_from_skin(rig, scene, sk, world)["R"]
     assert all(abs(x.radius - 0.008) < 1e-4 for x in sized if x.finger != "palm")
 
+
+
+def test_remove_self_collisions_corrects_crossed_legs_as_blender_shows_them(metarig):
+    """Keyed crossed legs on the metarig: the left knee goes through the right thigh in Blender's
+    evaluation; Remove Self-Collisions leaves no leg sensor inside on any frame, the feet where they
+    were, the source action untouched."""
+    import sys
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "solver"))
+    from hands_cases import crossed_legs
+    from humananim.humananim_addon.armature import armature_to_world
+    from humananim.solver.hands.body import body_sensors, body_volumes, collisions
+    from humananim.solver.progress import run_to_end
+    scene, rig = bpy.context.scene, metarig
+    sk = hands.hand_skeleton(rig, scene)
+    frames = np.arange(1, 31)
+    base = hands.pose_frames(rig, scene, sk, frames[:1])
+    keyed = crossed_legs(sk, base[0], frames=len(frames))
+    source = hands.write_result(rig, scene, sk, None, frames, np.repeat(base, len(frames), 0), keyed, "crossing")
+    a2w = armature_to_world(rig, scene)
+
+    def legs(frame_numbers):
+        worlds = [sk.world_frames(b, a2w) for b in hands.pose_frames(rig, scene, sk, frame_numbers)]
+        sens = [s for s in body_sensors(sk, worlds[0]) if s.limb == "leg"]
+        depth = [max([d for *_, d, _ in collisions(sk, sens, w, [v for v in body_volumes(sk, w) if v.name != "head"])],
+                     default=0.0) for w in worlds]
+        feet = np.array([[w[sk.role_index(f"foot.{s}")][:3, 3] for s in "LR"] for w in worlds])
+        return np.array(depth), feet
+
+    before, feet_before = legs(frames)
+    assert before.max() > 0.05
+    snapshot = fcurve_snapshot(source, rig)
+    props = scene.humananim_hands
+    props.frame_start, props.frame_end = int(frames[0]), int(frames[-1])
+    summary = run_to_end(hands.run_self_collisions(rig, scene))
+    assert rig.animation_data.action is not source and summary["leg_frames_corrected"] > 0
+    after, feet_after = legs(frames)
+    assert after.max() < 0.001, f"{after.max() * 1000:.1f} mm inside"
+    assert np.abs(feet_after - feet_before).max() < 0.002 and summary["max_foot_error_mm"] < 2.0
+    now = fcurve_snapshot(source, rig)
+    assert now.keys() == snapshot.keys() and all(np.array_equal(now[k], snapshot[k]) for k in now)
