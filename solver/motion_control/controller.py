@@ -25,10 +25,13 @@ One step (dt = frame time / substeps):
      step-consistent velocities (tracking.step_consistent) reproduces an undisturbed input
      exactly; instant impulses change the velocities through the inertia matrix, dv = H^-1 J' p,
      before the legs' projection;
-  5. colliders: the body's contact spheres (default_contacts) against the collider spheres of
-     that instant; an approaching pair gets the impulse that leaves it separating at restitution
-     times its approach speed (all pairs at once, projected Gauss-Seidel on J H^-1 J'), friction
-     included; the collider is kinematic (infinite mass) unless Collider.mass is finite.
+  5. colliders: each collider sphere's path over the step swept against the body's capsules (a
+     bone's two contact spheres, default_contacts, and the segment between them), so a fast fist
+     cannot pass through between two steps; at the first contact an approaching pair gets the
+     impulse that leaves it separating at restitution times its approach speed (all pairs at
+     once, projected Gauss-Seidel on J H^-1 J' + B B'/M), friction included; the collider is
+     kinematic (infinite mass, it keeps pushing) unless Collider.mass is finite (one impulse per
+     contact). A swing foot (not planted) is kept above the ground by impulses on its leg's DOFs.
 
 Falling (choice: contact impulses, not a hand-over to closed_loop.iter_simulate): when balance
 control has reported for `fall_time` (0.1 s) that the ZMP cannot be brought inside the support
