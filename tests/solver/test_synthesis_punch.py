@@ -120,3 +120,20 @@ def test_protective_step_base_foot_stays_planted(victim, sweep):
     print("base foot slide mm", 1000 * rc.foot_slide[r.frame:landing, base].max())
     assert rc.foot_slide[r.frame:landing, base].max() < 0.002
     assert not r.info["fell_while_reacting"]
+
+
+def test_punch_sweep_on_the_cmu_clip():
+    """The same fist and speeds on CMU 131_01 (120 fps, 1.7 s of walking capture), hit at 0.5 s."""
+    from humananim.solver.synthesis import from_trajectories
+    sk, tr = load("cmu_131_01")
+    walk = from_trajectories("walk", sk, tr)
+    floor = motion_floor(sk, tr)
+    kinds = []
+    for v in SPEEDS:
+        r = react(walk, ControlSettings(colliders=(punch_collider(sk, tr, v, mass=FIST_KG, hit_time=0.5),)))
+        kinds.append(r.kind)
+        assert np.isfinite(r.trajectories.rotations).all() and np.isfinite(r.trajectories.translations).all()
+        assert segment_heights(sk, r.trajectories).min() > floor - 0.01
+        assert r.kind == "none" or r.info["retracked"]
+    print("CMU punch sweep", dict(zip(SPEEDS, kinds)))
+    assert kinds == ["none", "step", "fall"]
