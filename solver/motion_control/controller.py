@@ -779,10 +779,10 @@ class _Loop:
             near = swing & (gap < np.maximum(-sphere_vel[:, 2], 0.0) * dt)
             if near.any():
                 v = self._swing_ground(body, q, v, dt, np.flatnonzero(near), centres, gap)
+        # finite-mass colliders that gave their impulse and are still touching (kept across steps)
         spent = getattr(self, "_spent_colliders", set())
         self._spent_colliders = spent
-        owners = []  # collider index per row (None: the ground)
-        owners.extend([None] * len(rows))
+        owners = [None] * len(rows)  # collider index per row (None: the ground)
         if self.st.colliders:
             ia, ib = _capsules(body.contacts)
         for ci, col in enumerate(self.st.colliders):
@@ -790,11 +790,10 @@ class _Loop:
             rc = np.asarray(col.radii, float)
             hits = _swept_contacts(centres[ia], centres[ib], radii[ia], 0.5 * (sphere_vel[ia] + sphere_vel[ib]) * dt,
                                    p0, p1, rc)
-            finite = np.isfinite(col.mass)
             if not hits:
                 spent.discard(ci)
                 continue
-            if finite and ci in spent:  # a thrown body gave its impulse: it stays spent while in contact
+            if np.isfinite(col.mass) and ci in spent:  # a thrown body gave its impulse: it stays spent while in contact
                 continue
             vel_c = (p1 - p0) / dt
             for cap, c, axis_point, n in hits:
