@@ -27,6 +27,14 @@ def add_commands(sub, add_common_options):
     c.add_argument("--react", action="store_true", help="dynamic control with protective steps, falls, recovery")
     c.add_argument("--impulse", action="append", default=[], metavar="FRAME:BONE:FX,FY,FZ[:SECONDS]",
                    help="a push (N s, world axes) on a bone for --react; repeatable")
+    c.add_argument("--collide", metavar="OBJECT",
+                   help="an armature or mesh object in the .blend that collides with the character for --react "
+                        "(the puncher of the thesis's scene)")
+    c.add_argument("--collide-radius", type=float, default=0.06,
+                   help="sphere radius along a colliding armature's bones (m, default 0.06)")
+    c.add_argument("--collide-mass", type=float, default=0.0,
+                   help="the collider's mass in kg (a fist with the arm behind it: a few kg); 0: kinematic, it "
+                        "keeps pushing (default 0)")
     c.add_argument("--step-speed", type=float, nargs=2, metavar=("MIN", "MAX"), default=(0.5, 1.0),
                    help="eq. 3.6 root speeds, m/s (default 0.5 1.0)")
     c.add_argument("--step-acceleration", type=float, default=10.0, help="eq. 3.6 root acceleration, m/s^2")
@@ -79,6 +87,13 @@ def cmd_synthesize(args):
     for text in args.impulse:
         frame, bone, vector, seconds = parse_arrow(text, obj, "--impulse", 0.0)
         add_impulse_from_vector(obj, scene, bone, frame, vector, seconds)
+    if args.collide:
+        other = bpy.data.objects.get(args.collide)
+        if other is None:
+            raise UsageError(f"--collide: no object named '{args.collide}'")
+        control = scene.humananim_control
+        control.collider, control.collider_radius = other, args.collide_radius
+        control.collider_mass = max(0.0, args.collide_mass)
     summary = run_to_end(synthesis.run(obj, scene))
     out = os.path.abspath(args.out)
     os.makedirs(os.path.dirname(out), exist_ok=True)

@@ -25,10 +25,13 @@ One step (dt = frame time / substeps):
      step-consistent velocities (tracking.step_consistent) reproduces an undisturbed input
      exactly; instant impulses change the velocities through the inertia matrix, dv = H^-1 J' p,
      before the legs' projection;
-  5. colliders: the body's contact spheres (default_contacts) against the collider spheres of
-     that instant; an approaching pair gets the impulse that leaves it separating at restitution
-     times its approach speed (all pairs at once, projected Gauss-Seidel on J H^-1 J'), friction
-     included; the collider is kinematic (infinite mass) unless Collider.mass is finite.
+  5. colliders: each collider sphere's path over the step swept against the body's capsules (a
+     bone's two contact spheres, default_contacts, and the segment between them), so a fast fist
+     cannot pass through between two steps; at the first contact an approaching pair gets the
+     impulse that leaves it separating at restitution times its approach speed (all pairs at
+     once, projected Gauss-Seidel on J H^-1 J' + B B'/M), friction included; the collider is
+     kinematic (infinite mass, it keeps pushing) unless Collider.mass is finite (one impulse per
+     contact). A swing foot (not planted) is kept above the ground by impulses on its leg's DOFs.
 
 Falling (choice: contact impulses, not a hand-over to closed_loop.iter_simulate): when balance
 control has reported for `fall_time` (0.1 s) that the ZMP cannot be brought inside the support
@@ -174,18 +177,27 @@ class ControlResult:
     foot_slide: np.ndarray  # (F, 2) m, horizontal travel of each planted foot's contact point since landing
     foot_skate: np.ndarray = None  # (F, 2) m, the root offset that removed the input's foot skate
     model: object = None
+    ground_height: float = None  # m, the ground the body stood and fell on
 
 
-def control(skeleton, trajectories, settings=None):
+def control(skeleton, trajectories, settings=None, on_frame=None):
     """Dynamic motion control of a skeleton following `trajectories` (see the module notes)."""
-    return run_to_end(iter_control(skeleton, trajectories, settings))
+    return run_to_end(iter_control(skeleton, trajectories, settings, on_frame))
 
 
-def iter_control(skeleton, trajectories, settings=None):
-    """control() as steps: yields the fraction of frames done, returns the ControlResult."""
+def iter_control(skeleton, trajectories, settings=None, on_frame=None):
+    """control() as steps: yields the fraction of frames done, returns the ControlResult.
+
+    on_frame(f, q, v), optional, is called at the start of each frame with copies of the body's
+    state (the model's generalised positions and velocities); when it returns a (q, v) pair the
+    body continues from that state (a caller replays a state it recorded, e.g. to switch inputs)."""
     loop = _Loop(skeleton, trajectories, settings or ControlSettings())
     nf = loop.tr.frame_count
     for f in range(nf):
+        if on_frame is not None:
+            state = on_frame(f, loop.q.copy(), loop.v.copy())
+            if state is not None:
+                loop.q, loop.v = (np.array(x, float) for x in state)
         loop.frame(f)
         yield (f + 1) / nf
     return loop.result()
@@ -483,7 +495,8 @@ class _Loop:
         traj = _to_trajectories(m, self.sk, self.tr, self.out_q)
         return ControlResult(trajectories=traj, stress=self.stress, balance_error=self.err, zmp=self.zmp,
                              mmp=self.mmp, support=self.support, polygon=self.polygon, control=self.control,
-                             falling=self.falling, foot_slide=self.slide, foot_skate=self.skate, model=m)
+                             falling=self.falling, foot_slide=self.slide, foot_skate=self.skate, model=m,
+                             ground_height=self.ground)
 
     # ---- external input ----
 
@@ -729,7 +742,16 @@ class _Loop:
 
     def _collide(self, body, q, v, t, dt, ground):
         """Impulses of the ground (when `ground`) and of the colliders on the velocities v (after the
-        step's acceleration, before its position update); remembers the collider forces."""
+        step's acceleration, before its position update); remembers the collider forces.
+
+        Colliders are continuous (swept): each collider sphere's path over the step, relative to each
+        body capsule (a bone's two contact spheres and the segment between them) moving at its
+        velocity, is tested for the first instant it touches the capsule, so a fast fist cannot pass
+        through the body between two steps. The impulse acts at that first contact with the relative
+        velocity there (the collider's over the step: its displacement / dt). A collider of finite
+        mass is one rigid body (its spheres share its mass) that gives one impulse per contact: it
+        is spent until it has left the body (a thrown fist hits once; only a kinematic collider
+        keeps pushing while it moves into the body)."""
         m, d = body.model, body.data
         kinematics.update_frames(m, d, q)
         bodies, local = body.spheres
@@ -738,27 +760,47 @@ class _Loop:
         centres = np.einsum("kij,kj->ki", fr[:, :3, :3], local) + fr[:, :3, 3]
         rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
         self.collider_wrench = None
+        swing = None if ground else _swing_spheres(body, self.planted)
+        if ground or self.st.colliders or swing.any():
+            vel = kinematics.body_velocities(m, d, q, v)[bodies]
+            sphere_vel = vel[:, 3:] + _cross(vel[:, :3], centres)
         if ground:
             gap = centres[:, 2] - radii - self.ground
             # speculative: every sphere that could reach the ground within the step
-            vel = kinematics.body_velocities(m, d, q, v)[bodies]
-            vz = vel[:, 5] + (vel[:, 0] * centres[:, 1] - vel[:, 1] * centres[:, 0])
+            vz = sphere_vel[:, 2]
             near = gap < np.maximum(-vz, 0.0) * dt + 0.01
             for k in np.flatnonzero(near):
                 g = gap[k]
                 target = -g / dt if g > 0 else -self.st.fall_correction * g / dt
                 point = centres[k] - np.array([0.0, 0.0, radii[k]])
                 rows.append((k, point, np.array([0.0, 0.0, 1.0]), target, np.zeros(3), None))
+        elif swing.any():  # standing: a foot that is not planted (a swing foot) may not pass below the ground
+            gap = centres[:, 2] - radii - self.ground
+            near = swing & (gap < np.maximum(-sphere_vel[:, 2], 0.0) * dt)
+            if near.any():
+                v = self._swing_ground(body, q, v, dt, np.flatnonzero(near), centres, gap)
+        # finite-mass colliders that gave their impulse and are still touching (kept across steps)
+        spent = getattr(self, "_spent_colliders", set())
+        self._spent_colliders = spent
+        owners = [None] * len(rows)  # collider index per row (None: the ground)
+        if self.st.colliders:
+            ia, ib = _capsules(body.contacts)
         for ci, col in enumerate(self.st.colliders):
-            pos, vel_c = self._collider_at(col, t)
+            p0, p1 = self._collider_at(col, t)[0], self._collider_at(col, t + dt)[0]
             rc = np.asarray(col.radii, float)
-            delta = centres[:, None, :] - pos[None, :, :]  # (k, c, 3) from collider to body sphere
-            dist = np.linalg.norm(delta, axis=-1)
-            overlap = dist < radii[:, None] + rc[None, :]
-            for k, c in zip(*np.nonzero(overlap)):
-                n = delta[k, c] / max(dist[k, c], 1e-9)
-                point = centres[k] - radii[k] * n
+            hits = _swept_contacts(centres[ia], centres[ib], radii[ia], 0.5 * (sphere_vel[ia] + sphere_vel[ib]) * dt,
+                                   p0, p1, rc)
+            if not hits:
+                spent.discard(ci)
+                continue
+            if np.isfinite(col.mass) and ci in spent:  # a thrown body gave its impulse: it stays spent while in contact
+                continue
+            vel_c = (p1 - p0) / dt
+            for cap, c, axis_point, n in hits:
+                k = ia[cap]
+                point = axis_point - radii[k] * n
                 rows.append((k, point, n, None, vel_c[c], col.mass))
+                owners.append(ci)
         if not rows:
             return v
         ks = np.array([r[0] for r in rows])
@@ -783,27 +825,66 @@ class _Loop:
         active = targets > -np.inf
         if not active.any():
             return v
+        idx = np.flatnonzero(active)
         sel = np.flatnonzero(np.repeat(active, 3))
         jr, rel0 = jr[sel], rel0[sel]
         targets = targets[active]
-        inv_mass = np.array([0.0 if r[5] is None or not np.isfinite(r[5]) else 1.0 / r[5]
-                             for r, a in zip(rows, active) if a])
         chol = cho_factor(_inertia(m, d, q))
         hij = cho_solve(chol, jr.T)  # (nv, 3c)
         w = jr @ hij
-        w[np.diag_indices_from(w)] += np.repeat(inv_mass, 3)
+        # a collider of finite mass M is one translating body: its rows couple through B B' / M
+        rows_basis = basis[idx].reshape(-1, 3)  # (3c, 3)
+        row_owner = np.repeat([-1 if owners[i] is None else owners[i] for i in idx], 3)
+        for ci in set(row_owner[row_owner >= 0].tolist()):
+            mass = float(self.st.colliders[ci].mass)
+            if np.isfinite(mass) and mass > 0.0:
+                rs = np.flatnonzero(row_owner == ci)
+                w[np.ix_(rs, rs)] += rows_basis[rs] @ rows_basis[rs].T / mass
         p = _pgs(w, rel0, targets, self.st.friction, self.st.contact_iterations)
         v = v + hij @ p
-        # collider contact forces for the next step's inverse dynamics
-        pc = [i for i, r in enumerate(r for r, a in zip(rows, active) if a) if r[3] is None]
-        if pc:
-            act_rows = [r for r, a in zip(rows, active) if a]
-            wrench = np.zeros((m.nb, 6))
-            for i in pc:
-                force = basis[np.flatnonzero(active)[i]].T @ p[3 * i:3 * i + 3] / dt
-                x = act_rows[i][1]
-                wrench[bodies[act_rows[i][0]]] += np.r_[_cross(x, force), force]
-            self.collider_wrench = wrench
+        # collider contact forces for the next step's inverse dynamics: a kinematic collider keeps
+        # pushing; a finite-mass one gave its whole momentum here (like an instant Impulse)
+        wrench = None
+        for j, i in enumerate(idx):
+            if owners[i] is None:
+                continue
+            if np.isfinite(self.st.colliders[owners[i]].mass):
+                spent.add(owners[i])
+                continue
+            force = basis[i].T @ p[3 * j:3 * j + 3] / dt
+            x = rows[i][1]
+            wrench = np.zeros((m.nb, 6)) if wrench is None else wrench
+            wrench[bodies[rows[i][0]]] += np.r_[_cross(x, force), force]
+        self.collider_wrench = wrench
+        return v
+
+    def _swing_ground(self, body, q, v, dt, ks, centres, gap):
+        """Ground impulses on a swing foot's spheres acting on its leg's DOFs only (the leg's own
+        inertia block): like the planted legs' projection, the foot is kept out of the ground
+        without jarring the rest of the body (a landing step would otherwise kick the pelvis)."""
+        m, d = body.model, body.data
+        bodies = body.spheres[0]
+        h = None
+        for s, foot in enumerate(body.parts.feet):
+            fb = m.joint_body[foot]
+            mine = ks[m.ancestors[bodies[ks]][:, fb] != 0]
+            if not len(mine):
+                continue
+            cols = np.asarray(body.parts.legs[s])
+            points = centres[mine].copy()
+            points[:, 2] -= body.contacts.radii[mine]
+            jac = point_jacobians(m, d, q, bodies[mine], points)[:, :, cols]  # (c, 3, leg)
+            jr = jac.reshape(-1, len(cols))  # rows x, y, z: z the normal
+            jr = jr[np.r_[[[3 * i + 2, 3 * i, 3 * i + 1] for i in range(len(mine))]].ravel()]
+            h = _inertia(m, d, q) if h is None else h
+            hl = h[np.ix_(cols, cols)]
+            hij = cho_solve(cho_factor(hl), jr.T)
+            w = jr @ hij
+            g = gap[mine]
+            targets = np.where(g > 0, -g / dt, -self.st.fall_correction * g / dt)
+            p = _pgs(w, jr @ v[cols], targets, self.st.friction, self.st.contact_iterations)
+            v = v.copy()
+            v[cols] += hij @ p
         return v
 
     def _collider_at(self, col, t):
@@ -825,6 +906,111 @@ def _cross(a, b):
     out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
     out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
     out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def _swing_spheres(body, planted):
+    """(k,) bool: the contact spheres on the foot (and toes, heel) of each side not planted."""
+    m, (bodies, _) = body.model, body.spheres
+    out = np.zeros(len(bodies), bool)
+    for s, foot in enumerate(body.parts.feet):
+        if planted[s] is None:
+            fb = m.joint_body[foot]
+            out |= m.ancestors[bodies][:, fb] != 0
+    return out
+
+
+def _capsules(contacts):
+    """Sphere index pairs (a, b) of the contact geometry as capsules: a bone's two spheres of one
+    radius (default_contacts puts them at its head and tail) and the segment between them; any
+    other sphere is a capsule of zero length (a == b). Cached on the geometry."""
+    cached = getattr(contacts, "_capsule_pairs", None)
+    if cached is not None:
+        return cached
+    ia, ib = [], []
+    joints, radii = np.asarray(contacts.joints), np.asarray(contacts.radii)
+    for j in dict.fromkeys(joints.tolist()):
+        ks = np.flatnonzero(joints == j)
+        if len(ks) == 2 and radii[ks[0]] == radii[ks[1]] and radii[ks[0]] > 0.0:
+            ia.append(ks[0]), ib.append(ks[1])
+        else:
+            ia.extend(ks), ib.extend(ks)
+    out = (np.array(ia, int), np.array(ib, int))
+    contacts._capsule_pairs = out
+    return out
+
+
+def _point_segment(p, a, b):
+    """Closest points on segments a-b to points p (broadcast (..., 3))."""
+    e = b - a
+    den = np.maximum(np.einsum("...i,...i->...", e, e), 1e-18)
+    u = np.clip(np.einsum("...i,...i->...", p - a, e) / den, 0.0, 1.0)
+    return a + u[..., None] * e
+
+
+_SWEEP_ITERATIONS = 24  # golden-section and bisection steps of the first contact (2^-24 of a step)
+
+
+def _swept_contacts(a, b, rb, move, p0, p1, rc):
+    """First contacts of collider spheres moving p0 -> p1 (c, 3) (radii rc (c,)) with capsules a-b
+    (n, 3) (radii rb (n,)) moving by `move` (n, 3) over the step: a list of (capsule, sphere,
+    closest axis point (3,), unit normal (3,) from the collider to the body) at the earliest instant
+    each collider sphere touches (pairs touching within 5 % of a step of it included).
+
+    The distance of a point moving on a line to a segment is convex in time: golden-section search
+    finds its minimum, then bisection the first instant it comes within the radii."""
+    if len(p0) == 0 or len(a) == 0:
+        return []
+    reach = rb.max() + rc.max()
+    lo = np.minimum(np.minimum(a, b).min(axis=0), np.minimum(a + move, b + move).min(axis=0)) - reach
+    hi = np.maximum(np.maximum(a, b).max(axis=0), np.maximum(a + move, b + move).max(axis=0)) + reach
+    near = np.flatnonzero(np.all((np.maximum(p0, p1) >= lo) & (np.minimum(p0, p1) <= hi), axis=1))
+    if not len(near):
+        return []
+    # relative motion: the capsule held still, the collider sphere moving by its path minus the capsule's
+    start = p0[near][None, :, :] - np.zeros((len(a), 1, 3))  # (n, c, 3)
+    path = (p1 - p0)[near][None, :, :] - move[:, None, :]
+    aa, bb = a[:, None, :], b[:, None, :]
+    limit = rb[:, None] + rc[near][None, :]
+
+    def dist(s):
+        x = start + s[..., None] * path
+        return np.linalg.norm(x - _point_segment(x, aa, bb), axis=-1)
+
+    shape = limit.shape
+    lo_s, hi_s = np.zeros(shape), np.ones(shape)
+    g = 0.5 * (np.sqrt(5.0) - 1.0)
+    for _ in range(_SWEEP_ITERATIONS):  # the closest approach over the step
+        m1, m2 = hi_s - g * (hi_s - lo_s), lo_s + g * (hi_s - lo_s)
+        left = dist(m1) < dist(m2)
+        hi_s = np.where(left, m2, hi_s)
+        lo_s = np.where(left, lo_s, m1)
+    s_min = 0.5 * (lo_s + hi_s)
+    d0 = dist(np.zeros(shape))
+    touch = (d0 <= limit) | (dist(s_min) <= limit) | (dist(np.ones(shape)) <= limit)
+    if not touch.any():
+        return []
+    s_min = np.where(dist(np.ones(shape)) <= dist(s_min), 1.0, s_min)
+    lo_s, hi_s = np.zeros(shape), s_min.copy()
+    for _ in range(_SWEEP_ITERATIONS):  # the first instant within reach, between the start and the minimum
+        mid = 0.5 * (lo_s + hi_s)
+        inside_ = dist(mid) <= limit
+        hi_s = np.where(inside_, mid, hi_s)
+        lo_s = np.where(inside_, lo_s, mid)
+    s_hit = np.where(d0 <= limit, 0.0, hi_s)
+    s_hit = np.where(touch, s_hit, np.inf)
+    out = []
+    for c in range(len(near)):
+        first = s_hit[:, c].min()
+        if not np.isfinite(first):
+            continue
+        for cap in np.flatnonzero(s_hit[:, c] <= first + 0.05):
+            x = start[cap, c] + s_hit[cap, c] * path[cap, c]
+            axis_point = _point_segment(x, a[cap], b[cap])
+            n = axis_point - x
+            size = np.linalg.norm(n)
+            n = n / size if size > 1e-9 else path[cap, c] / max(np.linalg.norm(path[cap, c]), 1e-12)
+            out.append((cap, near[c], axis_point, n))
     return out
 
 

@@ -16,7 +16,7 @@ v and a are the root's velocity and acceleration minus those of the target motio
 (what the interaction added), so a walking or running action does not count as a push.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.interpolate import CubicHermiteSpline
@@ -41,10 +41,13 @@ class ReactionSettings:
     fall_acceleration: float = 10.0  # m/s^2, eq. 3.9
     k_root: float = 0.4  # s, eq. 3.7
     k_foot: float = 1.0  # eq. 3.8 (1: the root half way between the feet)
+    step_crouch: float = 0.04  # m the root of the step's terminal posture is lowered (bent knees)
     recovery_time: float = 0.5  # s, T_recovery
     recovery_angle: float = 0.5  # rad a joint may stay off its target before it counts
     fall_duration: float = 0.8  # s of a generated fall
     hold: float = 0.5  # s the terminal posture of a reaction is held at least
+    # the reaction is the controller's new input from its first frame (False: spliced as generated)
+    retrack: bool = True
     # the generated step and recovery: a protective step is quick (its speed bounds, eq. 3.5, start
     # from the push's own speed; these constants are the floor under them)
     transition: TransitionSettings = field(default_factory=lambda: TransitionSettings(
@@ -61,6 +64,8 @@ class ReactionResult:
     root_acceleration: np.ndarray  # (F,) m/s^2
     support: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
+    target: object = None  # Trajectories: the generated reaction the controller tracked (None: none)
+    reaction_control: object = None  # the ControlResult that tracked it (None: not re-tracked)
 
 
 RATE_STEP = 1.0 / 30.0  # s: the thesis's frame time; rates over it make eq. 3.6's thresholds fps-free
@@ -101,8 +106,16 @@ def detect(skeleton, action, result, settings):
             return "fall", f, v
         if steps[f]:
             return "step", f, v
-    if result.falling.any():
-        return "fall", int(np.argmax(result.falling)), v
+        if result.falling[f]:
+            # the controller's own criterion: balance lost and the capture point beyond the feet,
+            # so the body cannot stop without a step. Slower than eq. 3.9's fall speed, that step
+            # is the protective step (from the frame balance was first lost); faster, it falls
+            f0 = f
+            while f0 > 1 and result.balance_error[f0 - 1] > 0.0 and not result.falling[f0 - 1]:
+                f0 -= 1
+            if speed[f] < s.fall_speed and both[f0]:
+                return "step", f0, v
+            return "fall", f0, v
     err = _tracking_error(out, action.trajectories, skeleton)
     run = int(round(s.recovery_time * out.fps))
     over = err > s.recovery_angle
@@ -122,15 +135,21 @@ def _tracking_error(out, target, skeleton):
 
 def react(action, control_settings=None, settings=None, fall_actions=None):
     """Dynamic control of `action` with the environment in `control_settings` (loads, impulses,
-    colliders), then the reaction it calls for. fall_actions: {"back": Action, "forward": Action}."""
+    colliders), then the reaction it calls for, re-tracked by the controller: from the reaction's
+    first frame the generated step, fall or recovery is the controller's input (joined to the
+    controlled motion like a connective action), and the body follows it with its dynamics, loads
+    and contacts from the state the interaction left it in. fall_actions: {"back": Action,
+    "forward": Action}."""
     sk = action.skeleton
     s = settings or ReactionSettings()
     cs = control_settings or ControlSettings()
-    res = control(sk, action.trajectories, cs)
+    states = []
+    res = control(sk, action.trajectories, cs, on_frame=lambda f, q, v: states.append((q, v)))
     kind, f, v = detect(sk, action, res, s)
     speed = np.linalg.norm(v, axis=-1)
     _, acc = root_rates(sk, res.trajectories, action.trajectories, res.foot_skate)
-    floor = float(motion_floor(sk, action.trajectories) if cs.ground_height is None else cs.ground_height)
+    floor = float(res.ground_height if res.ground_height is not None else
+                  motion_floor(sk, action.trajectories) if cs.ground_height is None else cs.ground_height)
     support = {side: res.support[:, i] for i, side in enumerate("LR")}
     if kind == "none":
         return ReactionResult(kind, -1, res.trajectories, res, speed, acc, support)
@@ -146,7 +165,46 @@ def react(action, control_settings=None, settings=None, fall_actions=None):
                        else max(n_total, tr.frame_count))
     info["trigger_speed"] = float(speed[f])
     info["trigger_acceleration"] = float(acc[f])
-    return ReactionResult(kind, f, tr, res, speed, acc, sup, info)
+    target = tr
+    if s.retrack:
+        # a fall is tracked without balance control: balance would hold the hips up over the feet
+        tracked = retrack(sk, tr, replace(cs, tracking_only=True) if kind == "fall" else cs, floor, states, f)
+        if tracked is not None:
+            info["retracked"] = True
+            info["fell_while_reacting"] = bool(tracked.falling[f + 1:].any())
+            tr = _above_ground(sk, tracked.trajectories, floor, start=f) if kind == "fall" else tracked.trajectories
+            sup = {side: tracked.support[:, i] for i, side in enumerate("LR")}
+            out = ReactionResult(kind, f, tr, res, speed, acc, sup, info)
+            out.reaction_control, out.target = tracked, target
+            return out
+    info["retracked"] = False
+    out = ReactionResult(kind, f, tr, res, speed, acc, sup, info)
+    out.target = target
+    return out
+
+
+def retrack(sk, target, cs, floor, states, f):
+    """The controller following `target` (the reaction joined at frame f) with the body's recorded
+    states (q, v) replayed up to frame f + 1: from there the reaction is the controller's input and the
+    pushed body's own velocities carry on (the per-frame hook of motion_control.iter_control).
+    None when the reaction's model differs from the recorded one (it cannot take its states)."""
+    nq = len(states[0][0])
+
+    def replay(frame, q, v):
+        if len(q) != nq:
+            raise _ModelChanged
+        if frame <= f + 1:  # the reaction's frame f and the step out of it (the push acts in it)
+            return states[frame]
+        return None
+
+    try:
+        return control(sk, target, replace(cs, ground_height=floor), on_frame=replay)
+    except _ModelChanged:
+        return None
+
+
+class _ModelChanged(Exception):
+    pass
 
 
 def _as_action(action, res, f):
@@ -195,7 +253,7 @@ def _protective_step(current, f, vel, res, s, floor):
     root_term = p0 + s.k_root * v  # eq. 3.7 (horizontal)
     fly_term = s.k_foot * (root_term - feet[base]) + root_term  # eq. 3.8
     fly_term[2] = feet[fly][2]
-    root_term[2] = p0[2]
+    root_term[2] = p0[2] - s.step_crouch  # knees kept bent: the controller's legs need slack to absorb the push
     # terminal posture: the current posture with the root and flying foot moved, legs by IK
     for _ in range(40):  # the root lowered (1 cm at a time) until both legs reach their feet
         pose = _frame_tr(tr, f).with_root_pose(sk, root_term[None], q_root[f][None])
