@@ -16,7 +16,7 @@ Measured (this machine):
       15 N s, with the ZMP kept inside; 150 N s: the figure falls (no NaN, lowest contact sphere
       above -1 cm);
   (5) supporting feet: 0.15 mm at most while balance control moves the pelvis;
-  (6) a 10 cm sphere moving at 3 m/s into the chest: the chest's velocity changes at impact like
+  (6) a 5 kg, 10 cm ball moving at 3 m/s into the chest: the chest's velocity changes at impact like
       an impulse, the figure swings back and does not fall.
 """
 
@@ -192,7 +192,7 @@ def test_6_collider_hits_the_chest(squat, no_input):
     vy = np.where(times <= reach, speed, -speed)
     pos = w[hit] + np.outer(y, [0.0, 1.0, 0.0])
     vel = np.outer(vy, [0.0, 1.0, 0.0])
-    col = Collider(pos[:, None, :], np.array([radius]), vel[:, None, :])
+    col = Collider(pos[:, None, :], np.array([radius]), vel[:, None, :], mass=5.0)
     res = control(sk, tr, ControlSettings(colliders=(col,)))
     e = errors(sk, tr, res).max(axis=1)
     assert e[:hit - 3].max() < 1.0 and e[hit:hit + 15].max() > 3.0
