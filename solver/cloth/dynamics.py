@@ -64,6 +64,13 @@ class ClothDynamics:
         self._spread_plan = _scatter_plan(e0, e1, self._share0, -self._share1)
         self._reach_idx = np.r_[e0, e1]
         self._reach_w = (np.r_[self._share0, self._share1] > 0).astype(float)
+        # a sweep's moves and counts in one bincount: columns x y z of the correction (weighted
+        # by the shares) and a 4th of the edge being off (weighted by whether it moves the particle)
+        idx, item, w = _scatter_plan(e0, e1, self._share0, -self._share1)
+        particle = idx[::3] // 3
+        self._sweep_plan = ((4 * particle[:, None] + np.arange(4)).ravel(), item,
+                            np.column_stack([np.repeat(w, 3, axis=1), w[:, 0] != 0.0]).astype(float))
+        self._sweep_rows = np.empty((len(e0), 4))
         self._tether_data = self._tethers()
         self._face_idx = _flat3(mesh.faces.ravel())  # coordinates of every face corner
         self._p3 = 3 * p_count
@@ -237,9 +244,12 @@ class ClothDynamics:
             if not off.any():
                 break
             corrected |= off
-            d *= np.where(off, (length - target) / length, 0.0)[:, None]
-            count = self._reach(off)
-            x += (RELAX / np.maximum(count, 1.0))[:, None] * self._spread(d)
+            rows = self._sweep_rows
+            np.multiply(d, np.where(off, (length - target) / length, 0.0)[:, None], out=rows[:, :3])
+            rows[:, 3] = off
+            idx, item, w = self._sweep_plan
+            moves = np.bincount(idx, (rows.take(item, axis=0) * w).ravel(), minlength=4 * len(x)).reshape(-1, 4)
+            x += (RELAX / np.maximum(moves[:, 3], 1.0))[:, None] * moves[:, :3]
         if corrected.any():  # corrected edges stop stretching (squeezed ones stop shortening)
             d = x.take(e1, axis=0)
             d -= x.take(e0, axis=0)

@@ -138,7 +138,7 @@ DERIV = 3.0 * np.hstack([-(1 - _T) ** 2, (1 - _T) ** 2 - 2 * (1 - _T) * _T, 2 * 
 def cubic_length(p0, c1, c2, p1):
     """Length of cubic Bezier curves (..., 3) by 5-point Gauss-Legendre on |B'(t)|."""
     ctrl = np.stack([p0, c1, c2, p1], axis=-2)  # (..., 4, 3)
-    return _speed_length(np.einsum("tk,...kj->...tj", DERIV, ctrl))
+    return _speed_length(DERIV @ ctrl)
 
 
 def _speed_length(velocity):
@@ -162,7 +162,7 @@ def _split_speed(p0, n0, m, nm, p1, n1):
         c1, c2 = edge_controls(p0, n0, mid, nm)
         c3, c4 = edge_controls(mid, nm, p1, n1)
         ctrl = np.stack([np.stack([p0, c1, c2, mid], axis=-2), np.stack([mid, c3, c4, p1], axis=-2)], axis=1)
-        return np.einsum("tk,ahkj->ahtj", DERIV, ctrl)  # (M, 2, T, 3)
+        return DERIV @ ctrl  # (M, 2, T, 3)
 
     v0 = halves(m)
     return v0, halves(m + nm) - v0
@@ -205,10 +205,19 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
             break
         lo = np.where(low, hi, lo)
         hi = np.where(low, 2.0 * hi, hi)
-    for _ in range(iterations):
-        mid_h = 0.5 * (lo + hi)
-        low = length(mid_h) < target
-        lo, hi = np.where(low, mid_h, lo), np.where(low, hi, mid_h)
+    # the halvings, up to five at a time: the length grows with h, so `bits` halvings of [lo, hi]
+    # end in the one of its 2^bits equal parts where the length crosses the target, found by
+    # evaluating all their inner ends at once (one pass instead of `bits` passes)
+    done = 0
+    while done < iterations:
+        bits = min(5, iterations - done)
+        parts = 1 << bits
+        width = hi - lo
+        hh = (lo[:, None] + width[:, None] * (np.arange(1, parts) / parts))[..., None, None]  # (M, parts-1, 1, 1)
+        speed = np.sqrt(np.maximum(qa[:, None] + hh * (qb[:, None] + hh * qc[:, None]), 0.0))
+        below = (speed.reshape(len(lo), parts - 1, -1) @ weights < target[:, None]).sum(axis=1)
+        lo, hi = lo + width * (below / parts), lo + width * ((below + 1) / parts)
+        done += bits
     h[i] = 0.5 * (lo + hi)
     mid[i] = m + h[i, None] * n
     return mid, nm, h, short
