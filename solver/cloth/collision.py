@@ -151,6 +151,7 @@ def closest_on_triangles(p, a, b, c):
 
 
 PART_GAP = 1.0e4  # metres between the parts' lifted copies in the joint tree (beyond any reach)
+TREE_MARGIN = 0.1  # metres added around the first query's need when a pose's joint tree is built
 
 
 class MeshBody:
@@ -170,6 +171,11 @@ class MeshBody:
         # the parts' vertices back to back, for their bounding boxes in two reductions
         self._part_verts = np.concatenate(self.part_vertices)
         self._part_starts = np.cumsum([0] + [len(v) for v in self.part_vertices[:-1]])
+        self._part_of = np.empty(len(t), dtype=np.int64)
+        for i, tris in enumerate(self.parts):
+            self._part_of[tris] = i
+        self._tri_order = np.concatenate(self.parts)  # triangles part by part
+        self._tri_starts = np.cumsum([0] + [len(p) for p in self.parts[:-1]])
         self.v0 = self.v1 = None
         self._pose = None
 
@@ -193,7 +199,7 @@ class MeshBody:
         pv = v[self._part_verts]
         lo = np.minimum.reduceat(pv, self._part_starts, axis=0)
         hi = np.maximum.reduceat(pv, self._part_starts, axis=0)
-        self._pose = {"s": s, "v": v, "tri": tri, "fn": fn, "lo": lo, "hi": hi, "tree": None}
+        self._pose = {"s": s, "v": v, "tri": tri, "fn": fn, "lo": lo, "hi": hi, "tree": None, "centroids": None}
         return self._pose
 
     def trees_at(self, s):
@@ -208,29 +214,36 @@ class MeshBody:
             out.append((tris, cKDTree(centroids), reach, pose["lo"][i], pose["hi"][i]))
         return pose["v"], out
 
-    def _joint_tree(self, pose, wanted):
-        """One cKDTree over the triangle centroids of the `wanted` parts (and those of the
-        pose's earlier trees), each part lifted to its own height PART_GAP apart along a 4th
-        axis: a query from a point lifted to part i's height finds part i's triangles only, so
-        one query over (point, part) pairs gives what a tree per part gave, in one call.
-        Returns (tree, part of each tree slot's triangle, global triangle id per slot, the
-        tree slot offset per part (-1 if absent), reach per part)."""
+    def _reach(self, pose):
+        """Per part, how far from its centroid a triangle can hold the closest point (the
+        largest over the part's triangles); the centroids too. Once per pose."""
+        if pose["centroids"] is None:
+            tri = pose["tri"]
+            centroids = tri.mean(axis=1)
+            spread = np.sqrt(((tri - centroids[:, None]) ** 2).sum(axis=2).max(axis=1))
+            pose["centroids"] = centroids
+            pose["reach"] = np.maximum.reduceat(spread[self._tri_order], self._tri_starts)
+        return pose["reach"]
+
+    def _joint_tree(self, pose, need_lo, need_hi):
+        """A cKDTree over the centroids of the triangles (of all parts) in a box holding
+        [need_lo, need_hi], each part lifted to its own height PART_GAP apart along a 4th axis:
+        a query from a point lifted to part i's height finds part i's triangles only, so one
+        query over (point, part) pairs gives what a tree per part gave, in one call. The tree
+        is kept for the pose while later queries need no more than its box (it gets TREE_MARGIN
+        around the first query's need: face samples and the fine surface stay near the
+        particles). Returns (tree, global triangle id of each tree slot)."""
         old = pose["tree"]
-        if old is not None and not (wanted & ~old[5]).any():
-            return old
-        parts = wanted | (old[5] if old is not None else False)
-        chosen = np.flatnonzero(parts)
-        ids = np.concatenate([self.parts[i] for i in chosen])
-        part_of = np.concatenate([np.full(len(self.parts[i]), i) for i in chosen])
-        tri = pose["tri"][ids]
-        centroids = tri.mean(axis=1)
-        # a triangle can hold the closest point while its centroid is this far from it
-        spread = np.sqrt(((tri - centroids[:, None]) ** 2).sum(axis=2).max(axis=1))
-        reach = np.zeros(len(self.parts))
-        np.maximum.at(reach, part_of, spread)
-        lifted = np.column_stack([centroids, PART_GAP * part_of])
-        pose["tree"] = (cKDTree(lifted), part_of, ids, None, reach, parts)
-        return pose["tree"]
+        if old is not None and (need_lo >= old[2]).all() and (need_hi <= old[3]).all():
+            return old[0], old[1]
+        box_lo, box_hi = need_lo - TREE_MARGIN, need_hi + TREE_MARGIN
+        if old is not None:
+            box_lo, box_hi = np.minimum(box_lo, old[2]), np.maximum(box_hi, old[3])
+        c = pose["centroids"]
+        ids = np.flatnonzero(np.all((c >= box_lo) & (c <= box_hi), axis=1))
+        lifted = np.column_stack([c[ids], PART_GAP * self._part_of[ids]])
+        pose["tree"] = (cKDTree(lifted), ids, box_lo, box_hi)
+        return pose["tree"][0], ids
 
     def _candidates(self, pose, points, max_distance):
         """Broad phase: per part near the points (box test, all parts at once), the K nearest
@@ -242,11 +255,14 @@ class MeshBody:
         wanted = near.any(axis=0)
         if not wanted.any():
             return None
-        tree, part_of, ids, _, reach, _ = self._joint_tree(pose, wanted)
+        reach = self._reach(pose)
+        bound = md + reach[wanted].max()
+        # every centroid within `bound` of a point is in the tree's box
+        tree, ids = self._joint_tree(pose, points.min(axis=0) - bound, points.max(axis=0) + bound)
         part, rows = np.nonzero(near.T)  # part-major: as the per-part loop concatenated them
         k = self.k
         query = np.column_stack([points[rows], PART_GAP * part])
-        dist, idx = tree.query(query, k=k, distance_upper_bound=md + reach[wanted].max())
+        dist, idx = tree.query(query, k=k, distance_upper_bound=bound)
         dist, idx = dist.reshape(len(rows), k), idx.reshape(len(rows), k)
         # a tree per part was queried within that part's own reach: the nearest within the
         # largest reach that are also within the part's are exactly those (a prefix)
