@@ -249,9 +249,10 @@ class ClothJob:
     """`steps()` simulates frame by frame (yielding progress); `write()` writes what is done,
     so a cancelled job keeps its frames."""
 
-    def __init__(self, scene, props=None):
+    def __init__(self, scene, props=None, max_frames=None):
         self.scene = scene
         self.props = props or scene.humananim_cloth
+        self.max_frames = max_frames  # simulate only the first few frames of the range (a preview)
         self.fine, self.coarse, self.frames_done = [], [], []
         self.sim = None
         self.seconds = 0.0
@@ -274,6 +275,8 @@ class ClothJob:
         self._check()
         scene, p = self.scene, self.props
         frames = frame_plan(scene, p)
+        if self.max_frames:
+            frames = frames[:max(2, self.max_frames + 1)]
         fps = scene_fps(scene)
         saved = (scene.frame_current, scene.frame_subframe)
         try:
@@ -378,6 +381,62 @@ class ClothJob:
             "contacts": dict(sim.contacts), "timing_ms_per_frame": timing,
             "simulate_seconds": round(self.seconds, 3),
         }
+
+
+class ClothPreview:
+    """A live preview in the viewport: simulates the first `frames` frames of the range one per
+    `tick()` into a temporary mesh object (the smoothed surface), then plays them in a loop.
+    `stop()` removes the object and its mesh and puts the scene frame back: nothing of the
+    preview stays in the file."""
+
+    def __init__(self, scene, frames=30, props=None):
+        self.scene = scene
+        self.job = ClothJob(scene, props, max_frames=frames)
+        self.steps = self.job.steps()
+        self.frame_before = (scene.frame_current, scene.frame_subframe)
+        self.obj = None
+        self.shown = 0  # index into the job's frames
+        self.simulating = True
+
+    def tick(self):
+        """One frame more (simulated, or played back once all are): the frame shown."""
+        if self.simulating:
+            next(self.steps)
+            if len(self.job.frames_done) == len(self.job.frames_all):  # the last one: let the job end
+                next(self.steps, None)  # (which puts the scene frame back)
+                self.simulating = False
+            if self.obj is None:  # the first step set up the simulation and its fine mesh
+                self.obj = new_mesh_object(f"{self.job.props.garment.name}.cloth_preview",
+                                           self.job.fine[0] / _metres(self.scene), self.job.sim.smoother.faces,
+                                           self.job.props.garment, smooth=True)
+                self.obj.hide_render = True
+            self.shown = len(self.job.fine) - 1  # the frame just simulated
+        else:
+            self.shown = (self.shown + 1) % len(self.job.fine)
+            self.scene.frame_set(self.job.frames_done[self.shown])  # the body with its cloth
+        self._show(self.shown)
+        return self.job.frames_done[self.shown]
+
+    def _show(self, i):
+        co = (self.job.fine[i] / _metres(self.scene)).astype(np.float32)
+        self.obj.data.vertices.foreach_set("co", co.ravel())
+        self.obj.data.update()
+
+    def stop(self):
+        """Remove the preview object and its mesh; the scene frame as it was."""
+        self.steps.close()  # restores the frame if it was simulating
+        if self.obj is not None:
+            mesh = self.obj.data
+            bpy.data.objects.remove(self.obj, do_unlink=True)
+            if mesh.users == 0:
+                bpy.data.meshes.remove(mesh)
+            self.obj = None
+        self.scene.frame_set(self.frame_before[0], subframe=self.frame_before[1])
+
+    def message(self):
+        t = self.job.sim.ms_per_frame() if self.job.sim is not None else {"total_ms": 0.0}
+        return (f"preview of {len(self.job.frames_done) - 1} frames: {t['total_ms']:.1f} ms per frame "
+                f"(CPU: simulation, collision, smoothing); nothing was kept")
 
 
 def run(scene, props=None):

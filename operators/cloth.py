@@ -4,6 +4,7 @@ import bpy
 from bpy.props import FloatProperty, IntProperty
 
 from ..humananim_addon import cloth
+from ..solver.errors import HumanAnimError
 from .common import JobOperator, _end_job, active_armature, run_reporting
 
 
@@ -45,6 +46,68 @@ class HUMANANIM_OT_cloth_simulate(JobOperator, bpy.types.Operator):
             self.report({"WARNING"}, f"{self.bl_label}: cancelled before any frame was simulated")
             return {"CANCELLED"}
         return run_reporting(self, lambda: _message(job.write()))
+
+
+class HUMANANIM_OT_cloth_preview(bpy.types.Operator):
+    """Simulate the first frames of the range into a temporary mesh shown in the viewport, then play them in a loop (Esc stops and removes it: nothing is kept)"""
+
+    bl_idname = "humananim.cloth_preview"
+    bl_label = "Preview Cloth"
+    bl_options = {"REGISTER"}  # it leaves nothing behind: no undo step to push
+
+    frames: IntProperty(name="Frames", default=30, min=1, max=600, description="Simulated frames to preview")
+
+    @classmethod
+    def poll(cls, context):
+        return HUMANANIM_OT_cloth_simulate.poll(context)
+
+    def execute(self, context):
+        """Without a window (batch, the bpy module): the frames are simulated and the preview
+        removed at once; reports the speed."""
+        def work():
+            preview = cloth.ClothPreview(context.scene, self.frames)
+            try:
+                while preview.simulating:
+                    preview.tick()
+            finally:
+                preview.stop()
+            return preview.message()
+
+        return run_reporting(self, work)
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        self._preview = cloth.ClothPreview(context.scene, self.frames)
+        self._timer = context.window_manager.event_timer_add(1.0 / 30.0, window=context.window)
+        context.window_manager.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            return self._stop(context)
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            self._preview.tick()
+        except HumanAnimError as error:  # ends the preview, which leaves nothing
+            self._stop(context, report=False)
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        except Exception:
+            self._stop(context, report=False)
+            raise
+        return {"RUNNING_MODAL"}
+
+    def _stop(self, context, report=True):
+        timer = getattr(self, "_timer", None)
+        if timer is not None:
+            context.window_manager.event_timer_remove(timer)
+            self._timer = None
+        self._preview.stop()
+        if report:
+            self.report({"INFO"}, self._preview.message())
+        return {"CANCELLED"}
 
 
 class HUMANANIM_OT_cloth_add_skirt(bpy.types.Operator):
@@ -105,4 +168,5 @@ def _armature(context):
     return arm if arm is not None and arm.type == "ARMATURE" else None
 
 
-CLASSES = (HUMANANIM_OT_cloth_simulate, HUMANANIM_OT_cloth_add_skirt, HUMANANIM_OT_cloth_add_body)
+CLASSES = (HUMANANIM_OT_cloth_simulate, HUMANANIM_OT_cloth_preview, HUMANANIM_OT_cloth_add_skirt,
+           HUMANANIM_OT_cloth_add_body)

@@ -62,7 +62,9 @@ class VIEW3D_PT_humananim_cloth(HumanAnimPanel, bpy.types.Panel):
         faces = len(props.garment.data.polygons) if props.garment is not None and props.garment.type == "MESH" else 0
         if faces:
             layout.label(text=f"about {faces * 4 * props.level ** 2} rendered faces (if all triangles)")
-        layout.operator("humananim.cloth_simulate", icon="PLAY")
+        row = layout.row(align=True)
+        row.operator("humananim.cloth_preview", icon="HIDE_OFF")
+        row.operator("humananim.cloth_simulate", icon="PLAY")
 
 
 CLASSES = (VIEW3D_PT_humananim_cloth,)

@@ -41,40 +41,59 @@ class CapsuleBody:
         self.names = list(names) if names is not None else [str(i) for i in range(len(self.radius))]
         self.a0 = self.b0 = self.a1 = self.b1 = None
         self.dt = 1.0
+        self._at = {}
 
     def set_motion(self, a0, b0, a1=None, b1=None, dt=1.0):
         self.a0, self.b0 = np.asarray(a0, float), np.asarray(b0, float)
         self.a1 = self.a0 if a1 is None else np.asarray(a1, float)
         self.b1 = self.b0 if b1 is None else np.asarray(b1, float)
         self.dt = dt
+        va, vb = (self.a1 - self.a0) / self.dt, (self.b1 - self.b0) / self.dt
+        self._velocity = va, vb - va
+        self._at = {}
+
+    def _pose(self, s):
+        """What the queries at time s share (a frame's queries come at a few times only):
+        ends, axes and their products, the capsules' boxes."""
+        pose = self._at.get(s)
+        if pose is None:
+            a = self.a0 + s * (self.a1 - self.a0)
+            b = self.b0 + s * (self.b1 - self.b0)
+            ab = b - a
+            r = self.radius[:, None]
+            pose = (a, ab, np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18), np.einsum("ij,ij->i", a, ab),
+                    np.einsum("ij,ij->i", a, a), np.minimum(a, b) - r, np.maximum(a, b) + r, self.radius)
+            if len(self._at) > 8:
+                self._at.clear()
+            self._at[s] = pose
+        return pose
 
     def query(self, points, s=1.0, max_distance=0.05):
         """(phi (N,), outward unit normal (N, 3), surface velocity (N, 3)). Only capsules whose
         box comes within max_distance of the points' box are tested; points beyond them all
-        report phi = max_distance (a lower bound)."""
-        a = self.a0 + s * (self.a1 - self.a0)
-        b = self.b0 + s * (self.b1 - self.b0)
+        report phi = max_distance (a lower bound). All points against all capsules in one
+        broadcast."""
+        a, ab, ab2, a_ab, a_a, box_lo, box_hi, radius = self._pose(s)
         lo, hi = points.min(axis=0) - max_distance, points.max(axis=0) + max_distance
-        r = self.radius[:, None]
-        near = np.all((np.minimum(a, b) - r <= hi) & (np.maximum(a, b) + r >= lo), axis=1)
+        near = np.all((box_lo <= hi) & (box_hi >= lo), axis=1)
         n = len(points)
-        if not near.any():
-            normal = np.zeros((n, 3))
-            normal[:, 2] = 1.0
-            return np.full(n, float(max_distance)), normal, np.zeros((n, 3))
-        idx = np.flatnonzero(near)
-        a, b = a[idx], b[idx]
-        ab = b - a
-        ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
+        if not near.all():
+            if not near.any():
+                normal = np.zeros((n, 3))
+                normal[:, 2] = 1.0
+                return np.full(n, float(max_distance)), normal, np.zeros((n, 3))
+            idx = np.flatnonzero(near)
+            a, ab, ab2, a_ab, a_a, radius = a[idx], ab[idx], ab2[idx], a_ab[idx], a_a[idx], radius[idx]
+        else:
+            idx = None
         # distances to all segments from (N, C) products: |p - a - t ab|^2 expanded
-        pa = points @ ab.T - np.einsum("ij,ij->i", a, ab)[None]  # (p - a) . ab
-        t = np.clip(pa / ab2[None], 0.0, 1.0)
-        pp = np.einsum("ij,ij->i", points, points)[:, None] - 2.0 * points @ a.T + np.einsum("ij,ij->i", a, a)[None]
+        pa = points @ ab.T - a_ab[None]  # (p - a) . ab
+        t = np.minimum(np.maximum(pa / ab2[None], 0.0), 1.0)
+        pp = np.einsum("ij,ij->i", points, points)[:, None] - 2.0 * points @ a.T + a_a[None]
         dist2 = np.maximum(pp - 2.0 * t * pa + t * t * ab2[None], 0.0)
-        phi = np.sqrt(dist2) - self.radius[idx][None]
+        phi = np.sqrt(dist2) - radius[None]
         k = np.argmin(phi, axis=1)
-        rows = np.arange(n)
-        tk = t[rows, k]
+        tk = t[np.arange(n), k]
         dk = points - (a[k] + tk[:, None] * ab[k])
         distk = np.sqrt(np.einsum("ij,ij->i", dk, dk))
         normal = dk / np.maximum(distk, 1e-12)[:, None]
@@ -83,10 +102,9 @@ class CapsuleBody:
             across = np.cross(ab[k[on_axis]], [0.0, 0.0, 1.0])
             across[np.linalg.norm(across, axis=1) < 1e-9] = (1.0, 0.0, 0.0)
             normal[on_axis] = across / np.linalg.norm(across, axis=1)[:, None]
-        tk = tk[:, None]
-        ck = idx[k]
-        va, vb = (self.a1 - self.a0) / self.dt, (self.b1 - self.b0) / self.dt
-        velocity = va[ck] + tk * (vb[ck] - va[ck])
+        ck = k if idx is None else idx[k]
+        va, dv = self._velocity
+        velocity = va[ck] + tk[:, None] * dv[ck]
         phi_k = distk - self.radius[ck]
         return np.minimum(phi_k, max_distance), normal, velocity
 
@@ -132,6 +150,10 @@ def closest_on_triangles(p, a, b, c):
     return q, bary
 
 
+PART_GAP = 1.0e4  # metres between the parts' lifted copies in the joint tree (beyond any reach)
+TREE_MARGIN = 0.1  # metres added around the first query's need when a pose's joint tree is built
+
+
 class MeshBody:
     """A skinned triangle mesh (one or several closed parts), moving linearly within a frame."""
 
@@ -146,6 +168,14 @@ class MeshBody:
         part = label[t[:, 0]]
         self.parts = [np.flatnonzero(part == p) for p in np.unique(part)]
         self.part_vertices = [np.unique(t[p]) for p in self.parts]
+        # the parts' vertices back to back, for their bounding boxes in two reductions
+        self._part_verts = np.concatenate(self.part_vertices)
+        self._part_starts = np.cumsum([0] + [len(v) for v in self.part_vertices[:-1]])
+        self._part_of = np.empty(len(t), dtype=np.int64)
+        for i, tris in enumerate(self.parts):
+            self._part_of[tris] = i
+        self._tri_order = np.concatenate(self.parts)  # triangles part by part
+        self._tri_starts = np.cumsum([0] + [len(p) for p in self.parts[:-1]])
         self.v0 = self.v1 = None
         self._pose = None
 
@@ -157,65 +187,91 @@ class MeshBody:
         self._pose = None
 
     def pose_at(self, s):
-        """The body at time s: vertices, unit face normals, per-part bounding boxes (P, 3) and a
-        slot per part for its tree (a cKDTree over the triangle centroids, built when a query
-        first comes near the part: the body moves several centimetres within a frame, so trees
-        are per substep)."""
+        """The body at time s: vertices, unit face normals, per-part bounding boxes (P, 3) and
+        the tree of the parts queried so far (built when a query first comes near a part: the
+        body moves several centimetres within a frame, so trees are per substep)."""
         if self._pose is not None and self._pose["s"] == s:
             return self._pose
         v = self.v0 + s * (self.v1 - self.v0)
         tri = v[self.triangles]
         fn = _cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         fn /= np.maximum(np.sqrt(_dot(fn, fn)), 1e-18)[:, None]
-        lo = np.array([v[verts].min(axis=0) for verts in self.part_vertices])
-        hi = np.array([v[verts].max(axis=0) for verts in self.part_vertices])
-        self._pose = {"s": s, "v": v, "tri": tri, "fn": fn, "lo": lo, "hi": hi,
-                      "trees": [None] * len(self.parts)}
+        pv = v[self._part_verts]
+        lo = np.minimum.reduceat(pv, self._part_starts, axis=0)
+        hi = np.maximum.reduceat(pv, self._part_starts, axis=0)
+        self._pose = {"s": s, "v": v, "tri": tri, "fn": fn, "lo": lo, "hi": hi, "tree": None, "centroids": None}
         return self._pose
 
     def trees_at(self, s):
-        """(vertices, [(triangles, tree, reach, lo, hi) per part]) at time s."""
+        """(vertices, [(triangles, tree, reach, lo, hi) per part]) at time s (one tree per part;
+        for inspection: the queries use the joint tree)."""
         pose = self.pose_at(s)
-        return pose["v"], [self._tree(pose, i) + (pose["lo"][i], pose["hi"][i]) for i in range(len(self.parts))]
-
-    def _tree(self, pose, i):
-        if pose["trees"][i] is None:
-            tris = self.parts[i]
+        out = []
+        for i, tris in enumerate(self.parts):
             tri = pose["tri"][tris]
             centroids = tri.mean(axis=1)
-            # a triangle can hold the closest point while its centroid is this far from it
             reach = float(np.sqrt(((tri - centroids[:, None]) ** 2).sum(axis=2).max()))
-            pose["trees"][i] = (tris, cKDTree(centroids), reach)
-        return pose["trees"][i]
+            out.append((tris, cKDTree(centroids), reach, pose["lo"][i], pose["hi"][i]))
+        return pose["v"], out
+
+    def _reach(self, pose):
+        """Per part, how far from its centroid a triangle can hold the closest point (the
+        largest over the part's triangles); the centroids too. Once per pose."""
+        if pose["centroids"] is None:
+            tri = pose["tri"]
+            centroids = tri.mean(axis=1)
+            spread = np.sqrt(((tri - centroids[:, None]) ** 2).sum(axis=2).max(axis=1))
+            pose["centroids"] = centroids
+            pose["reach"] = np.maximum.reduceat(spread[self._tri_order], self._tri_starts)
+        return pose["reach"]
+
+    def _joint_tree(self, pose, need_lo, need_hi):
+        """A cKDTree over the centroids of the triangles (of all parts) in a box holding
+        [need_lo, need_hi], each part lifted to its own height PART_GAP apart along a 4th axis:
+        a query from a point lifted to part i's height finds part i's triangles only, so one
+        query over (point, part) pairs gives what a tree per part gave, in one call. The tree
+        is kept for the pose while later queries need no more than its box (it gets TREE_MARGIN
+        around the first query's need: face samples and the fine surface stay near the
+        particles). Returns (tree, global triangle id of each tree slot)."""
+        old = pose["tree"]
+        if old is not None and (need_lo >= old[2]).all() and (need_hi <= old[3]).all():
+            return old[0], old[1]
+        box_lo, box_hi = need_lo - TREE_MARGIN, need_hi + TREE_MARGIN
+        if old is not None:
+            box_lo, box_hi = np.minimum(box_lo, old[2]), np.maximum(box_hi, old[3])
+        c = pose["centroids"]
+        ids = np.flatnonzero(np.all((c >= box_lo) & (c <= box_hi), axis=1))
+        lifted = np.column_stack([c[ids], PART_GAP * self._part_of[ids]])
+        pose["tree"] = (cKDTree(lifted), ids, box_lo, box_hi)
+        return pose["tree"][0], ids
 
     def _candidates(self, pose, points, max_distance):
-        """Broad phase: per part near the points (box test, all parts at once), its tree's K
-        nearest triangles within reach. (rows (M,), global triangle ids (M, K), valid (M, K))."""
+        """Broad phase: per part near the points (box test, all parts at once), the K nearest
+        triangles of that part within reach (one joint-tree query for all point-part pairs).
+        (rows (M,), global triangle ids (M, K), valid (M, K)), rows grouped by part in part
+        order, as a query per part would give them."""
         md = max_distance
         near = np.all((points[:, None, :] >= pose["lo"] - md) & (points[:, None, :] <= pose["hi"] + md), axis=2)
-        rows_all, ids_all, valid_all = [], [], []
-        for i in np.flatnonzero(near.any(axis=0)):
-            tris, tree, reach = self._tree(pose, i)
-            rows = np.flatnonzero(near[:, i])
-            k = min(self.k, len(tris))
-            _, idx = tree.query(points[rows], k=k, distance_upper_bound=md + reach)
-            idx = idx.reshape(len(rows), k)
-            valid = idx < len(tris)
-            found = valid[:, 0]
-            if not found.any():
-                continue
-            idx, valid = idx[found], valid[found]
-            ids = tris[np.where(valid, idx, 0)]
-            if k < self.k:  # pad to K columns so parts stack
-                pad = self.k - k
-                ids = np.pad(ids, ((0, 0), (0, pad)), mode="edge")
-                valid = np.pad(valid, ((0, 0), (0, pad)), constant_values=False)
-            rows_all.append(rows[found])
-            ids_all.append(ids)
-            valid_all.append(valid)
-        if not rows_all:
+        wanted = near.any(axis=0)
+        if not wanted.any():
             return None
-        return np.concatenate(rows_all), np.concatenate(ids_all), np.concatenate(valid_all)
+        reach = self._reach(pose)
+        bound = md + reach[wanted].max()
+        # every centroid within `bound` of a point is in the tree's box
+        tree, ids = self._joint_tree(pose, points.min(axis=0) - bound, points.max(axis=0) + bound)
+        part, rows = np.nonzero(near.T)  # part-major: as the per-part loop concatenated them
+        k = self.k
+        query = np.column_stack([points[rows], PART_GAP * part])
+        dist, idx = tree.query(query, k=k, distance_upper_bound=bound)
+        dist, idx = dist.reshape(len(rows), k), idx.reshape(len(rows), k)
+        # a tree per part was queried within that part's own reach: the nearest within the
+        # largest reach that are also within the part's are exactly those (a prefix)
+        valid = dist < (md + reach[part])[:, None]
+        found = valid[:, 0]
+        if not found.any():
+            return None
+        idx, valid = idx[found], valid[found]
+        return rows[found], ids[np.where(valid, idx, 0)], valid
 
     def query(self, points, s=1.0, max_distance=0.05):
         """As CapsuleBody.query; points with no triangle within max_distance report phi =
@@ -272,6 +328,8 @@ class MeshBody:
 
 def query_bodies(bodies, points, s):
     """The union of several bodies: the smallest phi wins."""
+    if len(bodies) == 1:
+        return bodies[0].query(points, s)
     phi = np.full(len(points), np.inf)
     normal = np.zeros((len(points), 3))
     velocity = np.zeros((len(points), 3))
@@ -322,7 +380,8 @@ def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, fricti
     """Face case (Fig. 4.6 b, d): a face whose interior cuts the body while its corners are out
     is moved out whole by its deepest point. The number of faces moved."""
     tri = x[faces]  # (F, 3, 3)
-    edge = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+    side = tri - tri[:, (2, 0, 1)]
+    edge = np.sqrt(np.einsum("fkj,fkj->fk", side, side).max(axis=1))
     # phi is 1-Lipschitz: a face whose farthest-out corner is beyond its longest edge can't touch
     near = corner_phi[faces].max(axis=1) - edge < thickness
     if not near.any():

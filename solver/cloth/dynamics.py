@@ -15,6 +15,23 @@ RELAX = 1.5  # over-relaxation of the averaged (Jacobi) length corrections
 STABLE_DAMPING_DT = 1.0  # damping shares the step's stability budget with the springs
 
 
+def _flat3(particles):
+    """Flat coordinate indices (3 per particle, in order) for np.bincount over an (N, 3) array."""
+    return (3 * np.asarray(particles, dtype=np.int64)[:, None] + np.arange(3)).ravel()
+
+
+def _scatter_plan(first, second, w_first, w_second, descending=False):
+    """A sum over items (springs, edges) into particles, +w_first at the first particle and
+    w_second at the second, as one np.bincount: (flat coordinate indices, item of each entry,
+    weights (2N, 1)). The entries go particle by particle, items in ascending (or descending)
+    order: the order in which the sparse products this replaces added them, so the sums (and
+    the whole simulation, which amplifies last-bit differences) stay bit for bit the same."""
+    item = np.r_[np.arange(len(first)), np.arange(len(second))]
+    particle = np.r_[first, second]
+    order = np.lexsort((-item if descending else item, particle))
+    return _flat3(particle[order]), item[order], np.r_[w_first, w_second][order][:, None]
+
+
 class ClothDynamics:
     """Forces and integration of the particles; `pinned` particles follow given targets."""
 
@@ -42,14 +59,21 @@ class ClothDynamics:
         self._share0, self._share1 = self.inv_mass[e0] / wsum, self.inv_mass[e1] / wsum
         # a correction along each edge, shared by the inverse masses: +share0 at the first
         # particle, -share1 at the second; `reach` counts the edges that move a particle
-        rows, cols = np.r_[e0, e1], np.r_[np.arange(len(e0)), np.arange(len(e0))]
-        self._spread = sparse.csr_matrix((np.r_[self._share0, -self._share1], (rows, cols)), shape=(p_count, len(e0)))
-        self._reach = sparse.csr_matrix(((np.r_[self._share0, self._share1] > 0).astype(float), (rows, cols)),
-                                        shape=(p_count, len(e0)))
+        # (numpy's per-call cost dominates at tens of particles, so sums over edges into particles
+        # are single np.bincount calls over precomputed flat indices, not sparse products)
+        self._spread_plan = _scatter_plan(e0, e1, self._share0, -self._share1)
+        self._reach_idx = np.r_[e0, e1]
+        self._reach_w = (np.r_[self._share0, self._share1] > 0).astype(float)
+        # a sweep's moves and counts in one bincount: columns x y z of the correction (weighted
+        # by the shares) and a 4th of the edge being off (weighted by whether it moves the particle)
+        idx, item, w = _scatter_plan(e0, e1, self._share0, -self._share1)
+        particle = idx[::3] // 3
+        self._sweep_plan = ((4 * particle[:, None] + np.arange(4)).ravel(), item,
+                            np.column_stack([np.repeat(w, 3, axis=1), w[:, 0] != 0.0]).astype(float))
+        self._sweep_rows = np.empty((len(e0), 4))
         self._tether_data = self._tethers()
-        f = len(mesh.faces)
-        self._face_incidence = sparse.csr_matrix(
-            (np.ones(3 * f), (mesh.faces.ravel(), np.repeat(np.arange(f), 3))), shape=(p_count, f))
+        self._face_idx = _flat3(mesh.faces.ravel())  # coordinates of every face corner
+        self._p3 = 3 * p_count
         self._prepare()
 
     def unit_stiffness_eigenvalue(self, pairs, rest_length):
@@ -73,7 +97,9 @@ class ClothDynamics:
         if a.shape[0] <= 600:
             return float(np.linalg.eigvalsh(a.toarray()).max())
         from scipy.sparse.linalg import eigsh
-        return float(eigsh(a, k=1, which="LA", return_eigenvectors=False, tol=1e-3)[0])
+        # a fixed start vector: ARPACK's random one made the capped stiffness (and so the whole
+        # simulation of a garment over 200 particles) differ from run to run in the 3rd digit
+        return float(eigsh(a, k=1, which="LA", return_eigenvectors=False, tol=1e-3, v0=np.ones(a.shape[0]))[0])
 
     def limit_stiffness(self, dt):
         """Explicit RK4 is stable only while the highest frequency times the step stays below
@@ -97,17 +123,16 @@ class ClothDynamics:
     # ---- forces -------------------------------------------------------------------------
     def _prepare(self):
         """Edges and bending pairs as one set of springs, scaled by the inverse masses, so an
-        evaluation is a handful of vectorised operations and one sparse product."""
+        evaluation is a handful of vectorised operations and one bincount."""
         mesh, p = self.mesh, self.params
         e, b = len(self._e0), len(self._b0)
         self._s0, self._s1 = np.r_[self._e0, self._b0], np.r_[self._e1, self._b1]
         self._srest = np.r_[mesh.rest_length, mesh.bend_rest]
         self._sk = np.r_[np.full(e, self.stretch), np.full(b, self.bend)] / self._srest  # k / L of eq. 4.1
-        s = e + b
-        incidence = sparse.csr_matrix((np.r_[np.ones(s), -np.ones(s)], (np.r_[self._s0, self._s1],
-                                                                        np.r_[np.arange(s), np.arange(s)])),
-                                      shape=(len(self.mass), s))
-        self._acc_of = (sparse.diags(self.inv_mass) @ incidence).tocsr()  # zero rows for pinned particles
+        # a spring's force (on its first particle) goes +f to the first, -f to the second, each
+        # divided by its mass (pinned ones: 0); one bincount over the flat coordinates
+        self._acc_plan = _scatter_plan(self._s0, self._s1, self.inv_mass[self._s0], -self.inv_mass[self._s1],
+                                       descending=True)
         self._free_f = self.free.astype(float)[:, None]
         self._drag_of = 0.5 * AIR_DENSITY * p.drag * mesh.area * self.inv_mass
         self._edges = e
@@ -126,19 +151,26 @@ class ClothDynamics:
         """Accelerations of all particles (zero for pinned ones). `normals` (for the air drag) may
         be given: they change little within a step."""
         p = self.params
-        d = np.take(x, self._s1, axis=0) - np.take(x, self._s0, axis=0)
+        d = x.take(self._s1, axis=0)
+        d -= x.take(self._s0, axis=0)
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         coef = self._sk * (length - self._srest)  # eq. 4.1 (bending springs alike)
         e = self._edges
         if self.damping > 0.0:
-            dv = np.take(v, self._e1, axis=0) - np.take(v, self._e0, axis=0)
-            coef[:e] += self.damping * np.einsum("ij,ij->i", dv, d[:e]) / (length[:e] * length[:e] + 1e-18)
-        acc = self._acc_of @ (coef[:, None] * d)
+            dv = v.take(self._e1, axis=0)
+            dv -= v.take(self._e0, axis=0)
+            le = length[:e]
+            coef[:e] += self.damping * np.einsum("ij,ij->i", dv, d[:e]) / (le * le + 1e-18)
+        d *= coef[:, None]
+        idx, item, w = self._acc_plan
+        acc = np.bincount(idx, (d.take(item, axis=0) * w).ravel(), minlength=self._p3).reshape(-1, 3)
         acc += self._free_f * (self.gravity - p.air_damping * v)
         if p.drag > 0.0:  # air pushes against the motion across the cloth: 1/2 rho Cd A |vn| vn
             n = self.particle_normals(x) if normals is None else normals
             vn = np.einsum("ij,ij->i", v - self.wind, n)
-            acc -= (self._drag_of * np.abs(vn) * vn)[:, None] * n
+            w = self._drag_of * np.abs(vn)
+            w *= vn
+            acc -= w[:, None] * n
         return acc
 
     def particle_normals(self, x):
@@ -147,7 +179,7 @@ class ClothDynamics:
         u, w = x[f[:, 1]] - a, x[f[:, 2]] - a
         n = np.column_stack([u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1], u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2],
                              u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]])  # area-weighted face normals
-        out = self._face_incidence @ n
+        out = np.bincount(self._face_idx, np.repeat(n, 3, axis=0).ravel(), minlength=self._p3).reshape(-1, 3)
         return out / np.maximum(np.sqrt(np.einsum("ij,ij->i", out, out)), 1e-12)[:, None]
 
     # ---- integration ----------------------------------------------------------------------
@@ -175,6 +207,16 @@ class ClothDynamics:
         x_new[pins], v_new[pins] = pin_x1, pin_v
         return x_new, v_new
 
+    def _spread(self, dx):
+        """Edge corrections (E, 3) to particle moves (P, 3): +share0 dx at the first particle,
+        -share1 dx at the second."""
+        idx, item, w = self._spread_plan
+        return np.bincount(idx, (dx.take(item, axis=0) * w).ravel(), minlength=self._p3).reshape(-1, 3)
+
+    def _reach(self, edges):
+        """Per particle, how many of the given edges (bool (E,)) move it."""
+        return np.bincount(self._reach_idx, np.concatenate((edges, edges)) * self._reach_w, minlength=len(self.mass))
+
     def limit_elongation(self, x, v, iterations=None):
         """Provot's correction (§4.4.3): the particles of an edge longer than (1 + limit) L are
         moved towards each other (inverse-mass weighted, pinned ones stay) back to that length,
@@ -190,30 +232,39 @@ class ClothDynamics:
         x, v = x.copy(), v.copy()
         e0, e1 = self._e0, self._e1
         limit, floor = self._limit, self._floor
-        spread, reach = self._spread, self._reach
+        movable = self._movable_edge
         corrected = np.zeros(len(e0), dtype=bool)
         self._tether(x, v)
         for _ in range(max(1, iterations or p.constraint_iterations)):
-            d = np.take(x, e1, axis=0) - np.take(x, e0, axis=0)
+            d = x.take(e1, axis=0)
+            d -= x.take(e0, axis=0)
             length = np.sqrt(np.einsum("ij,ij->i", d, d))
-            target = np.clip(length, floor, limit)
-            off = (np.abs(target - length) > SLACK * target) & self._movable_edge
+            target = np.minimum(np.maximum(length, floor), limit)
+            off = (np.abs(target - length) > SLACK * target) & movable
             if not off.any():
                 break
             corrected |= off
-            dx = np.where(off, (length - target) / length, 0.0)[:, None] * d
-            count = reach @ off.astype(float)
-            x += (RELAX / np.maximum(count, 1.0))[:, None] * (spread @ dx)
+            rows = self._sweep_rows
+            np.multiply(d, np.where(off, (length - target) / length, 0.0)[:, None], out=rows[:, :3])
+            rows[:, 3] = off
+            idx, item, w = self._sweep_plan
+            moves = np.bincount(idx, (rows.take(item, axis=0) * w).ravel(), minlength=4 * len(x)).reshape(-1, 4)
+            x += (RELAX / np.maximum(moves[:, 3], 1.0))[:, None] * moves[:, :3]
         if corrected.any():  # corrected edges stop stretching (squeezed ones stop shortening)
-            d = np.take(x, e1, axis=0) - np.take(x, e0, axis=0)
+            d = x.take(e1, axis=0)
+            d -= x.take(e0, axis=0)
             length = np.sqrt(np.einsum("ij,ij->i", d, d))
             u = d / np.maximum(length, 1e-12)[:, None]
             longer = length > self.mesh.rest_length
-            scale = (RELAX / np.maximum(reach @ corrected.astype(float), 1.0))[:, None]
+            scale = (RELAX / np.maximum(self._reach(corrected), 1.0))[:, None]
+            stretching = corrected & longer  # may only shorten from here (rate <= 0 kept)
+            squeezing = corrected & ~longer
             for _ in range(VELOCITY_SWEEPS):
-                rate = np.einsum("ij,ij->i", np.take(v, e1, axis=0) - np.take(v, e0, axis=0), u)
-                rate = np.where(corrected, np.where(longer, np.maximum(rate, 0.0), np.minimum(rate, 0.0)), 0.0)
-                v += scale * (spread @ (rate[:, None] * u))
+                dv = v.take(e1, axis=0)
+                dv -= v.take(e0, axis=0)
+                rate = np.einsum("ij,ij->i", dv, u)
+                rate = np.where(stretching, np.maximum(rate, 0.0), np.where(squeezing, np.minimum(rate, 0.0), 0.0))
+                v += scale * self._spread(rate[:, None] * u)
         return x, v, int(corrected.sum())
 
     def _tethers(self):

@@ -38,14 +38,25 @@ def _corner_tables(mesh):
     sides at the corner, and the (P, 3F) sum over corners (cached on the mesh)."""
     tables = getattr(mesh, "_corner_tables", None)
     if tables is None:
-        from scipy import sparse
         f = mesh.faces
         la = mesh.rest_length[mesh.face_edges]  # side (corner, next)
         lc = np.roll(la, 1, axis=1)  # side (previous, corner)
-        gather = sparse.csr_matrix((np.ones(f.size), (f.ravel(), np.arange(f.size))), shape=(len(mesh.rest), f.size))
+        gather = _CornerSum(f, len(mesh.rest))
         tables = (f, np.roll(f, -1, axis=1), np.roll(f, 1, axis=1), la, lc, gather)
         mesh._corner_tables = tables
     return tables
+
+
+class _CornerSum:
+    """`gather @ values` for values (3F, 3) per face corner: the sum at each particle, as one
+    np.bincount (corners in ascending order per particle, as the sparse product it replaces)."""
+
+    def __init__(self, faces, particles):
+        self.idx = (3 * faces.ravel()[:, None] + np.arange(3)).ravel()
+        self.size = 3 * particles
+
+    def __matmul__(self, values):
+        return np.bincount(self.idx, values.ravel(), minlength=self.size).reshape(-1, 3)
 
 
 def elastic_face_forces(mesh, x, k_elastic):
@@ -127,7 +138,7 @@ DERIV = 3.0 * np.hstack([-(1 - _T) ** 2, (1 - _T) ** 2 - 2 * (1 - _T) * _T, 2 * 
 def cubic_length(p0, c1, c2, p1):
     """Length of cubic Bezier curves (..., 3) by 5-point Gauss-Legendre on |B'(t)|."""
     ctrl = np.stack([p0, c1, c2, p1], axis=-2)  # (..., 4, 3)
-    return _speed_length(np.einsum("tk,...kj->...tj", DERIV, ctrl))
+    return _speed_length(DERIV @ ctrl)
 
 
 def _speed_length(velocity):
@@ -151,7 +162,7 @@ def _split_speed(p0, n0, m, nm, p1, n1):
         c1, c2 = edge_controls(p0, n0, mid, nm)
         c3, c4 = edge_controls(mid, nm, p1, n1)
         ctrl = np.stack([np.stack([p0, c1, c2, mid], axis=-2), np.stack([mid, c3, c4, p1], axis=-2)], axis=1)
-        return np.einsum("tk,ahkj->ahtj", DERIV, ctrl)  # (M, 2, T, 3)
+        return DERIV @ ctrl  # (M, 2, T, 3)
 
     v0 = halves(m)
     return v0, halves(m + nm) - v0
@@ -194,10 +205,19 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
             break
         lo = np.where(low, hi, lo)
         hi = np.where(low, 2.0 * hi, hi)
-    for _ in range(iterations):
-        mid_h = 0.5 * (lo + hi)
-        low = length(mid_h) < target
-        lo, hi = np.where(low, mid_h, lo), np.where(low, hi, mid_h)
+    # the halvings, up to five at a time: the length grows with h, so `bits` halvings of [lo, hi]
+    # end in the one of its 2^bits equal parts where the length crosses the target, found by
+    # evaluating all their inner ends at once (one pass instead of `bits` passes)
+    done = 0
+    while done < iterations:
+        bits = min(5, iterations - done)
+        parts = 1 << bits
+        width = hi - lo
+        hh = (lo[:, None] + width[:, None] * (np.arange(1, parts) / parts))[..., None, None]  # (M, parts-1, 1, 1)
+        speed = np.sqrt(np.maximum(qa[:, None] + hh * (qb[:, None] + hh * qc[:, None]), 0.0))
+        below = (speed.reshape(len(lo), parts - 1, -1) @ weights < target[:, None]).sum(axis=1)
+        lo, hi = lo + width * (below / parts), lo + width * ((below + 1) / parts)
+        done += bits
     h[i] = 0.5 * (lo + hi)
     mid[i] = m + h[i, None] * n
     return mid, nm, h, short
@@ -280,6 +300,41 @@ def tessellation(mesh, level):
                         weights, edge_vertices, full)
 
 
+SUB_PATCHES = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]])  # of a face's 6 points: corners a b c,
+# then the midpoints of ab, bc, ca; the corner patches at a, b, c and the middle one
+
+
+def surface_operator(full_weights):
+    """The fine points of a face as one linear map. A PN control point is a fixed combination of
+    the patch's corners p_i and of w_ij n_i, w_ij = (p_j - p_i) . n_i, for the directed sides
+    (i, j) of the sub-patches: b_ij = (2 p_i + p_j - w_ij n_i) / 3 on the sides, b111 = E + (E -
+    V) / 2 inside. So every fine point of a face is op @ [6 points; the w_ij n_i] with op fixed
+    by the tessellation. Returns (op (G, 6 + Q), pair firsts I (Q,), pair seconds J (Q,))."""
+    pairs = []
+    for a, b, c in SUB_PATCHES:
+        for i, j in ((a, b), (b, a), (b, c), (c, b), (c, a), (a, c)):
+            if (i, j) not in pairs:
+                pairs.append((int(i), int(j)))
+    q = len(pairs)
+    control = np.zeros((4, 10, 6 + q))
+    for k, (a, b, c) in enumerate(SUB_PATCHES):
+        def side(i, j):
+            row = np.zeros(6 + q)
+            row[i] += 2.0 / 3.0
+            row[j] += 1.0 / 3.0
+            row[6 + pairs.index((i, j))] = -1.0 / 3.0
+            return row
+        rows = [np.eye(6 + q)[a], np.eye(6 + q)[b], np.eye(6 + q)[c],
+                side(a, b), side(b, a), side(b, c), side(c, b), side(c, a), side(a, c)]
+        e = np.mean(rows[3:9], axis=0)
+        v = np.mean(rows[:3], axis=0)
+        rows.append(e + (e - v) / 2.0)
+        control[k] = rows
+    op = full_weights @ control.reshape(40, 6 + q)
+    pairs = np.array(pairs)
+    return op, pairs[:, 0], pairs[:, 1]
+
+
 class Smoother:
     """The fine cloth surface from the particles: `surface(x)` -> fine vertices (V, 3)."""
 
@@ -292,11 +347,23 @@ class Smoother:
         self.faces = self.tess.faces
         self.vertex_count = self.tess.vertex_count
         self.last = {}
+        # everything that depends on the topology alone: the linear map from each face's six
+        # points and its w_ij n_i terms to its fine points, indices into [particles; midpoints]
+        # of the six points and of the pairs' ends, and one source row per fine vertex
+        t, p = self.tess, mesh.particle_count
+        self._op, pi, pj = surface_operator(t.full_weights)
+        six = np.concatenate([mesh.faces, p + mesh.face_edges], axis=1)  # (F, 6)
+        self._six, self._pi, self._pj = six, six[:, pi], six[:, pj]
+        f_count, g_count = t.vertex_of.shape
+        src = np.empty(self.vertex_count, dtype=np.int64)
+        src[t.vertex_of.T.ravel()] = np.arange(g_count * f_count)  # rows of the (G, F) result
+        self._src = src[p:]
+        self._e0, self._e1 = mesh.edges[:, 0], mesh.edges[:, 1]
 
     def surface(self, x):
-        mesh, t = self.mesh, self.tess
+        mesh = self.mesh
         normals = controlled_normals(mesh, x, self.k_elastic, self.normal_control)
-        e0, e1 = mesh.edges[:, 0], mesh.edges[:, 1]
+        e0, e1 = self._e0, self._e1
         if self.edge_control:
             mid, mid_n, h, short = edge_midpoints(x[e0], normals[e0], x[e1], normals[e1], mesh.rest_length,
                                                   self.k_guess, self.iterations)
@@ -306,17 +373,15 @@ class Smoother:
             mid_n = pn_mid_normal(x[e0], normals[e0], x[e1], normals[e1])
             h, short = np.zeros(len(e0)), np.zeros(len(e0), dtype=bool)
         self.last = {"normals": normals, "mid": mid, "mid_normals": mid_n, "h": h, "short": short}
-        f = mesh.faces
-        # the six points of each face: corners a b c, then midpoints of ab, bc, ca
-        pts = np.concatenate([x[f], mid[mesh.face_edges]], axis=1)  # (F, 6, 3)
-        nrm = np.concatenate([normals[f], mid_n[mesh.face_edges]], axis=1)
-        sub = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]])  # corner a, b, c patches, middle
-        cp = pn_patch(pts[:, sub], nrm[:, sub]).reshape(len(f), 40, 3)  # (F, 4 x 10, 3)
-        fine = t.full_weights @ cp  # (F, G, 3)
-        out = np.empty((self.vertex_count, 3))
-        out[t.vertex_of.ravel()] = fine.reshape(-1, 3)
-        out[np.arange(len(x))] = x  # exactly through the particles
-        return out
+        pts = np.concatenate((x, mid))  # particles, then edge midpoints
+        nrm = np.concatenate((normals, mid_n))
+        ni = nrm.take(self._pi, axis=0)  # (F, Q, 3)
+        d = pts.take(self._pj, axis=0)
+        d -= pts.take(self._pi, axis=0)
+        ni *= np.einsum("fqj,fqj->fq", d, ni)[..., None]  # w_ij n_i
+        terms = np.concatenate((pts.take(self._six, axis=0), ni), axis=1)  # (F, 6 + Q, 3)
+        fine = self._op @ terms.transpose(1, 0, 2).reshape(terms.shape[1], -1)  # (G, 3F): one product
+        return np.concatenate((x, fine.reshape(-1, 3).take(self._src, axis=0)))  # exactly through the particles
 
     def edge_curve_lengths(self, x=None):
         """Length of every coarse edge's curve on the last surface (two PN halves), (E,)."""

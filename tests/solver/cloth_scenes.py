@@ -41,3 +41,60 @@ def walking_skirt(**kw):
     body.set_motion(a, b)
     pos, faces, pinned = fit_skirt(np.array([a[1], a[2]]), np.array([b[1], b[2]]), bodies=[body], **kw)
     return build_mesh(pos, faces), pinned, body
+
+
+class SkinnedLegs:
+    """The walking capsules as one closed triangle mesh per capsule, re-tessellated every frame
+    (a skinned body): a MeshBody with `update(a0, b0, a1, b1)` for the frame's motion."""
+
+    def __new__(cls, *args, **kw):
+        from humananim.solver.cloth import MeshBody
+
+        class _Skinned(MeshBody):
+            def __init__(self):
+                a, b = legs(0.0)
+                self.update(a, b, a, b)
+                super().__init__(self.tris, len(self.v_end))
+                self.set_motion(self.v_start, self.v_end, 1 / 30)
+
+            def update(self, a0, b0, a1, b1):
+                from humananim.solver.cloth import capsule_mesh
+
+                def mesh(a, b):
+                    vs, ts, n = [], [], 0
+                    for k in range(len(RADII)):
+                        v, t = capsule_mesh(a[k], b[k], RADII[k], segments=20, rings=24)
+                        vs.append(v), ts.append(t + n)
+                        n += len(v)
+                    return np.vstack(vs), np.vstack(ts)
+
+                self.v_start, self.tris = mesh(a0, b0)
+                self.v_end, _ = mesh(a1, b1)
+                if hasattr(self, "parts"):  # after MeshBody.__init__
+                    self.set_motion(self.v_start, self.v_end, 1 / 30)
+
+        return _Skinned()
+
+
+def reference_walk(collider, frames=20):
+    """The COTTON skirt on the walking legs (capsules, or the skinned mesh of them) for `frames`
+    frames at 30 fps: (particles per frame (frames + 1, P, 3), fine surface of the last frame,
+    the simulation). tests/solver/cloth_reference.npz holds this run's output from the
+    implementation before the fast path (commit 8b3ebab)."""
+    from humananim.solver.cloth import ClothSimulation, preset
+    mesh, pinned, capsules = walking_skirt()
+    bodies = [capsules] if collider == "capsules" else [SkinnedLegs()]
+    sim = ClothSimulation(mesh, preset("COTTON"), pinned, bodies, level=2, fps=30)
+    pin0 = mesh.rest[pinned]
+    xs = [sim.x.copy()]
+    a0, b0 = legs(0.0)
+    for f in range(1, frames + 1):
+        a1, b1 = legs(f / 30.0)
+        capsules.set_motion(a0, b0, a1, b1, 1 / 30)
+        for body in bodies:
+            if body is not capsules:
+                body.update(a0, b0, a1, b1)
+        sim.step(pin0, 1 / 30)
+        xs.append(sim.x.copy())
+        a0, b0 = a1, b1
+    return np.array(xs), sim.surface(), sim
