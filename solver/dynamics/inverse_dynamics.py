@@ -11,6 +11,8 @@ import numpy as np
 from . import spatial
 from .kinematics import update_frames
 
+_ZERO = np.zeros(1)
+
 
 def external_wrenches(model, data, q, joints, points, forces, torques=None):
     """World wrenches (nb, 6) about the origin of forces (k, 3, world) applied at points (k, 3)
@@ -48,7 +50,7 @@ def rnea(model, data, q, v, a, f_ext=None, gravity=None, return_wrenches=False):
     g = model.gravity if gravity is None else np.asarray(gravity, dtype=float)
     xm = data.motion
     # joint contributions of v and a in one product: (nb, 6, 2)
-    both = xm @ np.concatenate((v, [0.0], a, [0.0]))[model.pair_index]
+    both = xm @ np.concatenate((v, _ZERO, a, _ZERO))[model.pair_index]
     u = both[:, :, 0]
     vel = model.ancestors @ u
     cr = spatial.crm(vel)

@@ -14,25 +14,30 @@ from .model import Data, Model
 
 def update_frames(model: Model, data: Data, q):
     """World frames (nb, 4, 4), spatial transforms and world inertias for configuration q; cached
-    in `data` until q changes."""
+    in `data` until q changes (the world inertias are computed on first use, Data.inertia)."""
     q = np.asarray(q, dtype=float)
-    if data.q is not None and np.array_equal(q, data.q):
+    key = q.tobytes()  # a bytes comparison is ~10x cheaper than np.array_equal on a small q
+    if data.q is not None and key == data.key:
         return data
     nb = model.nb
     local = data.local
-    local[:nb, :3, :3] = model.tree_rotation @ spatial.quat_to_matrix(q[3:].reshape(nb, 4))
+    quats = q[3:].reshape(nb, 4)
+    outer = (quats[:, :, None] * quats[:, None, :]).reshape(nb, 16)
+    local[:nb, :3, :3] = model.tree_rotation @ (outer @ spatial._Q2R).reshape(nb, 3, 3)
     local[0, :3, 3] = q[:3]
     frames = local
     for a in model.doubling:
         frames = frames[a] @ frames
-    data.frames = frames[:nb]
-    rot = data.frames[:, :3, :3]
-    lever = spatial.skew(data.frames[:, :3, 3]) @ rot
-    parts = np.concatenate((rot.reshape(nb, 9), lever.reshape(nb, 9), np.zeros((nb, 1))), axis=1)
+    frames = frames[:nb]
+    data.frames = frames
+    rot = frames[:, :3, :3]
+    lever = (frames[:, :3, 3] @ spatial._SKEW_MAP).reshape(nb, 3, 3) @ rot
+    parts = np.concatenate((rot.reshape(nb, 9), lever.reshape(nb, 9), data.zero_column), axis=1)
     data.motion = parts[:, model.motion_gather].reshape(nb, 6, 6)
-    xf = parts[:, model.force_gather].reshape(nb, 6, 6)
-    data.inertia = xf @ model.spatial_inertia @ np.swapaxes(xf, 1, 2)
+    data.set_force_transforms(parts[:, model.force_gather].reshape(nb, 6, 6))
+    data.subspace = None
     data.q = q.copy()
+    data.key = key
     return data
 
 
@@ -105,7 +110,10 @@ def point_accelerations(model, data, q, v, a, joints, points):
 def motion_subspace(model, data, q):
     """World motion subspace columns (nv, 6): the spatial velocity each DOF gives its body."""
     update_frames(model, data, q)
-    return np.swapaxes(data.motion, 1, 2).reshape(-1, 6)[model.flat_dof]
+    if data.subspace is None:  # cached with the frames (read-only: shared by every caller)
+        data.subspace = np.swapaxes(data.motion, 1, 2).reshape(-1, 6)[model.flat_dof]
+        data.subspace.flags.writeable = False
+    return data.subspace
 
 
 def body_jacobian(model, data, q, body):

@@ -92,6 +92,8 @@ class Model:
         self.ancestors = anc
         dof_anc = anc[self.dof_body][:, self.dof_body] > 0  # [c, d]: d's body is c's body or above it
         self.dof_ancestor = dof_anc
+        # [b, c]: body b lies in the subtree of DOF c's body (a wrench on b loads DOF c)
+        self.dof_subtree = anc[:, self.dof_body].copy()
         self.dof_related = dof_anc | dof_anc.T
         self.spatial_inertia = spatial.body_spatial_inertia(self.mass, self.com, self.inertia)
         self.tree_rotation = self.tree[:, :3, :3].copy()
@@ -210,13 +212,48 @@ class Data:
 
     def __init__(self, model: Model):
         nb = model.nb
+        self.model = model
         self.q = None
+        self.key = None  # q's bytes (kinematics.update_frames)
         self.local = np.zeros((nb + 1, 4, 4))
         self.local[:nb] = model.tree
         self.local[nb] = np.eye(4)
         self.frames = np.zeros((nb, 4, 4))
         self.motion = np.zeros((nb, 6, 6))  # Xm: body (omega, v) at its origin -> world at origin
-        self.inertia = np.zeros((nb, 6, 6))  # world spatial inertia of each body about the origin
+        self.zero_column = np.zeros((nb, 1))
+        self._force = None
+        self._inertia = np.zeros((nb, 6, 6))
+        self._composite = None
+        self.subspace = None  # world motion subspace (nv, 6), kinematics.motion_subspace
+
+    def set_force_transforms(self, xf):
+        """The force transforms (nb, 6, 6) of a new configuration: the world inertias follow from
+        them when first asked for (a configuration that only needs frames skips them)."""
+        self._force = xf
+        self._inertia = None
+        self._composite = None
+
+    @property
+    def inertia(self):
+        """World spatial inertia (nb, 6, 6) of each body about the origin."""
+        if self._inertia is None:
+            xf = self._force
+            self._inertia = xf @ self.model.spatial_inertia @ np.swapaxes(xf, 1, 2)
+        return self._inertia
+
+    @inertia.setter
+    def inertia(self, value):
+        self._inertia = value
+        self._composite = None
+
+    @property
+    def composite(self):
+        """World spatial inertia (nb, 6, 6) of each body's subtree (inertia_matrix.composite_inertias)."""
+        if self._composite is None:
+            nb = self.model.nb
+            self._composite = (self.model.ancestors.T @ self.inertia.reshape(nb, 36)).reshape(nb, 6, 6)
+            self._composite.flags.writeable = False
+        return self._composite
 
 
 def _segment_loads(skeleton, loads):

@@ -18,6 +18,7 @@ falls: it turns about the MMP with the torque the ground cannot supply over the 
 of inertia about that axis (sec. 2.3.3).
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,7 +47,10 @@ def support_polygon(state):
     if cached is not None and cached[0].shape == pts.shape and np.abs(cached[0] - pts).max() < _HULL_REUSE:
         return pts[cached[1]]
     hull = convex_hull(pts)
-    idx = np.array([int(np.flatnonzero((pts == v).all(axis=1))[0]) for v in hull], int)
+    first = {}
+    for i, p in enumerate(map(tuple, pts.tolist())):
+        first.setdefault(p, i)
+    idx = np.array([first[p] for p in map(tuple, hull.tolist())], int)
     if len(_hull_cache) > 16:
         _hull_cache.clear()
     _hull_cache[key] = (pts, idx)
@@ -69,8 +73,9 @@ def _weight(model):
 
 def zmp_of(wrench, ground_height=0.0):
     """ZMP (2,) of a ground wrench (world, about the origin: torque, force)."""
-    n, f, h = wrench[:3], wrench[3:], ground_height
-    return np.array([(h * f[0] - n[1]) / f[2], (n[0] + h * f[1]) / f[2]])
+    n0, n1, _, f0, f1, f2 = (float(x) for x in wrench)
+    h = float(ground_height)
+    return np.array([(h * f0 - n1) / f2, (n0 + h * f1) / f2])
 
 
 def moment_about(wrench, point):
@@ -88,7 +93,8 @@ def balance_error(state, wrench, polygon=None):
     if len(polygon) >= 3 and inside(polygon, p):
         return p, p.copy(), 0.0
     mmp = minimum_moment_point(polygon, p)
-    return p, mmp, float(np.linalg.norm(mmp - p))
+    dx, dy = float(mmp[0] - p[0]), float(mmp[1] - p[1])
+    return p, mmp, math.sqrt(dx * dx + dy * dy)
 
 
 # ---- the augmented body (fig. 2.5, eq. 2.13-2.14) ---------------------------------------------

@@ -27,7 +27,6 @@ from ..dynamics.ground_contact import default_contacts
 from ..dynamics.inertia_matrix import inertia_block
 from ..dynamics.inverse_dynamics import rnea
 from ..dynamics.kinematics import motion_subspace, point_positions, segment_jacobian, update_frames
-from ..dynamics.strength import joint_angles
 
 SIDES = ("L", "R")
 
@@ -143,9 +142,10 @@ class ControlState:
 
     def _limits(self):
         m = self.model
-        j, s = m.dof_joint[6:], m.dof_slot[6:]
         low, high = np.full(m.nv, -np.inf), np.full(m.nv, np.inf)
-        low[6:], high[6:] = self.strength.select(j, s).limits(joint_angles(m, self.q)[j, s], self.v[6:])
+        # joint_angles(m, q)[dof_joint, dof_slot]: the rotation vector of each DOF's own body
+        angles = spatial.quat_log(self.q[7:].reshape(-1, 4))[m.dof_body[6:] - 1, m.dof_slot[6:]]
+        low[6:], high[6:] = _dof_strength(m, self.strength).limits(angles, self.v[6:])
         if self.allowance is not None:
             low, high = low - self.allowance, high + self.allowance
         return low, high
@@ -165,6 +165,18 @@ class ControlState:
         return self.cached("jp", lambda: pelvis_jacobian(self))
 
 
+def _dof_strength(model, strength):
+    """strength.select of the model's actuated DOFs, remembered per model and strength."""
+    cache = model.__dict__.setdefault("_dof_strength", [])
+    for known, selected in cache:
+        if known is strength:
+            return selected
+    selected = strength.select(model.dof_joint[6:], model.dof_slot[6:])
+    cache.append((strength, selected))
+    del cache[:-4]
+    return selected
+
+
 # ---- eq. 2.8-2.9: required torques and stress --------------------------------------------------
 
 def required_torques(state, a):
@@ -173,9 +185,12 @@ def required_torques(state, a):
     feet in contact, so tau[:6] is ~0 when a foot is down."""
     m, d = state.model, state.data
     tau, total = rnea(m, d, state.q, state.v, a, f_ext=state.f_ext, return_wrenches=True)
-    ground = ground_reaction(state, total[0])
+    ground = _ground_wrenches(state, total[0])
     if ground is not None:
-        tau = tau + _wrench_forces(m, d, state.q, ground)
+        # -J' f of the foot wrenches: each DOF against the wrenches on its body's subtree
+        bodies, wrenches = ground
+        below = m.dof_subtree[bodies].T @ wrenches
+        tau = tau - np.einsum("ki,ki->k", motion_subspace(m, d, state.q), below)
     return tau, total[0]
 
 
@@ -191,21 +206,42 @@ def _wrench_forces(model, data, q, wrenches):
 def ground_reaction(state, wrench):
     """World wrenches (nb, 6) on the feet in contact that sum to `wrench`: the force at the ZMP,
     split between the feet by where the ZMP lies between their sole centres."""
-    if not state.feet.any() or wrench[5] <= 1e-9:
+    ground = _ground_wrenches(state, wrench)
+    if ground is None:
         return None
-    h = state.ground_height
-    n, f = wrench[:3], wrench[3:]
-    p = np.array([(h * f[0] - n[1]) / f[2], (n[0] + h * f[1]) / f[2], h])
+    out = np.zeros((state.model.nb, 6))
+    out[ground[0]] = ground[1]
+    return out
+
+
+def _ground_wrenches(state, wrench):
+    """ground_reaction as the foot bodies (k,) and their wrenches (k, 6), on plain floats."""
+    n0, n1, n2, f0, f1, f2 = (float(x) for x in wrench)
+    if not state.feet.any() or f2 <= 1e-9:
+        return None
+    h = float(state.ground_height)
+    px, py = (h * f0 - n1) / f2, (n0 + h * f1) / f2
     sides = np.flatnonzero(state.feet)
     centres = state.cached("sole_centres", lambda: _sole_centres(state, sides, h))
-    w = np.ones(1) if len(sides) == 1 else _split(centres[:, :2], p[:2])
-    x = centres + (p - w @ centres)  # application points, weighted mean at the ZMP
-    moment = n - spatial.cross(p, f)  # about the ZMP: vertical only
-    out = np.zeros((state.model.nb, 6))
+    c = centres.tolist()
+    w = [1.0] if len(sides) == 1 else _split(c, px, py)
+    # application points: the sole centres moved so that their weighted mean is the ZMP
+    mx = sum(wi * ci[0] for wi, ci in zip(w, c))
+    my = sum(wi * ci[1] for wi, ci in zip(w, c))
+    mz = sum(wi * ci[2] for wi, ci in zip(w, c))
+    dx, dy, dz = px - mx, py - my, h - mz
+    # the moment about the ZMP (vertical only): n - p x f
+    m0 = n0 - (py * f2 - h * f1)
+    m1 = n1 - (h * f0 - px * f2)
+    m2 = n2 - (px * f1 - py * f0)
+    rows = []
+    for wi, (cx, cy, cz) in zip(w, c):
+        x0, x1, x2 = cx + dx, cy + dy, cz + dz
+        g0, g1, g2 = wi * f0, wi * f1, wi * f2
+        rows.append((x1 * g2 - x2 * g1 + wi * m0, x2 * g0 - x0 * g2 + wi * m1, x0 * g1 - x1 * g0 + wi * m2,
+                     g0, g1, g2))
     bodies = state.model.joint_body[np.asarray(state.parts.feet)[sides]]
-    out[bodies, :3] = spatial.cross(x, w[:, None] * f) + w[:, None] * moment
-    out[bodies, 3:] = w[:, None] * f
-    return out
+    return bodies, np.array(rows)
 
 
 def _sole_centres(state, sides, height):
@@ -216,17 +252,19 @@ def _sole_centres(state, sides, height):
     return out
 
 
-def _split(centres, p):
+def _split(centres, px, py):
     """Weights (2,) of two sole centres whose combination is the projection of p on their line."""
-    d = centres[1] - centres[0]
-    t = np.clip(np.dot(p - centres[0], d) / max(np.dot(d, d), 1e-12), 0.0, 1.0)
-    return np.array([1.0 - t, t])
+    (ax, ay, _), (bx, by, _) = centres[0], centres[1]
+    dx, dy = bx - ax, by - ay
+    t = ((px - ax) * dx + (py - ay) * dy) / max(dx * dx + dy * dy, 1e-12)
+    t = min(max(t, 0.0), 1.0)
+    return [1.0 - t, t]
 
 
 def joint_stress(tau, limits, tolerance=0.0):
     """Eq. 2.9: tau - tau_max above the range, tau - tau_min below it, zero inside (nv,)."""
     low, high = limits
-    s = tau - np.clip(tau, low, high)
+    s = tau - np.minimum(np.maximum(tau, low), high)  # np.clip, without its dispatch cost
     s[np.abs(s) <= tolerance] = 0.0
     return s
 

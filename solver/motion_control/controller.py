@@ -49,6 +49,8 @@ balance or falling); stress, ZMP and balance error are still reported.
 
 from dataclasses import dataclass, field, replace
 
+import math
+
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 from scipy.linalg.lapack import dposv
@@ -57,7 +59,7 @@ from scipy.ndimage import gaussian_filter1d
 from ..body_roles import SIDES
 from ..progress import run_to_end
 from ..trajectories import Trajectories
-from ..dynamics import kinematics
+from ..dynamics import kinematics, spatial
 from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories, motion_floor,
                                     weld_static_helpers)
 from ..dynamics.ground_contact import default_contacts, point_jacobians
@@ -203,6 +205,18 @@ class _Body:
         self.parts = body_parts(model, self.contacts)
         self.strength = strength
         self.spheres = self.contacts.on(model)  # bodies (k,), body-frame centres (k, 3)
+        # per side, once per model: the foot's body and frame offset, the DOFs of the foot's
+        # ancestors (its Jacobian's columns), and where the leg's own DOFs lie among them
+        p = self.parts
+        self.foot_body = [int(model.joint_body[f]) for f in p.feet]
+        self.foot_offset = [model.joint_offset[f] for f in p.feet]
+        self.leg_cols = [np.asarray(c, int) for c in p.legs]
+        self.leg_dofs = [np.flatnonzero(model.ancestors[b][model.dof_body] != 0) for b in self.foot_body]
+        self.leg_pos = [np.searchsorted(dofs, cols) for dofs, cols in zip(self.leg_dofs, self.leg_cols)]
+        # both feet's sole points on their bodies (_Loop._soles)
+        self.sole_bodies, self.sole_local = kinematics.points_on_bodies(
+            model, np.concatenate(p.sole_joints), np.concatenate(p.sole_points))
+        self.sole_split = len(p.sole_joints[0])
 
 
 class _Loop:
@@ -576,10 +590,11 @@ class _Loop:
         (shared by the control state, the support polygon and the drift measure)."""
         key = (q.tobytes(), id(body))
         if self._soles_cache is None or self._soles_cache[0] != key:
-            p = body.parts
-            pts = kinematics.point_positions(body.model, body.data, q, np.concatenate(p.sole_joints),
-                                             np.concatenate(p.sole_points))
-            self._soles_cache = (key, np.split(pts, [len(p.sole_joints[0])]))
+            kinematics.update_frames(body.model, body.data, q)
+            f = body.data.frames[body.sole_bodies]
+            pts = np.einsum("kij,kj->ki", f[:, :3, :3], body.sole_local) + f[:, :3, 3]
+            k = body.sole_split
+            self._soles_cache = (key, [pts[:k], pts[k:]])
         return self._soles_cache[1]
 
     def _contact_drift(self, body, q, s, f):
@@ -633,27 +648,31 @@ class _Loop:
         return out
 
     def _leg_jacobians(self, body, q, feet):
-        """Per planted side: the (6, nv) Jacobian of the foot's angular velocity and head velocity
-        (zero outside the foot's ancestors), the foot's world frame, and the leg's DOFs; one
-        forward-kinematics pass for both legs (cached for the same q: the legs' acceleration and
-        velocity projections share it)."""
-        key = (q.tobytes(), tuple(feet), id(body))
+        """Per planted side: the (6, k) Jacobian of the foot's angular velocity and head velocity
+        on the DOFs of the foot's ancestors (the rest of its (6, nv) Jacobian is zero), the foot's
+        world frame, those DOFs (k,), and the Jacobian's columns of the leg's own DOFs (6, l) with
+        those DOFs (l,); one forward-kinematics pass for both legs (cached for the same q: the
+        legs' acceleration and velocity projections share it)."""
+        key = (q.tobytes(), bool(feet[0]), bool(feet[1]), id(body))
         if self._legs_cache is not None and self._legs_cache[0] == key:
             return self._legs_cache[1]
         m, d = body.model, body.data
         kinematics.update_frames(m, d, q)
         sub = kinematics.motion_subspace(m, d, q)  # (nv, 6) world (omega, v at origin)
         out = [None, None]
-        for s in np.flatnonzero(feet):
-            foot = body.parts.feet[s]
-            b = m.joint_body[foot]
-            frame = d.frames[b] @ m.joint_offset[foot]
-            x = frame[:3, 3]
-            mask = m.ancestors[b][m.dof_body] != 0
-            jac = np.zeros((6, m.nv))
-            jac[:3, mask] = sub[mask, :3].T
-            jac[3:, mask] = (sub[mask, 3:] - _cross(x, sub[mask, :3])).T
-            out[s] = (jac, frame, np.asarray(body.parts.legs[s]))
+        for s in (0, 1):
+            if not feet[s]:
+                continue
+            frame = d.frames[body.foot_body[s]] @ body.foot_offset[s]
+            x0, x1, x2 = frame[:3, 3].tolist()
+            dofs = body.leg_dofs[s]
+            cols = sub[dofs]  # (k, 6)
+            jac = np.empty((6, len(dofs)))
+            jac[:3] = cols[:, :3].T
+            # head velocity v_O + omega x x = v_O - x x omega; rows @ K = x x row
+            cross = np.array([[0.0, x2, -x1], [-x2, 0.0, x0], [x1, -x0, 0.0]])
+            jac[3:] = (cols[:, 3:] - cols[:, :3] @ cross).T
+            out[s] = (jac, frame, dofs, jac[:, body.leg_pos[s]], body.leg_cols[s])
         self._legs_cache = (key, out)
         return out
 
@@ -669,26 +688,33 @@ class _Loop:
         ones plus the least change (the acceleration form of the leg's IK for the pelvis's
         acceleration)."""
         m, d = body.model, body.data
-        vel, acc = kinematics.body_accelerations(m, d, q, v, a)
+        legs = self._leg_jacobians(body, q, feet)  # the frames at q
+        # kinematics.body_accelerations, the accelerations only at the feet's bodies
+        both = d.motion @ np.concatenate((v, _ZERO, a, _ZERO))[m.pair_index]  # (nb, 6, 2)
+        u = both[:, :, 0]
+        vel = m.ancestors @ u
+        own = both[:, :, 1] + (spatial.crm(vel) @ u[:, :, None])[:, :, 0]
+        feet_bodies = body.foot_body
+        acc = (m.ancestors[feet_bodies] @ own).tolist()
+        vel = vel[feet_bodies].tolist()
         a = a.copy()
-        for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
+        for s, leg in enumerate(legs):
             if leg is None:
                 continue
-            jac, frame, cols = leg
-            b = m.joint_body[body.parts.feet[s]]
-            x = frame[:3, 3]
-            w, vo, al, ao = vel[b, :3], vel[b, 3:], acc[b, :3], acc[b, 3:]
-            xd = vo + _cross(w, x)
-            now = np.concatenate((al, ao + _cross(al, x) + _cross(w, xd)))
-            a[cols] += self._dls(jac[:, cols], targets[s][3] - now)
+            _, frame, _, jac, cols = leg
+            x = frame[:3, 3].tolist()
+            w, vo, al, ao = vel[s][:3], vel[s][3:], acc[s][:3], acc[s][3:]
+            xd = _add(vo, _cross3(w, x))
+            now = al + _add(_add(ao, _cross3(al, x)), _cross3(w, xd))
+            a[cols] += self._dls(jac, targets[s][3] - np.array(now))
         return a
 
     def _project_velocity(self, body, q, v, feet, targets):
         v = v.copy()
         for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
             if leg is not None:  # the foot's velocity is linear in v: J v
-                jac, frame, cols = leg
-                v[cols] += self._dls(jac[:, cols], targets[s][2] - jac @ v)
+                full, _, dofs, jac, cols = leg
+                v[cols] += self._dls(jac, targets[s][2] - full @ v[dofs])
         return v
 
     def _project_position(self, body, q, feet, targets):
@@ -698,10 +724,10 @@ class _Loop:
             for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
                 if leg is None:
                     continue
-                jac, frame, cols = leg
+                _, frame, _, jac, cols = leg
                 rot, pos = targets[s][0], targets[s][1]
                 error = np.concatenate((_rotation_log(rot @ frame[:3, :3].T), pos - frame[:3, 3]))
-                step[cols] = self._dls(jac[:, cols], error)
+                step[cols] = self._dls(jac, error)
             q = kinematics.integrate(m, q, step)
         return q
 
@@ -816,10 +842,24 @@ class _Loop:
         return (1 - w) * pos[f0] + w * pos[f1], (1 - w) * vel[f0] + w * vel[f1]
 
 
+_ZERO = np.zeros(1)
+
+
+def _cross3(a, b):
+    """Cross product of two 3-sequences of floats (a list)."""
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _add(a, b):
+    return [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+
+
 def _cross(a, b):
     """Cross products of 3-vectors or (k, 3) stacks (np.cross costs ~20 us per call)."""
     a = np.asarray(a, float)
     b = np.asarray(b, float)
+    if a.shape == (3,) and b.shape == (3,):  # plain floats: a tenth of the numpy calls' cost
+        return np.array(_cross3(a.tolist(), b.tolist()))
     a, b = np.broadcast_arrays(a, b)
     out = np.empty(a.shape)
     out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
@@ -910,8 +950,10 @@ def _quat(rot):
 
 def _rotation_log(rot):
     """Rotation vector (3,) of a rotation matrix (angle below pi; the legs' small corrections)."""
-    w = 0.5 * np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
-    sin = float(np.sqrt(w @ w))
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = np.asarray(rot, float).tolist()
+    w = [0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)]
+    sin = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
     if sin < 1e-12:
-        return w
-    return w * (np.arctan2(sin, 0.5 * (rot[0, 0] + rot[1, 1] + rot[2, 2] - 1.0)) / sin)
+        return np.array(w)
+    scale = math.atan2(sin, 0.5 * (r00 + r11 + r22 - 1.0)) / sin
+    return np.array([w[0] * scale, w[1] * scale, w[2] * scale])
