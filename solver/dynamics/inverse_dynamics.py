@@ -46,6 +46,15 @@ def rnea(model, data, q, v, a, f_ext=None, gravity=None, return_wrenches=False):
     world wrenches on bodies (see external_wrenches). With return_wrenches, also the world
     wrench (nb, 6) each body receives from its parent (index 0: from the outside world).
     """
+    total = subtree_wrenches(model, data, q, v, a, f_ext, gravity)
+    tau6 = (np.swapaxes(data.motion, 1, 2) @ total[:, :, None])[:, :, 0]
+    tau = tau6.ravel()[model.flat_dof] + model.armature_v * a
+    return (tau, total) if return_wrenches else tau
+
+
+def subtree_wrenches(model, data, q, v, a, f_ext=None, gravity=None):
+    """RNEA's wrenches (nb, 6): what each body receives from its parent (world, about the origin);
+    tau is each DOF's motion subspace against its body's entry (plus the armature's a)."""
     update_frames(model, data, q)
     g = model.gravity if gravity is None else np.asarray(gravity, dtype=float)
     xm = data.motion
@@ -55,13 +64,12 @@ def rnea(model, data, q, v, a, f_ext=None, gravity=None, return_wrenches=False):
     vel = model.ancestors @ u
     cr = spatial.crm(vel)
     own = both[:, :, 1] + (cr @ u[:, :, None])[:, :, 0]
-    acc = model.ancestors @ own
-    acc[:, 3:] -= g  # gravity as an upward acceleration of the whole body (Luh et al.)
-    ia = data.inertia @ np.stack((acc, vel), axis=2)  # I a and the momentum I v
+    av = np.empty((model.nb, 6, 2))
+    av[:, :, 0] = model.ancestors @ own
+    av[:, 3:, 0] -= g  # gravity as an upward acceleration of the whole body (Luh et al.)
+    av[:, :, 1] = vel
+    ia = data.inertia @ av  # I a and the momentum I v
     f = ia[:, :, 0] - (np.swapaxes(cr, 1, 2) @ ia[:, :, 1:])[:, :, 0]
     if f_ext is not None:
         f = f - f_ext
-    total = model.ancestors.T @ f  # each body's subtree
-    tau6 = (np.swapaxes(xm, 1, 2) @ total[:, :, None])[:, :, 0]
-    tau = tau6.ravel()[model.flat_dof] + model.armature_v * a
-    return (tau, total) if return_wrenches else tau
+    return model.subtree_sum @ f  # each body's subtree

@@ -22,8 +22,10 @@ def update_frames(model: Model, data: Data, q):
     nb = model.nb
     local = data.local
     quats = q[3:].reshape(nb, 4)
-    outer = (quats[:, :, None] * quats[:, None, :]).reshape(nb, 16)
-    local[:nb, :3, :3] = model.tree_rotation @ (outer @ spatial._Q2R).reshape(nb, 3, 3)
+    outer = (quats[:, :, None] * quats[:, None, :]).reshape(nb, 1, 16)
+    # tree_rotation @ quat_to_matrix(quats) in one product: per body, the quaternion's outer
+    # product to the rotated matrix's entries (Model.tree_q2r)
+    local[:nb, :3, :3] = (outer @ model.tree_q2r).reshape(nb, 3, 3)
     local[0, :3, 3] = q[:3]
     frames = local
     for a in model.doubling:
@@ -34,7 +36,7 @@ def update_frames(model: Model, data: Data, q):
     lever = (frames[:, :3, 3] @ spatial._SKEW_MAP).reshape(nb, 3, 3) @ rot
     parts = np.concatenate((rot.reshape(nb, 9), lever.reshape(nb, 9), data.zero_column), axis=1)
     data.motion = parts[:, model.motion_gather].reshape(nb, 6, 6)
-    data.set_force_transforms(parts[:, model.force_gather].reshape(nb, 6, 6))
+    data.set_force_transforms(parts)  # gathered when the world inertias are first asked for
     data.subspace = None
     data.q = q.copy()
     data.key = key
@@ -187,12 +189,20 @@ def integrate(model, q, v, dt=1.0):
     """q (+) v dt on the configuration manifold: the root moves along its own axes, every
     quaternion turns by exp of its local angular velocity (locked axes stay at zero)."""
     q = np.asarray(q, dtype=float)
-    full = model.expand(np.asarray(v, float) * dt)
+    v = np.asarray(v, float)
+    full = model.expand(v if dt == 1.0 else v * dt)
     out = np.empty_like(q)
     quats = q[3:].reshape(model.nb, 4)
-    out[:3] = q[:3] + spatial.quat_to_matrix(quats[0]) @ full[0, 3:]
-    turned = spatial.quat_multiply(quats, spatial.quat_exp(full[:, :3]))
-    out[3:] = (turned / np.sqrt(np.einsum("bi,bi->b", turned, turned))[:, None]).ravel()
+    # the root's translation along its own axes (quat_to_matrix(quats[0]) @ step, on floats)
+    w, x, y, z = quats[0].tolist()
+    s0, s1, s2 = full[0, 3:].tolist()
+    out[:3] = q[:3] + np.array((
+        (w * w + x * x - y * y - z * z) * s0 + 2.0 * (x * y - w * z) * s1 + 2.0 * (x * z + w * y) * s2,
+        2.0 * (x * y + w * z) * s0 + (w * w - x * x + y * y - z * z) * s1 + 2.0 * (y * z - w * x) * s2,
+        2.0 * (x * z - w * y) * s0 + 2.0 * (y * z + w * x) * s1 + (w * w - x * x - y * y + z * z) * s2))
+    # quats * exp(w / 2): the left-multiplication matrices of quats times the turns
+    turned = np.add.reduce((quats @ spatial._QMUL).reshape(model.nb, 4, 4) * spatial.quat_exp(full[:, :3])[:, None, :], 2)
+    out[3:] = (turned / np.sqrt(np.add.reduce(turned * turned, 1))[:, None]).ravel()
     return out
 
 

@@ -90,6 +90,7 @@ class Model:
                 anc[b, k] = 1.0
                 k = self.parent[k]
         self.ancestors = anc
+        self.subtree_sum = np.ascontiguousarray(anc.T)  # subtree sums: subtree_sum @ x
         dof_anc = anc[self.dof_body][:, self.dof_body] > 0  # [c, d]: d's body is c's body or above it
         self.dof_ancestor = dof_anc
         # [b, c]: body b lies in the subtree of DOF c's body (a wrench on b loads DOF c)
@@ -97,6 +98,9 @@ class Model:
         self.dof_related = dof_anc | dof_anc.T
         self.spatial_inertia = spatial.body_spatial_inertia(self.mass, self.com, self.inertia)
         self.tree_rotation = self.tree[:, :3, :3].copy()
+        # (nb, 16, 9): a quaternion's outer product (16) to the entries of tree_rotation @ R(q)
+        q2r = spatial._Q2R.reshape(16, 3, 3)
+        self.tree_q2r = np.einsum("bij,kjl->bkil", self.tree_rotation, q2r).reshape(nb, 16, 9)
         self._build_levels(depth)
         self._build_doubling()
         self.free_mask = np.zeros((nb, 6, 3))
@@ -226,10 +230,11 @@ class Data:
         self._composite = None
         self.subspace = None  # world motion subspace (nv, 6), kinematics.motion_subspace
 
-    def set_force_transforms(self, xf):
-        """The force transforms (nb, 6, 6) of a new configuration: the world inertias follow from
-        them when first asked for (a configuration that only needs frames skips them)."""
-        self._force = xf
+    def set_force_transforms(self, parts):
+        """The rotations and levers (nb, 19) of a new configuration (kinematics.update_frames):
+        the force transforms and world inertias follow from them when first asked for (a
+        configuration that only needs frames skips them)."""
+        self._force = parts
         self._inertia = None
         self._composite = None
 
@@ -237,7 +242,7 @@ class Data:
     def inertia(self):
         """World spatial inertia (nb, 6, 6) of each body about the origin."""
         if self._inertia is None:
-            xf = self._force
+            xf = self._force[:, self.model.force_gather].reshape(self.model.nb, 6, 6)
             self._inertia = xf @ self.model.spatial_inertia @ np.swapaxes(xf, 1, 2)
         return self._inertia
 

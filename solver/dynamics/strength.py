@@ -59,8 +59,9 @@ class StrengthModel:
         angle = np.maximum(0.3, np.cos(0.6 * np.minimum(np.maximum(np.asarray(angles, float), -np.pi), np.pi)))
         w = np.asarray(velocities, float) / self.max_velocity
         top = self.scale * self.peak * angle
-        hill = _hill(np.stack((-w, w)))  # both directions in one pass
-        return -top * hill[0], top * hill[1]
+        n = w.shape[0] if w.ndim else 0
+        hill = _hill(np.concatenate((-w, w)) if n else np.array([-w, w]))  # both directions in one pass
+        return (-top * hill[:n], top * hill[n:]) if n else (-top * hill[0], top * hill[1])
 
     def select(self, joints, axes):
         """The strength of single DOFs (bone, local axis), e.g. a model's actuated DOFs."""

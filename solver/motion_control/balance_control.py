@@ -38,7 +38,7 @@ def support_polygon(state):
     (every sole point within _HULL_REUSE of where the hull was built; planted feet do not move)
     the polygon is those points at their current positions, without a new hull."""
     soles = state.sole_world()
-    pts = [soles[s][:, :2] for s in np.flatnonzero(state.feet)]
+    pts = [soles[s][:, :2] for s in state.sides()]
     if not pts:
         return np.zeros((0, 2))
     pts = np.concatenate(pts)
@@ -68,7 +68,10 @@ MIN_SUPPORT = 0.2
 
 
 def _weight(model):
-    return float(model.mass.sum() * np.linalg.norm(model.gravity))
+    cached = model.__dict__.get("_weight")  # (mass, gravity, weight): once per model
+    if cached is None or cached[0] is not model.mass or cached[1] is not model.gravity:
+        cached = model._weight = (model.mass, model.gravity, float(model.mass.sum() * np.linalg.norm(model.gravity)))
+    return cached[2]
 
 
 def zmp_of(wrench, ground_height=0.0):

@@ -25,7 +25,7 @@ import numpy as np
 from ..dynamics import spatial
 from ..dynamics.ground_contact import default_contacts
 from ..dynamics.inertia_matrix import inertia_block
-from ..dynamics.inverse_dynamics import rnea
+from ..dynamics.inverse_dynamics import subtree_wrenches
 from ..dynamics.kinematics import motion_subspace, point_positions, segment_jacobian, update_frames
 
 SIDES = ("L", "R")
@@ -135,6 +135,13 @@ class ControlState:
             self._cache[key] = make()
         return self._cache[key]
 
+    def sides(self):
+        """Indices (array) of the feet in contact (np.flatnonzero(feet), once per state)."""
+        out = self._cache.get("sides")
+        if out is None:
+            out = self._cache["sides"] = np.flatnonzero(self.feet)
+        return out
+
     @property
     def limits(self):
         """(tau_min, tau_max) (nv,) of every DOF (eq. 2.2); the base is unbounded."""
@@ -184,23 +191,17 @@ def required_torques(state, a):
     needs (6,) (world, about the origin: torque, force). The ground wrench is shared between the
     feet in contact, so tau[:6] is ~0 when a foot is down."""
     m, d = state.model, state.data
-    tau, total = rnea(m, d, state.q, state.v, a, f_ext=state.f_ext, return_wrenches=True)
+    a = np.asarray(a, float)
+    total = subtree_wrenches(m, d, state.q, state.v, a, f_ext=state.f_ext)  # rnea's inward pass
+    below = total[m.dof_body]
     ground = _ground_wrenches(state, total[0])
     if ground is not None:
         # -J' f of the foot wrenches: each DOF against the wrenches on its body's subtree
         bodies, wrenches = ground
-        below = m.dof_subtree[bodies].T @ wrenches
-        tau = tau - np.einsum("ki,ki->k", motion_subspace(m, d, state.q), below)
+        below = below - m.dof_subtree[bodies].T @ wrenches
+    # rnea's tau: each DOF's motion subspace against the wrench its body's subtree needs
+    tau = np.add.reduce(motion_subspace(m, d, state.q) * below, 1) + m.armature_v * a
     return tau, total[0]
-
-
-def _wrench_forces(model, data, q, wrenches):
-    """-J' f of world wrenches (nb, 6) without a second inverse-dynamics pass (same as
-    inertia_matrix.external_forces): each DOF's motion subspace column against the sum of the
-    wrenches on its body's subtree (the frames of the rnea pass are reused)."""
-    sub = motion_subspace(model, data, q)
-    below = model.ancestors.T @ wrenches
-    return -np.einsum("ki,ki->k", sub, below[model.dof_body])
 
 
 def ground_reaction(state, wrench):
@@ -221,7 +222,7 @@ def _ground_wrenches(state, wrench):
         return None
     h = float(state.ground_height)
     px, py = (h * f0 - n1) / f2, (n0 + h * f1) / f2
-    sides = np.flatnonzero(state.feet)
+    sides = state.sides()
     centres = state.cached("sole_centres", lambda: _sole_centres(state, sides, h))
     c = centres.tolist()
     w = [1.0] if len(sides) == 1 else _split(c, px, py)
@@ -248,7 +249,7 @@ def _sole_centres(state, sides, height):
     soles = state.sole_world()
     out = np.full((len(sides), 3), float(height))
     for i, s in enumerate(sides):
-        out[i, :2] = soles[s][:, :2].mean(axis=0)
+        out[i, :2] = soles[s][:, :2].sum(axis=0) / len(soles[s])  # the mean, without its dispatch
     return out
 
 

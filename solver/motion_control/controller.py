@@ -245,6 +245,7 @@ class _Loop:
         self.tracking = TrackingController(m, sk, tr, min_horizon=st.min_horizon, max_horizon=st.max_horizon)
         self.dt_frame = self.tracking.dt
         self.impulses = [self._impulse(i) for i in st.impulses]
+        self._criteria = {}
         self.allow_tau, self.allow_zmp = self._input_allowance() if st.input_allowance else (None, None)
         self.roll_weights, self.roll = self._rolling_anchor()
         self._grid_targets = [self._input_feet(self.body, f * self.dt_frame) for f in range(tr.frame_count)]
@@ -342,9 +343,13 @@ class _Loop:
     def _allowance(self, t):
         if self.allow_tau is None:
             return None, self.st.criteria
-        fi = min(int(np.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
-        zmp = self.allow_zmp[fi]
-        crit = self.st.criteria if zmp <= self.st.criteria.zmp_tolerance else replace(self.st.criteria, zmp_tolerance=zmp)
+        fi = min(int(math.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+        zmp = float(self.allow_zmp[fi])
+        if zmp <= self.st.criteria.zmp_tolerance:
+            return self.allow_tau[fi], self.st.criteria
+        crit = self._criteria.get(zmp)  # one Settings per tolerance (dataclasses.replace is slow)
+        if crit is None:
+            crit = self._criteria[zmp] = replace(self.st.criteria, zmp_tolerance=zmp)
         return self.allow_tau[fi], crit
 
     def _impulse(self, imp):
@@ -394,7 +399,8 @@ class _Loop:
                 res = dynamic_control(cs, a_track)
                 if res.falling is not None:
                     a_track, res = self._slower_return(body, cs, t, a_raw, a_track, res, feet, targets)
-                a = a_track + _bounded(res.delta, st.max_dynamic_acceleration)
+                # no action: the change is exactly zero (DynamicResult.acted)
+                a = a_track + _bounded(res.delta, st.max_dynamic_acceleration) if res.acted else a_track
                 fall = res.falling
                 if record:
                     self._record_result(f, cs, res, feet)
@@ -437,7 +443,7 @@ class _Loop:
                     q = self._project_position(body, q, feet, targets)
         except (np.linalg.LinAlgError, FloatingPointError) as exc:
             raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}: {exc}") from None
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        if not (np.isfinite(q).all() and np.isfinite(v).all()):
             raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}")
         self.q, self.v = q, v
 
@@ -463,12 +469,16 @@ class _Loop:
 
     def _record_result(self, f, cs, res, feet):
         m = cs.model
-        self.stress[f] = stress_by_bone(m, res.stress_after)
+        # stress_by_bone into the frame's (zero) row
+        self.stress[f, m.dof_joint[6:], m.dof_slot[6:]] = res.stress_after[6:]
         self.polygon[f] = res.polygon
         if res.zmp is not None:
             self.zmp[f] = res.zmp
             self.mmp[f] = res.mmp
-            self.err[f] = self._excess(float(np.linalg.norm(res.zmp - res.mmp)), cs)
+            dx, dy = float(res.zmp[0] - res.mmp[0]), float(res.zmp[1] - res.mmp[1])
+            self.err[f] = self._excess(math.sqrt(dx * dx + dy * dy), cs)
+        if not res.acted:  # no mask is set: the row stays zero
+            return
         code = np.zeros(m.nv, np.int8)
         code[res.log.passive] = PASSIVE
         code[res.log.comfort] = np.maximum(code[res.log.comfort], COMFORT)
@@ -605,7 +615,8 @@ class _Loop:
         if self._drift[s] is not None:
             drift = drift + self.roll_weights[s][f] @ (pts[:, :2] - self._drift[s][1][:, :2])
         self._drift[s] = (drift, pts)
-        return float(np.linalg.norm(drift))
+        dx, dy = drift.tolist()
+        return math.sqrt(dx * dx + dy * dy)
 
     def _foot_targets(self, body, feet, t):
         key = (t, tuple(feet), tuple(None if p is None else p[0].tobytes() for p in self.planted), id(body))
@@ -621,7 +632,9 @@ class _Loop:
         f = self.tracking._on_frame(t)
         feet_in = self._grid_targets[f] if f is not None else self._input_feet(body, t)
         out = [None, None]
-        for s in np.flatnonzero(feet):
+        for s in (0, 1):
+            if not feet[s]:
+                continue
             rot, pos, vel, acc = feet_in[s]
             out[s] = (rot, pos + (self.planted[s][0] - self.planted[s][1]), vel, acc)
         return out
@@ -672,16 +685,18 @@ class _Loop:
             # head velocity v_O + omega x x = v_O - x x omega; rows @ K = x x row
             cross = np.array([[0.0, x2, -x1], [-x2, 0.0, x0], [x1, -x0, 0.0]])
             jac[3:] = (cols[:, 3:] - cols[:, :3] @ cross).T
-            out[s] = (jac, frame, dofs, jac[:, body.leg_pos[s]], body.leg_cols[s])
+            out[s] = (jac, frame, dofs, self._dls_map(jac[:, body.leg_pos[s]]), body.leg_cols[s])
         self._legs_cache = (key, out)
         return out
 
-    def _dls(self, jac, r):
-        """Damped least squares J' (J J' + lambda^2)^-1 r of a (6, k) leg Jacobian."""
-        _, x, info = dposv(jac @ jac.T + self._eye6, r)
+    def _dls_map(self, jac):
+        """The damped least squares map J' (J J' + lambda^2)^-1 (k, 6) of a (6, k) leg Jacobian:
+        one factorisation per leg and configuration, shared by the acceleration and velocity
+        projections."""
+        _, inv, info = dposv(jac @ jac.T + self._eye6, _EYE6)
         if info != 0:
             raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
-        return jac.T @ x
+        return jac.T @ inv
 
     def _constrain_legs(self, body, q, v, a, feet, targets):
         """Leg accelerations that give each planted foot its target acceleration: the tracking
@@ -706,7 +721,7 @@ class _Loop:
             w, vo, al, ao = vel[s][:3], vel[s][3:], acc[s][:3], acc[s][3:]
             xd = _add(vo, _cross3(w, x))
             now = al + _add(_add(ao, _cross3(al, x)), _cross3(w, xd))
-            a[cols] += self._dls(jac, targets[s][3] - np.array(now))
+            a[cols] += jac @ (targets[s][3] - np.array(now))
         return a
 
     def _project_velocity(self, body, q, v, feet, targets):
@@ -714,7 +729,7 @@ class _Loop:
         for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
             if leg is not None:  # the foot's velocity is linear in v: J v
                 full, _, dofs, jac, cols = leg
-                v[cols] += self._dls(jac, targets[s][2] - full @ v[dofs])
+                v[cols] += jac @ (targets[s][2] - full @ v[dofs])
         return v
 
     def _project_position(self, body, q, feet, targets):
@@ -727,7 +742,7 @@ class _Loop:
                 _, frame, _, jac, cols = leg
                 rot, pos = targets[s][0], targets[s][1]
                 error = np.concatenate((_rotation_log(rot @ frame[:3, :3].T), pos - frame[:3, 3]))
-                step[cols] = self._dls(jac, error)
+                step[cols] = jac @ error
             q = kinematics.integrate(m, q, step)
         return q
 
@@ -843,6 +858,7 @@ class _Loop:
 
 
 _ZERO = np.zeros(1)
+_EYE6 = np.eye(6)
 
 
 def _cross3(a, b):

@@ -201,19 +201,19 @@ class TrackingController:
         target = self._frame_data[0]
         q = np.asarray(q, float)
         cur = q[self._cur_index]  # (nv, 4)
-        rel = (self._frame_right[f] @ cur[:, :, None])[:, :, 0]  # conj(cur) * target
+        rel = np.add.reduce(self._frame_right[f] * cur[:, None, :], 2)  # conj(cur) * target
         # quat_log's arithmetic on the one component each DOF needs
         w = rel[:, 0]
         neg = w < 0.0
         aw = np.abs(w)
         xyz = rel[:, 1:]
-        s = np.sqrt(np.einsum("ki,ki->k", xyz, xyz))
+        s = np.sqrt(np.add.reduce(xyz * xyz, 1))
         small = s < 1e-8
-        scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / np.where(small, 1.0, s))
+        scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
         comp = xyz[self._k, np.minimum(self._axis, 2)]
         error = scale * np.where(neg, -comp, comp)
         # target angular velocity carried into the current axes: R(rel)[axis, axis] * vel_t
-        vel = np.einsum("ki,ki->k", rel * rel, self._diag_sign) * target[2][f]
+        vel = np.add.reduce(rel * rel * self._diag_sign, 1) * target[2][f]
         if self._has_lin:
             lin = self._lin
             r0 = spatial.quat_to_matrix(q[3:7])
