@@ -208,15 +208,47 @@ def integrate(model, q, v, dt=1.0):
 
 def difference(model, q0, q1):
     """The velocity-space step v with integrate(q0, v) ~ q1 (exact for the rotations on free
-    axes; the root translation is expressed in the root axes of q0)."""
+    axes; the root translation is expressed in the root axes of q0). q0, q1 may be stacks
+    (..., nq) (one batched pass over a motion's frames)."""
     q0 = np.asarray(q0, float)
     q1 = np.asarray(q1, float)
-    a = q0[3:].reshape(model.nb, 4)
-    b = q1[3:].reshape(model.nb, 4)
-    full = np.zeros((model.nb, 6))
-    full[:, :3] = spatial.quat_log(spatial.quat_multiply(spatial.quat_conjugate(a), b))
-    full[0, 3:] = spatial.quat_to_matrix(a[0]).T @ (q1[:3] - q0[:3])
-    return full.ravel()[model.flat_dof].copy()
+    lead = q0.shape[:-1]
+    a = q0[..., 3:].reshape(lead + (model.nb, 4))
+    b = q1[..., 3:].reshape(lead + (model.nb, 4))
+    full = np.zeros(lead + (model.nb, 6))
+    full[..., :3] = spatial.quat_log(spatial.quat_multiply(spatial.quat_conjugate(a), b))
+    if lead:
+        rot = spatial.quat_to_matrix(a[..., 0, :])
+        full[..., 0, 3:] = (np.swapaxes(rot, -1, -2) @ (q1[..., :3] - q0[..., :3])[..., None])[..., 0]
+    else:
+        full[0, 3:] = spatial.quat_to_matrix(a[0]).T @ (q1[:3] - q0[:3])
+    return full.reshape(lead + (-1,))[..., model.flat_dof].copy()
+
+
+def batch_frames(model, qs):
+    """World frames (F, nb, 4, 4) of a stack of configurations (F, nq): update_frames' products
+    for every frame of a motion at once."""
+    qs = np.asarray(qs, float)
+    nf, nb = len(qs), model.nb
+    local = np.empty((nf, nb + 1, 4, 4))
+    local[:, :nb] = model.tree
+    local[:, nb] = np.eye(4)
+    quats = qs[:, 3:].reshape(nf, nb, 4)
+    outer = (quats[..., :, None] * quats[..., None, :]).reshape(nf, nb, 1, 16)
+    local[:, :nb, :3, :3] = (outer @ model.tree_q2r).reshape(nf, nb, 3, 3)
+    local[:, 0, :3, 3] = qs[:, :3]
+    frames = local
+    for a in model.doubling:
+        frames = frames[:, a] @ frames
+    return frames[:, :nb]
+
+
+def batch_point_positions(model, qs, joints, points):
+    """World positions (F, k, 3) of points on bones (point_positions) for a stack of
+    configurations (F, nq)."""
+    bodies, local = points_on_bodies(model, joints, points)
+    f = batch_frames(model, qs)[:, bodies]
+    return np.einsum("fkij,kj->fki", f[..., :3, :3], local) + f[..., :3, 3]
 
 
 def configuration_rate(model, q, v):

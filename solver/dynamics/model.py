@@ -185,6 +185,17 @@ class Model:
         q[3:] = body_q.ravel()
         return q
 
+    def configurations(self, root_positions, root_orientations, joint_rotations):
+        """configuration() for every frame (F, nq) of a motion at once."""
+        joint_rotations = np.asarray(joint_rotations, dtype=float)
+        nf = len(joint_rotations)
+        q = np.empty((nf, self.nq))
+        q[:, :3] = root_positions
+        body_q = rotations.normalize(joint_rotations[:, self.body_joint])
+        body_q[:, 0] = rotations.normalize(root_orientations)
+        q[:, 3:] = body_q.reshape(nf, -1)
+        return q
+
     def joint_rotations(self, q, reference=None):
         """Every bone's local rotation (J, 4): body joints from q, the others from `reference`
         (J, 4) or the model's reference pose. The root's entry is its world orientation."""

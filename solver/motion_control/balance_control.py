@@ -83,7 +83,18 @@ def zmp_of(wrench, ground_height=0.0):
 
 def moment_about(wrench, point):
     """The wrench's torque (3,) about a world point."""
-    return wrench[:3] - np.cross(point, wrench[3:])
+    (p0, p1, p2), (f0, f1, f2) = _xyz(point), _xyz(wrench[3:])  # np.cross on floats
+    return wrench[:3] - np.array([p1 * f2 - p2 * f1, p2 * f0 - p0 * f2, p0 * f1 - p1 * f0])
+
+
+def _xyz(x):
+    return tuple(float(c) for c in x[:3])
+
+
+def _skew(p):
+    """skew(p) (3, 3): skew(p) @ x = p x x (np.cross(p, columns) as one product)."""
+    p0, p1, p2 = _xyz(p)
+    return np.array([[0.0, -p2, p1], [p2, 0.0, -p0], [-p1, p0, 0.0]])
 
 
 def balance_error(state, wrench, polygon=None):
@@ -140,13 +151,13 @@ def zmp_jacobian(state, wrench, dofs=None):
     """Eq. 2.13-2.14 (Z up): d ZMP / d theta'' (2, k) at the ZMP of `wrench`."""
     rate = augmented_body(state, dofs).momentum_rate
     p = np.r_[zmp_of(wrench, state.ground_height), state.ground_height]
-    dn = rate[:3] - np.cross(p, rate[3:].T).T  # moment change about the ZMP
+    dn = rate[:3] - _skew(p) @ rate[3:]  # moment change about the ZMP
     return np.vstack((-dn[1], dn[0])) / wrench[5]
 
 
 def moment_rows(rate, point):
     """(2, k): horizontal moment about a ground point of the momentum rate columns (6, k)."""
-    return (rate[:3] - np.cross(point, rate[3:].T).T)[:2]
+    return rate[:2] - _skew(point)[:2] @ rate[3:]
 
 
 # ---- balance control of one part --------------------------------------------------------------

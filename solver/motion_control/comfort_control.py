@@ -189,9 +189,21 @@ def _dof_strength(model, strength):
 def required_torques(state, a):
     """Joint torques (nv,) for the acceleration a (eq. 2.8), and the ground wrench the motion
     needs (6,) (world, about the origin: torque, force). The ground wrench is shared between the
-    feet in contact, so tau[:6] is ~0 when a foot is down."""
-    m, d = state.model, state.data
+    feet in contact, so tau[:6] is ~0 when a foot is down.
+
+    Remembered per state and acceleration (the control sequence asks for the same one several
+    times); the arrays are read-only."""
     a = np.asarray(a, float)
+    memo = state._cache.setdefault("torques", {})
+    key = a.tobytes()
+    out = memo.get(key)
+    if out is None:
+        out = memo[key] = _required_torques(state, a)
+    return out
+
+
+def _required_torques(state, a):
+    m, d = state.model, state.data
     total = subtree_wrenches(m, d, state.q, state.v, a, f_ext=state.f_ext)  # rnea's inward pass
     below = total[m.dof_body]
     ground = _ground_wrenches(state, total[0])
@@ -201,7 +213,10 @@ def required_torques(state, a):
         below = below - m.dof_subtree[bodies].T @ wrenches
     # rnea's tau: each DOF's motion subspace against the wrench its body's subtree needs
     tau = np.add.reduce(motion_subspace(m, d, state.q) * below, 1) + m.armature_v * a
-    return tau, total[0]
+    wrench = total[0]
+    tau.flags.writeable = False
+    wrench.flags.writeable = False
+    return tau, wrench
 
 
 def ground_reaction(state, wrench):

@@ -555,8 +555,8 @@ class _Loop:
         support; held while no foot supports). The capture's own root travel is otherwise kept."""
         m = self.body.model
         pos, ori = tr.root_pose(self.sk)
-        qs = [m.configuration(pos[f], ori[f], tr.rotations[f]) for f in range(tr.frame_count)]
-        steps = [_contact_steps(m, self.desired_data, qs, self.body.parts, s)[1] for s in range(2)]
+        qs = m.configurations(pos, ori, tr.rotations)
+        steps = [step for _, step in _contact_steps(m, qs, self.body.parts)]
         out = np.zeros((tr.frame_count, 2))
         for f in range(1, tr.frame_count):
             sides = [s for s in range(2) if self.support_in[f, s] and self.support_in[f - 1, s]]
@@ -573,8 +573,7 @@ class _Loop:
         body = self._body(tuple(False for _ in self.st.loads))
         nf = self.tr.frame_count
         weights, roll = [], np.zeros((nf, 2, 3))
-        for s in range(2):
-            w, step = _contact_steps(body.model, self.desired_data, self.tracking.q_d, body.parts, s)
+        for s, (w, step) in enumerate(_contact_steps(body.model, self.tracking.q_d, body.parts)):
             weights.append(w)
             for f in range(1, nf):
                 if self.support_in[f, s] and self.support_in[f - 1, s]:
@@ -892,16 +891,19 @@ _BALANCED = 1e-3  # m: a ZMP tolerance above this is an input allowance (_Loop._
 _CAPTURE_TOLERANCE = 0.2
 
 
-def _contact_steps(model, data, qs, parts, side):
-    """Per frame the weights (F, k) of a foot's sole points in contact (the lowest ones, by
-    exp(-height above the lowest / _CONTACT_SCALE)) and the horizontal step (F - 1, 2) of that
-    contact point from each frame to the next."""
-    pts = np.array([kinematics.point_positions(model, data, q, parts.sole_joints[side], parts.sole_points[side])
-                    for q in qs])
-    z = pts[..., 2]
-    w = np.exp(-(z - z.min(axis=1, keepdims=True)) / _CONTACT_SCALE)
-    w /= w.sum(axis=1, keepdims=True)
-    return w, np.einsum("fk,fkc->fc", w[1:], pts[1:, :, :2] - pts[:-1, :, :2])
+def _contact_steps(model, qs, parts):
+    """Per side: per frame the weights (F, k) of a foot's sole points in contact (the lowest ones,
+    by exp(-height above the lowest / _CONTACT_SCALE)) and the horizontal step (F - 1, 2) of that
+    contact point from each frame to the next (one batched forward kinematics of every frame)."""
+    both = kinematics.batch_point_positions(model, qs, np.concatenate(parts.sole_joints),
+                                            np.concatenate(parts.sole_points))
+    out = []
+    for pts in np.split(both, [len(parts.sole_joints[0])], axis=1):
+        z = pts[..., 2]
+        w = np.exp(-(z - z.min(axis=1, keepdims=True)) / _CONTACT_SCALE)
+        w /= w.sum(axis=1, keepdims=True)
+        out.append((w, np.einsum("fk,fkc->fc", w[1:], pts[1:, :, :2] - pts[:-1, :, :2])))
+    return out
 
 
 _SKATE_SMOOTHING = 0.02  # s, standard deviation of _Loop._foot_skate's smoothing

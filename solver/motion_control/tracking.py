@@ -56,7 +56,7 @@ def step_consistent(model, q_d, v_c, a_c, dt):
     if nf < 3:
         return q_d, v_c, a_c, dt
     v = np.empty_like(v_c)
-    v[1:] = [kinematics.difference(model, q_d[f], q_d[f + 1]) / dt for f in range(nf - 1)]
+    v[1:] = kinematics.difference(model, q_d[:-1], q_d[1:]) / dt  # every frame at once
     v[0] = v[1]
     a = np.empty_like(a_c)
     a[:-1] = (v[1:] - v[:-1]) / dt
