@@ -245,6 +245,12 @@ class _Loop:
         self.tracking = TrackingController(m, sk, tr, min_horizon=st.min_horizon, max_horizon=st.max_horizon)
         self.dt_frame = self.tracking.dt
         self.impulses = [self._impulse(i) for i in st.impulses]
+        # the input's sole points at every frame (unloaded body: one batched forward kinematics,
+        # shared by the input allowance and the rolling anchor)
+        rest = self._body(tuple(False for _ in self.st.loads))
+        k = rest.sole_split
+        pts = _sole_points(rest.model, self.tracking.q_d, rest.parts)
+        self._input_soles = (pts[:, :k], pts[:, k:])
         self._criteria = {}
         self.allow_tau, self.allow_zmp = self._input_allowance() if st.input_allowance else (None, None)
         self.roll_weights, self.roll = self._rolling_anchor()
@@ -312,6 +318,7 @@ class _Loop:
         for f in range(nf):
             cs = control_state(m, body.data, tk.q_d[f], tk.v_d[f], self.support_in[f], body.strength,
                                ground_height=self.ground, parts=body.parts, settings=self.st.criteria)
+            cs._cache["soles"] = [self._input_soles[0][f], self._input_soles[1][f]]
             tau, wrench = required_torques(cs, tk.a_d[f])
             tau_x[f] = np.abs(joint_stress(tau, cs.limits))
             zmp_x[f] = balance_error(cs, wrench)[2]
@@ -573,7 +580,7 @@ class _Loop:
         body = self._body(tuple(False for _ in self.st.loads))
         nf = self.tr.frame_count
         weights, roll = [], np.zeros((nf, 2, 3))
-        for s, (w, step) in enumerate(_contact_steps(body.model, self.tracking.q_d, body.parts)):
+        for s, (w, step) in enumerate(_contact_steps(body.model, self.tracking.q_d, body.parts, self._input_soles)):
             weights.append(w)
             for f in range(1, nf):
                 if self.support_in[f, s] and self.support_in[f - 1, s]:
@@ -891,14 +898,20 @@ _BALANCED = 1e-3  # m: a ZMP tolerance above this is an input allowance (_Loop._
 _CAPTURE_TOLERANCE = 0.2
 
 
-def _contact_steps(model, qs, parts):
+def _sole_points(model, qs, parts):
+    """Both feet's sole points (F, k, 3) at every configuration (one batched forward kinematics)."""
+    return kinematics.batch_point_positions(model, qs, np.concatenate(parts.sole_joints),
+                                            np.concatenate(parts.sole_points))
+
+
+def _contact_steps(model, qs, parts, soles=None):
     """Per side: per frame the weights (F, k) of a foot's sole points in contact (the lowest ones,
     by exp(-height above the lowest / _CONTACT_SCALE)) and the horizontal step (F - 1, 2) of that
-    contact point from each frame to the next (one batched forward kinematics of every frame)."""
-    both = kinematics.batch_point_positions(model, qs, np.concatenate(parts.sole_joints),
-                                            np.concatenate(parts.sole_points))
+    contact point from each frame to the next; `soles`: the sides' sole points if known."""
+    if soles is None:
+        soles = np.split(_sole_points(model, qs, parts), [len(parts.sole_joints[0])], axis=1)
     out = []
-    for pts in np.split(both, [len(parts.sole_joints[0])], axis=1):
+    for pts in soles:
         z = pts[..., 2]
         w = np.exp(-(z - z.min(axis=1, keepdims=True)) / _CONTACT_SCALE)
         w /= w.sum(axis=1, keepdims=True)
