@@ -36,7 +36,14 @@ def support_polygon(state):
 
     The hull's vertex indices are remembered per body parts and contact set: while the feet stay
     (every sole point within _HULL_REUSE of where the hull was built; planted feet do not move)
-    the polygon is those points at their current positions, without a new hull."""
+    the polygon is those points at their current positions, without a new hull. Once per state."""
+    polygon = state._cache.get("polygon")
+    if polygon is None:
+        polygon = state._cache["polygon"] = _support_polygon(state)
+    return polygon
+
+
+def _support_polygon(state):
     soles = state.sole_world()
     pts = [soles[s][:, :2] for s in state.sides()]
     if not pts:
@@ -99,8 +106,20 @@ def _skew(p):
 
 def balance_error(state, wrench, polygon=None):
     """(zmp, mmp, distance) of a ground wrench on the current support polygon; mmp is None when
-    nothing supports the body (no foot down) or nothing pushes on the ground."""
+    nothing supports the body (no foot down) or nothing pushes on the ground. Remembered per
+    state, wrench and polygon (the control sequence asks for the same one several times)."""
     polygon = support_polygon(state) if polygon is None else polygon
+    memo = state._cache.setdefault("balance", {})
+    key = (np.asarray(wrench, float).tobytes(), id(polygon))
+    known = memo.get(key)
+    if known is not None and known[0] is polygon:
+        return known[1]
+    out = _balance_error(state, wrench, polygon)
+    memo[key] = (polygon, out)
+    return out
+
+
+def _balance_error(state, wrench, polygon):
     if len(polygon) == 0 or wrench[5] <= MIN_SUPPORT * state.cached("weight", lambda: _weight(state.model)):
         return None, None, 0.0
     p = zmp_of(wrench, state.ground_height)
@@ -150,7 +169,7 @@ def _subtree_mc(model, data, q):
 def zmp_jacobian(state, wrench, dofs=None):
     """Eq. 2.13-2.14 (Z up): d ZMP / d theta'' (2, k) at the ZMP of `wrench`."""
     rate = augmented_body(state, dofs).momentum_rate
-    p = np.r_[zmp_of(wrench, state.ground_height), state.ground_height]
+    p = np.append(zmp_of(wrench, state.ground_height), state.ground_height)
     dn = rate[:3] - _skew(p) @ rate[3:]  # moment change about the ZMP
     return np.vstack((-dn[1], dn[0])) / wrench[5]
 
@@ -174,7 +193,7 @@ def balance_candidates(state, part, a):
     # the ZMP goes back just inside the tolerance: the MMP itself for a tolerance of ~0, the input's
     # own excursion for captured motion (controller's baseline)
     target = mmp + (p - mmp) * (0.9 * state.settings.zmp_tolerance / dist)
-    point = np.r_[target, state.ground_height]
+    point = np.append(target, state.ground_height)
     rate = state.cached("momentum_rate", lambda: _momentum_rate(state.model, state.data, state.q))
     matrix = part_matrix(state, part)
     if part == "legs":  # horizontally: unloading the feet is no way to balance
@@ -206,7 +225,7 @@ class Falling:
 def falling(state, wrench, mmp):
     """Rotation about the MMP: the ground's missing horizontal moment about it, over the whole
     body's moment of inertia about that axis; None when the moment vanishes."""
-    point = np.r_[mmp, state.ground_height]
+    point = np.append(mmp, state.ground_height)
     torque = moment_about(wrench, point)
     torque[2] = 0.0
     size = np.linalg.norm(torque)

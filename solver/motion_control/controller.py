@@ -213,6 +213,12 @@ class _Body:
         self.leg_cols = [np.asarray(c, int) for c in p.legs]
         self.leg_dofs = [np.flatnonzero(model.ancestors[b][model.dof_body] != 0) for b in self.foot_body]
         self.leg_pos = [np.searchsorted(dofs, cols) for dofs, cols in zip(self.leg_dofs, self.leg_cols)]
+        # both legs batched when they have the same layout (a symmetric rig): Jacobian columns
+        # (2, k) and the leg's own columns among them (l,)
+        same = (len(self.leg_dofs[0]) == len(self.leg_dofs[1])
+                and np.array_equal(self.leg_pos[0], self.leg_pos[1]))
+        self.legs_batched = (np.array(self.foot_body), np.array(self.foot_offset), np.array(self.leg_dofs),
+                             self.leg_pos[0]) if same else None
         # both feet's sole points on their bodies (_Loop._soles)
         self.sole_bodies, self.sole_local = kinematics.points_on_bodies(
             model, np.concatenate(p.sole_joints), np.concatenate(p.sole_points))
@@ -679,6 +685,10 @@ class _Loop:
         kinematics.update_frames(m, d, q)
         sub = kinematics.motion_subspace(m, d, q)  # (nv, 6) world (omega, v at origin)
         out = [None, None]
+        if feet[0] and feet[1] and body.legs_batched is not None:
+            out = self._both_legs(body, d, sub)
+            self._legs_cache = (key, out)
+            return out
         for s in (0, 1):
             if not feet[s]:
                 continue
@@ -694,6 +704,28 @@ class _Loop:
             out[s] = (jac, frame, dofs, self._dls_map(jac[:, body.leg_pos[s]]), body.leg_cols[s])
         self._legs_cache = (key, out)
         return out
+
+    def _both_legs(self, body, d, sub):
+        """_leg_jacobians of two planted legs of the same layout, in batched products."""
+        bodies, offsets, dofs, pos = body.legs_batched
+        frames = d.frames[bodies] @ offsets  # (2, 4, 4)
+        (a0, a1, a2), (b0, b1, b2) = frames[:, :3, 3].tolist()
+        cross = np.array([[[0.0, a2, -a1], [-a2, 0.0, a0], [a1, -a0, 0.0]],
+                          [[0.0, b2, -b1], [-b2, 0.0, b0], [b1, -b0, 0.0]]])
+        cols = sub[dofs]  # (2, k, 6)
+        jac = np.empty((2, 6, dofs.shape[1]))
+        jac[:, :3] = np.swapaxes(cols[:, :, :3], 1, 2)
+        jac[:, 3:] = np.swapaxes(cols[:, :, 3:] - cols[:, :, :3] @ cross, 1, 2)
+        leg = jac[:, :, pos]  # (2, 6, l)
+        lt = np.swapaxes(leg, 1, 2)
+        mat = leg @ lt + self._eye6
+        inv = np.empty((2, 6, 6))
+        for i in (0, 1):
+            _, inv[i], info = dposv(mat[i], _EYE6)
+            if info != 0:
+                raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
+        dls = lt @ inv
+        return [(jac[i], frames[i], dofs[i], dls[i], body.leg_cols[i]) for i in (0, 1)]
 
     def _dls_map(self, jac):
         """The damped least squares map J' (J J' + lambda^2)^-1 (k, 6) of a (6, k) leg Jacobian:
