@@ -22,11 +22,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import lapack
 
 from ..dynamics.balance import convex_hull, inside, minimum_moment_point
 from ..dynamics.inertia_matrix import composite_inertias
 from ..dynamics.kinematics import body_com, motion_subspace, update_frames
-from .comfort_control import ControlLog, bounded, control_sequence, part_matrix, required_torques
+from .comfort_control import ControlLog, bounded, control_sequence, part_matrix, pinv, required_torques
 
 
 # ---- support polygon, ZMP, MMP ---------------------------------------------------------------
@@ -201,7 +202,7 @@ def balance_candidates(state, part, a):
     rows = moment_rows(rate @ matrix, point)
     if np.abs(rows).max() < 1e-9:
         return []
-    x = np.linalg.pinv(rows, rcond=state.settings.rcond) @ -moment_about(wrench, point)[:2]
+    x = pinv(rows, rcond=state.settings.rcond) @ -moment_about(wrench, point)[:2]
     return [bounded(state, part, x)]
 
 
@@ -235,7 +236,9 @@ def falling(state, wrench, mmp):
     alpha = -torque / float(axis @ whole_body_inertia(state, point) @ axis)
     m, d = state.model, state.data
     base = np.zeros(m.nv)
-    base[:6] = np.linalg.solve(d.motion[0], np.r_[alpha, np.cross(point, alpha)])
+    # np.linalg.solve's LU (gesv) without numpy.linalg's per-call overhead
+    _, _, x, info = lapack.dgesv(d.motion[0], np.concatenate((alpha, np.cross(point, alpha))))
+    base[:6] = x if info == 0 else np.linalg.solve(d.motion[0], np.concatenate((alpha, np.cross(point, alpha))))
     return Falling(np.asarray(mmp, float), _supporting_foot(state, mmp), alpha, base)
 
 

@@ -21,6 +21,7 @@ bpy-free: numpy only.
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import lapack
 
 from ..dynamics import spatial
 from ..dynamics.ground_contact import default_contacts
@@ -285,6 +286,22 @@ def joint_stress(tau, limits, tolerance=0.0):
     return s
 
 
+def pinv(a, rcond):
+    """np.linalg.pinv(a, rcond) of a small matrix through LAPACK's gesdd directly (the same
+    factorisation without numpy.linalg's per-call overhead): singular values at or below rcond
+    times the largest are cut."""
+    a = np.asarray(a, float)
+    if a.size == 0:
+        return np.zeros(a.shape[::-1])
+    u, s, vt, info = lapack.dgesdd(a, full_matrices=0)
+    if info != 0:
+        return np.linalg.pinv(a, rcond=rcond)
+    large = s > rcond * s.max()
+    inv = np.zeros_like(s)
+    inv[large] = 1.0 / s[large]
+    return vt.T @ (inv[:, None] * u.T)
+
+
 # ---- eq. 2.17-2.18: passive control -------------------------------------------------------------
 
 def passive_control(state, a, dofs=None):
@@ -334,7 +351,7 @@ def pelvis_jacobian(state):
     for side in np.flatnonzero(state.feet):
         cols = state.parts.legs[side]
         jf = segment_jacobian(m, d, q, state.parts.feet[side])
-        jp[cols] = -np.linalg.pinv(jf[:, cols], rcond=state.settings.leg_rcond) @ (jf[:, 3:6] @ jp[3:6])
+        jp[cols] = -pinv(jf[:, cols], rcond=state.settings.leg_rcond) @ (jf[:, 3:6] @ jp[3:6])
     return jp
 
 
@@ -374,7 +391,7 @@ def comfort_candidates(state, part, a):
     reach = np.abs(sens).max(axis=1) > 1e-9
     if not reach.any():
         return []
-    return [bounded(state, part, np.linalg.pinv(sens[reach], rcond=state.settings.rcond)
+    return [bounded(state, part, pinv(sens[reach], rcond=state.settings.rcond)
                     @ -stress[rows[reach]])]
 
 
