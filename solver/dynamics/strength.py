@@ -59,9 +59,13 @@ class StrengthModel:
         angle = np.maximum(0.3, np.cos(0.6 * np.minimum(np.maximum(np.asarray(angles, float), -np.pi), np.pi)))
         w = np.asarray(velocities, float) / self.max_velocity
         top = self.scale * self.peak * angle
-        n = w.shape[0] if w.ndim else 0
-        hill = _hill(np.concatenate((-w, w)) if n else np.array([-w, w]))  # both directions in one pass
-        return (-top * hill[:n], top * hill[n:]) if n else (-top * hill[0], top * hill[1])
+        # _hill(w) and _hill(-w) from |w| in one pass: one direction shortens, the other lengthens
+        # (the same arithmetic as _hill; both are 1 at rest)
+        p = np.abs(w)
+        short = np.maximum((1.0 - p) / (1.0 + p / 0.25), 0.1)
+        long = 1.3 - 0.3 / (1.0 + 10.0 * p)
+        pos = w >= 0.0
+        return -top * np.where(pos, long, short), top * np.where(pos, short, long)
 
     def select(self, joints, axes):
         """The strength of single DOFs (bone, local axis), e.g. a model's actuated DOFs."""

@@ -150,7 +150,11 @@ class ControlState:
 
     def _limits(self):
         m = self.model
-        low, high = np.full(m.nv, -np.inf), np.full(m.nv, np.inf)
+        low, high = _UNBOUNDED_LOW.get(m.nv), _UNBOUNDED_HIGH.get(m.nv)
+        if low is None:
+            low = _UNBOUNDED_LOW[m.nv] = np.full(m.nv, -np.inf)
+            high = _UNBOUNDED_HIGH[m.nv] = np.full(m.nv, np.inf)
+        low, high = low.copy(), high.copy()
         # joint_angles(m, q)[dof_joint, dof_slot]: the rotation vector of each DOF's own body
         angles = spatial.quat_log(self.q[7:].reshape(-1, 4))[m.dof_body[6:] - 1, m.dof_slot[6:]]
         low[6:], high[6:] = _dof_strength(m, self.strength).limits(angles, self.v[6:])
@@ -171,6 +175,9 @@ class ControlState:
     def pelvis_jacobian(self):
         """J_p (nv, 3): the joint accelerations a unit world acceleration of the pelvis gives."""
         return self.cached("jp", lambda: pelvis_jacobian(self))
+
+
+_UNBOUNDED_LOW, _UNBOUNDED_HIGH = {}, {}  # per nv: the limits' templates (the base is unbounded)
 
 
 def _dof_strength(model, strength):

@@ -390,11 +390,12 @@ class _Loop:
         f_ext = self._forces(body, t)
         feet = np.zeros(2, bool)
         if not self.fallen:
-            fi = min(int(np.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+            fi = min(int(math.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
             feet = self.support_in[fi].copy()
             self._update_plants(body, feet, t)
+        planted = bool(feet[0] or feet[1])  # (a Python bool: feet.any() costs a numpy call)
         a_raw = self.tracking.acceleration(t, q, v)
-        targets = self._foot_targets(body, feet, t) if feet.any() else None
+        targets = self._foot_targets(body, feet, t) if planted else None
         a_track = self._constrain_legs(body, q, v, a_raw, feet, targets) if targets is not None else a_raw
         fall = None
         if self.fallen:
@@ -445,14 +446,15 @@ class _Loop:
                     self.fallen = True
                     self.planted = [None, None]
                     feet[:] = False
-                if feet.any():  # the feet's velocity over the step: the targets' at its end
+                planted = planted and fall is None  # a fall releases the feet (above)
+                if planted:  # the feet's velocity over the step: the targets' at its end
                     targets = self._foot_targets(body, feet, t + dt)
                     v = self._project_velocity(body, q, v, feet, targets)
                 # semi-implicit Euler: with tracking.step_consistent's input velocities it steps
                 # onto the input's frames and velocities exactly (test_motion_control_tracking)
                 q = kinematics.integrate(m, q, v * dt)
                 self.t = t + dt
-                if feet.any():
+                if planted:
                     q = self._project_position(body, q, feet, targets)
         except (np.linalg.LinAlgError, FloatingPointError) as exc:
             raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}: {exc}") from None
