@@ -11,7 +11,6 @@ import numpy as np
 from . import spatial
 from .kinematics import update_frames
 
-_ZERO = np.zeros(1)
 
 
 def external_wrenches(model, data, q, joints, points, forces, torques=None):
@@ -52,18 +51,30 @@ def rnea(model, data, q, v, a, f_ext=None, gravity=None, return_wrenches=False):
     return (tau, total) if return_wrenches else tau
 
 
+def velocity_terms(model, data, q, v):
+    """Per body: world spatial velocity (nb, 6), its cross-product operator crm (nb, 6, 6) and
+    the velocity-product acceleration v x (joint velocity) (nb, 6); cached in `data` for the same
+    q and v (several inverse-dynamics passes of one control step share them)."""
+    update_frames(model, data, q)
+    v = np.asarray(v, float)
+    key = v.tobytes()
+    cached = data.velocity
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    u = (data.motion @ model.expand(v)[:, :, None])[:, :, 0]
+    vel = model.ancestors @ u
+    cr = spatial.crm(vel)
+    out = (vel, cr, (cr @ u[:, :, None])[:, :, 0])
+    data.velocity = (key, out)
+    return out
+
+
 def subtree_wrenches(model, data, q, v, a, f_ext=None, gravity=None):
     """RNEA's wrenches (nb, 6): what each body receives from its parent (world, about the origin);
     tau is each DOF's motion subspace against its body's entry (plus the armature's a)."""
-    update_frames(model, data, q)
+    vel, cr, product = velocity_terms(model, data, q, v)
     g = model.gravity if gravity is None else np.asarray(gravity, dtype=float)
-    xm = data.motion
-    # joint contributions of v and a in one product: (nb, 6, 2)
-    both = xm @ np.concatenate((v, _ZERO, a, _ZERO))[model.pair_index]
-    u = both[:, :, 0]
-    vel = model.ancestors @ u
-    cr = spatial.crm(vel)
-    own = both[:, :, 1] + (cr @ u[:, :, None])[:, :, 0]
+    own = (data.motion @ model.expand(np.asarray(a, float))[:, :, None])[:, :, 0] + product
     av = np.empty((model.nb, 6, 2))
     av[:, :, 0] = model.ancestors @ own
     av[:, 3:, 0] -= g  # gravity as an upward acceleration of the whole body (Luh et al.)

@@ -38,6 +38,7 @@ def update_frames(model: Model, data: Data, q):
     data.motion = parts[:, model.motion_gather].reshape(nb, 6, 6)
     data.set_force_transforms(parts)  # gathered when the world inertias are first asked for
     data.subspace = None
+    data.velocity = None
     data.q = q.copy()
     data.key = key
     return data

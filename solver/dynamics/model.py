@@ -240,6 +240,7 @@ class Data:
         self._inertia = np.zeros((nb, 6, 6))
         self._composite = None
         self.subspace = None  # world motion subspace (nv, 6), kinematics.motion_subspace
+        self.velocity = None  # (v bytes, velocity terms), inverse_dynamics.velocity_terms
 
     def set_force_transforms(self, parts):
         """The rotations and levers (nb, 19) of a new configuration (kinematics.update_frames):

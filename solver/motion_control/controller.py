@@ -59,11 +59,12 @@ from scipy.ndimage import gaussian_filter1d
 from ..body_roles import SIDES
 from ..progress import run_to_end
 from ..trajectories import Trajectories
-from ..dynamics import kinematics, spatial
+from ..dynamics import kinematics
 from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories, motion_floor,
                                     weld_static_helpers)
 from ..dynamics.ground_contact import default_contacts, point_jacobians
 from ..dynamics.inertia_matrix import bias_forces, crba
+from ..dynamics.inverse_dynamics import velocity_terms
 from ..dynamics.model import build_model
 from ..dynamics.strength import default_strength, limit_torques
 from ..dynamics.balance import inside, minimum_moment_point
@@ -745,10 +746,8 @@ class _Loop:
         m, d = body.model, body.data
         legs = self._leg_jacobians(body, q, feet)  # the frames at q
         # kinematics.body_accelerations, the accelerations only at the feet's bodies
-        both = d.motion @ np.concatenate((v, _ZERO, a, _ZERO))[m.pair_index]  # (nb, 6, 2)
-        u = both[:, :, 0]
-        vel = m.ancestors @ u
-        own = both[:, :, 1] + (spatial.crm(vel) @ u[:, :, None])[:, :, 0]
+        vel, _, product = velocity_terms(m, d, q, v)  # shared with the inverse dynamics
+        own = (d.motion @ m.expand(a)[:, :, None])[:, :, 0] + product
         feet_bodies = body.foot_body
         acc = (m.ancestors[feet_bodies] @ own).tolist()
         vel = vel[feet_bodies].tolist()
@@ -897,7 +896,6 @@ class _Loop:
         return (1 - w) * pos[f0] + w * pos[f1], (1 - w) * vel[f0] + w * vel[f1]
 
 
-_ZERO = np.zeros(1)
 _EYE6 = np.eye(6)
 
 
