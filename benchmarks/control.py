@@ -34,8 +34,9 @@ least-squares maps in batched products, one factorisation per leg and configurat
 torques, support polygon and balance error remembered per control state; LAPACK gesdd/gesv
 instead of numpy.linalg; plain floats for 2- and 3-vectors (ZMP, MMP, hull, foot wrenches); the
 set-up's forward kinematics of every frame in one batched pass (the input's sole points shared by
-the floor, the skate removal, the rolling anchor and the input allowance). What remains per step
-(~250 numpy calls: two forward kinematics, two manifold integrations, one inverse dynamics, the
+the floor, the skate removal, the rolling anchor and the input allowance). Function calls per step
+(Python and C, operators not counted; median): figure 731 -> 386, CMU 1390 -> 629. What remains
+(two forward kinematics, two manifold integrations, one inverse dynamics, the
 tracking error, strength, both legs' projections, the collision pass) keeps the median above the
 issue's 0.5 ms on a loaded machine; the CMU rig also runs dynamic control on a third of its steps.
 """
