@@ -704,7 +704,7 @@ class _Loop:
             # head velocity v_O + omega x x = v_O - x x omega; rows @ K = x x row
             cross = np.array([[0.0, x2, -x1], [-x2, 0.0, x0], [x1, -x0, 0.0]])
             jac[3:] = (cols[:, 3:] - cols[:, :3] @ cross).T
-            out[s] = (jac, frame, dofs, self._dls_map(jac[:, body.leg_pos[s]]), body.leg_cols[s])
+            out[s] = (jac, frame, dofs, jac[:, body.leg_pos[s]], body.leg_cols[s])
         self._legs_cache = (key, out)
         return out
 
@@ -720,24 +720,16 @@ class _Loop:
         jac[:, :3] = np.swapaxes(cols[:, :, :3], 1, 2)
         jac[:, 3:] = np.swapaxes(cols[:, :, 3:] - cols[:, :, :3] @ cross, 1, 2)
         leg = jac[:, :, pos]  # (2, 6, l)
-        lt = np.swapaxes(leg, 1, 2)
-        mat = leg @ lt + self._eye6
-        inv = np.empty((2, 6, 6))
-        for i in (0, 1):
-            _, inv[i], info = dposv(mat[i], _EYE6)
-            if info != 0:
-                raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
-        dls = lt @ inv
-        return [(jac[i], frames[i], dofs[i], dls[i], body.leg_cols[i]) for i in (0, 1)]
+        return [(jac[i], frames[i], dofs[i], leg[i], body.leg_cols[i]) for i in (0, 1)]
 
-    def _dls_map(self, jac):
-        """The damped least squares map J' (J J' + lambda^2)^-1 (k, 6) of a (6, k) leg Jacobian:
-        one factorisation per leg and configuration, shared by the acceleration and velocity
-        projections."""
-        _, inv, info = dposv(jac @ jac.T + self._eye6, _EYE6)
+    def _dls(self, jac, r):
+        """Damped least squares J' (J J' + lambda^2)^-1 r of a (6, k) leg Jacobian (one right-hand
+        side per solve: OpenBLAS wakes its thread pool for a matrix of right-hand sides, whose
+        spinning then costs more CPU than the factorisations it would share)."""
+        _, x, info = dposv(jac @ jac.T + self._eye6, r)
         if info != 0:
             raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
-        return jac.T @ inv
+        return jac.T @ x
 
     def _constrain_legs(self, body, q, v, a, feet, targets):
         """Leg accelerations that give each planted foot its target acceleration: the tracking
@@ -760,7 +752,7 @@ class _Loop:
             w, vo, al, ao = vel[s][:3], vel[s][3:], acc[s][:3], acc[s][3:]
             xd = _add(vo, _cross3(w, x))
             now = al + _add(_add(ao, _cross3(al, x)), _cross3(w, xd))
-            a[cols] += jac @ (targets[s][3] - np.array(now))
+            a[cols] += self._dls(jac, targets[s][3] - np.array(now))
         return a
 
     def _project_velocity(self, body, q, v, feet, targets):
@@ -768,7 +760,7 @@ class _Loop:
         for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
             if leg is not None:  # the foot's velocity is linear in v: J v
                 full, _, dofs, jac, cols = leg
-                v[cols] += jac @ (targets[s][2] - full @ v[dofs])
+                v[cols] += self._dls(jac, targets[s][2] - full @ v[dofs])
         return v
 
     def _project_position(self, body, q, feet, targets):
@@ -781,7 +773,7 @@ class _Loop:
                 _, frame, _, jac, cols = leg
                 rot, pos = targets[s][0], targets[s][1]
                 error = np.concatenate((_rotation_log(rot @ frame[:3, :3].T), pos - frame[:3, 3]))
-                step[cols] = jac @ error
+                step[cols] = self._dls(jac, error)
             q = kinematics.integrate(m, q, step)
         return q
 
@@ -896,7 +888,6 @@ class _Loop:
         return (1 - w) * pos[f0] + w * pos[f1], (1 - w) * vel[f0] + w * vel[f1]
 
 
-_EYE6 = np.eye(6)
 
 
 def _cross3(a, b):
