@@ -14,31 +14,43 @@ acting on about a third of the steps); the real-time factor at 30 Hz (seconds of
 second with one mean step per 1/30 s), and the whole bake's (set-up included, at the clip's own
 frame rate). The thesis: 0.8 ms average, 3.1 ms worst per step (C++, 800 MHz Pentium III).
 
-Measured (2 shared cores, load average 9-13 from other jobs: CPU times are inflated ~2x over a
-quiet machine; previous implementation measured in the same minute, best of 2-3):
+Measured with CPU time, best of 3-4 bakes, the previous implementation (commit 8b3ebab) baked
+alternately in the same process (quiet minute, load average ~1). OpenBLAS's thread pool spins
+after some calls and that spinning is counted as CPU time, for both implementations alike, so the
+table gives single-threaded BLAS (OPENBLAS_NUM_THREADS=1) and the default pool:
 
-                                  before (8b3ebab)   now      issue's aim
-  figure standing, median / worst   1.31 / 2.48 ms   0.59 / 1.26 ms   median < 0.5 ms
-  figure 15 kg, median / worst      1.24 / 2.24 ms   0.62 / 1.35 ms
-  CMU 131_01, median / worst        2.54 / 18.4 ms   1.25 / 5.40 ms   median < 0.5 ms
-  real-time factor at 30 Hz         24 / 25 / 9.5    51 / 47 / 24     > 50
-  whole bake, CPU s (CMU, 200 fr)   1.32 s           0.48 s
+                                   before           now              issue's aim
+  OPENBLAS_NUM_THREADS=1
+  figure standing, median / worst  1.01 / 1.68 ms   0.57 / 1.08 ms   median < 0.5 ms
+  figure 15 kg, median / worst     1.06 / 2.09 ms   0.62 / 1.35 ms
+  CMU 131_01, median / worst       1.94 / 14.1 ms   0.96 / 5.26 ms   median < 0.5 ms
+  real-time factor at 30 Hz        33 / 31 / 12.6   57 / 52 / 28.6   > 50
+  whole bake, CPU s (CMU, 200 fr)  0.96 s           0.42 s
+  default OpenBLAS threads
+  figure standing, median          2.07 ms          1.22 ms
+  CMU 131_01, median / worst       2.05 / 17.2 ms   0.92 / 5.35 ms
+  real-time factor at 30 Hz        15.7 / 11.8      27 / 29.5        (figure / CMU)
 
 How (outputs equal to the previous implementation within 1e-11, every control decision the same:
 tests/solver/test_motion_control_reference.py): the step is bound by the count of numpy calls
 (1-5 us each on this machine, whatever the array size), so the work is fused into fewer calls:
 tracking errors on per-frame precomputed target matrices; cached frames, motion subspace,
 composite inertias, lazy world inertias and velocity terms per configuration; inverse dynamics
-whose subtree wrenches carry the ground reaction directly; both legs' Jacobians and damped
-least-squares maps in batched products, one factorisation per leg and configuration; required
+whose subtree wrenches carry the ground reaction directly; both legs' Jacobians in batched
+products on their own DOFs (one damped least-squares solve per right-hand side: a matrix of
+right-hand sides woke OpenBLAS's thread pool, whose spinning cost more than it saved); required
 torques, support polygon and balance error remembered per control state; LAPACK gesdd/gesv
 instead of numpy.linalg; plain floats for 2- and 3-vectors (ZMP, MMP, hull, foot wrenches); the
 set-up's forward kinematics of every frame in one batched pass (the input's sole points shared by
 the floor, the skate removal, the rolling anchor and the input allowance). Function calls per step
 (Python and C, operators not counted; median): figure 731 -> 386, CMU 1390 -> 629. What remains
-(two forward kinematics, two manifold integrations, one inverse dynamics, the
-tracking error, strength, both legs' projections, the collision pass) keeps the median above the
-issue's 0.5 ms on a loaded machine; the CMU rig also runs dynamic control on a third of its steps.
+(two forward kinematics, two manifold integrations, one inverse dynamics, the tracking error,
+strength, both legs' projections, the collision pass) keeps the median just above the issue's
+0.5 ms for the figure; the CMU rig (23 bodies, 72 DOFs) also runs dynamic control (passive,
+comfort and balance, several inverse-dynamics passes and pseudo-inverses) on a third of its steps
+and stays near 1 ms. Reaching 0.5 ms there needs the required torques as one linear map per
+step (tau = tau0 + T a, built once per state) instead of an inverse-dynamics pass per candidate,
+or compiled code.
 """
 
 import argparse
