@@ -1,6 +1,8 @@
 """Balance: zero moment point, support polygon and minimum moment point (Oshita 2003, sec. 2.3.3
 and eq. 2.11-2.12), on a horizontal ground at z = ground_height (Blender's Z up)."""
 
+import math
+
 import numpy as np
 
 from . import spatial
@@ -36,9 +38,10 @@ def zmp(model, data, q, v, a, f_ext=None, ground_height=0.0, gravity=None, exact
 def convex_hull(points):
     """Counter-clockwise convex hull (m, 2) of points (k, 2) by Andrew's monotone chain; collinear
     and duplicate points are dropped, so degenerate sets give 1 or 2 vertices."""
-    pts = np.unique(np.asarray(points, dtype=float).reshape(-1, 2), axis=0)
+    # plain floats: the few sole points of a step cost far less than numpy calls per point
+    pts = sorted(set(map(tuple, np.asarray(points, dtype=float).reshape(-1, 2).tolist())))
     if len(pts) <= 2:
-        return pts
+        return np.array(pts, dtype=float).reshape(-1, 2)
 
     def half(seq):
         out = []
@@ -69,9 +72,14 @@ def inside(polygon, point):
     polygon = np.asarray(polygon, float)
     if len(polygon) < 3:
         return len(polygon) > 0 and np.allclose(minimum_moment_point(polygon, point), point)
-    edge = np.roll(polygon, -1, axis=0) - polygon
-    rel = np.asarray(point, float) - polygon
-    return bool(np.all(edge[:, 0] * rel[:, 1] - edge[:, 1] * rel[:, 0] >= -1e-10))
+    px, py = (float(c) for c in np.asarray(point, float).ravel()[:2])
+    pts = polygon.tolist()
+    x0, y0 = pts[-1]
+    for x1, y1 in pts:  # edge from the previous vertex: cross(edge, point - previous) >= 0
+        if (x1 - x0) * (py - y0) - (y1 - y0) * (px - x0) < -1e-10:
+            return False
+        x0, y0 = x1, y1
+    return True
 
 
 def minimum_moment_point(polygon, zmp_point):
@@ -83,10 +91,18 @@ def minimum_moment_point(polygon, zmp_point):
         raise ValueError("no support polygon: nothing touches the ground")
     if len(polygon) >= 3 and inside(polygon, p):
         return p.copy()
-    a = polygon
-    b = np.roll(polygon, -1, axis=0) if len(polygon) > 1 else polygon
-    ab = b - a
-    length2 = np.einsum("ij,ij->i", ab, ab)
-    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
-    closest = a + t[:, None] * ab
-    return closest[np.argmin(np.linalg.norm(closest - p, axis=1))]
+    # the closest point of each edge (vertex to next vertex), on plain floats
+    px, py = (float(c) for c in p.ravel()[:2])
+    pts = polygon.tolist()
+    best, out = None, None
+    for i, (ax, ay) in enumerate(pts):
+        bx, by = pts[(i + 1) % len(pts)] if len(pts) > 1 else (ax, ay)
+        ex, ey = bx - ax, by - ay
+        length2 = ex * ex + ey * ey
+        t = ((px - ax) * ex + (py - ay) * ey) / (length2 if length2 > 0 else 1.0)
+        t = min(max(t, 0.0), 1.0)
+        cx, cy = ax + t * ex, ay + t * ey
+        dist = math.sqrt((cx - px) * (cx - px) + (cy - py) * (cy - py))
+        if best is None or dist < best:
+            best, out = dist, (cx, cy)
+    return np.array(out)

@@ -108,16 +108,14 @@ def desired_motion(model, skeleton, trajectories):
     differences on the configuration manifold (one-sided at the ends)."""
     tr = trajectories
     pos, ori = tr.root_pose(skeleton)
-    qs = np.array([model.configuration(pos[f], ori[f], tr.rotations[f]) for f in range(tr.frame_count)])
+    qs = model.configurations(pos, ori, tr.rotations)
     dt = 1.0 / tr.fps if tr.frame_count < 2 else float(np.mean(np.diff(tr.times)))
     nf = len(qs)
     fwd = np.zeros((nf, model.nv))
     bwd = np.zeros((nf, model.nv))
-    for f in range(nf):
-        if f + 1 < nf:
-            fwd[f] = kinematics.difference(model, qs[f], qs[f + 1])
-        if f > 0:
-            bwd[f] = kinematics.difference(model, qs[f], qs[f - 1])
+    if nf > 1:  # every frame at once
+        fwd[:-1] = kinematics.difference(model, qs[:-1], qs[1:])
+        bwd[1:] = kinematics.difference(model, qs[1:], qs[:-1])
     v = (fwd - bwd) / (2.0 * dt)
     a = (fwd + bwd) / dt ** 2
     if nf > 1:
@@ -314,11 +312,10 @@ def motion_floor(skeleton, trajectories, contacts=None):
     """Height of the lowest point any contact sphere reaches in the motion: where its floor is.
     Capture floors are rarely at exactly zero; a ground above the feet makes them chatter."""
     model = build_model(skeleton, reference_basis=trajectories.basis()[0])
-    data = model.create_data()
     contacts = contacts if contacts is not None else default_contacts(model)
     qs = desired_motion(model, skeleton, trajectories)[0]
-    return float(min((kinematics.point_positions(model, data, q, contacts.joints, contacts.points)[:, 2]
-                      - contacts.radii).min() for q in qs))
+    heights = kinematics.batch_point_positions(model, qs, contacts.joints, contacts.points)[..., 2]
+    return float((heights - contacts.radii).min())
 
 
 def weld_static_helpers(skeleton, trajectories, tolerance=1e-3):

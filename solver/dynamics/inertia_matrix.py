@@ -14,8 +14,7 @@ from .kinematics import motion_subspace, update_frames
 def composite_inertias(model, data, q):
     """World spatial inertia (nb, 6, 6) of each body's subtree, about the origin."""
     update_frames(model, data, q)
-    nb = model.nb
-    return (model.ancestors.T @ data.inertia.reshape(nb, 36)).reshape(nb, 6, 6)
+    return data.composite  # cached with the frames (read-only)
 
 
 def crba(model, data, q):

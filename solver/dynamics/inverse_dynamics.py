@@ -12,6 +12,7 @@ from . import spatial
 from .kinematics import update_frames
 
 
+
 def external_wrenches(model, data, q, joints, points, forces, torques=None):
     """World wrenches (nb, 6) about the origin of forces (k, 3, world) applied at points (k, 3)
     given in the frames of bones `joints` (k,), plus optional pure torques (k, 3, world)."""
@@ -44,22 +45,42 @@ def rnea(model, data, q, v, a, f_ext=None, gravity=None, return_wrenches=False):
     world wrenches on bodies (see external_wrenches). With return_wrenches, also the world
     wrench (nb, 6) each body receives from its parent (index 0: from the outside world).
     """
+    total = subtree_wrenches(model, data, q, v, a, f_ext, gravity)
+    tau6 = (np.swapaxes(data.motion, 1, 2) @ total[:, :, None])[:, :, 0]
+    tau = tau6.ravel()[model.flat_dof] + model.armature_v * a
+    return (tau, total) if return_wrenches else tau
+
+
+def velocity_terms(model, data, q, v):
+    """Per body: world spatial velocity (nb, 6), its cross-product operator crm (nb, 6, 6) and
+    the velocity-product acceleration v x (joint velocity) (nb, 6); cached in `data` for the same
+    q and v (several inverse-dynamics passes of one control step share them)."""
     update_frames(model, data, q)
-    g = model.gravity if gravity is None else np.asarray(gravity, dtype=float)
-    xm = data.motion
-    # joint contributions of v and a in one product: (nb, 6, 2)
-    both = xm @ np.concatenate((v, [0.0], a, [0.0]))[model.pair_index]
-    u = both[:, :, 0]
+    v = np.asarray(v, float)
+    key = v.tobytes()
+    cached = data.velocity
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    u = (data.motion @ model.expand(v)[:, :, None])[:, :, 0]
     vel = model.ancestors @ u
     cr = spatial.crm(vel)
-    own = both[:, :, 1] + (cr @ u[:, :, None])[:, :, 0]
-    acc = model.ancestors @ own
-    acc[:, 3:] -= g  # gravity as an upward acceleration of the whole body (Luh et al.)
-    ia = data.inertia @ np.stack((acc, vel), axis=2)  # I a and the momentum I v
+    out = (vel, cr, (cr @ u[:, :, None])[:, :, 0])
+    data.velocity = (key, out)
+    return out
+
+
+def subtree_wrenches(model, data, q, v, a, f_ext=None, gravity=None):
+    """RNEA's wrenches (nb, 6): what each body receives from its parent (world, about the origin);
+    tau is each DOF's motion subspace against its body's entry (plus the armature's a)."""
+    vel, cr, product = velocity_terms(model, data, q, v)
+    g = model.gravity if gravity is None else np.asarray(gravity, dtype=float)
+    own = (data.motion @ model.expand(np.asarray(a, float))[:, :, None])[:, :, 0] + product
+    av = np.empty((model.nb, 6, 2))
+    av[:, :, 0] = model.ancestors @ own
+    av[:, 3:, 0] -= g  # gravity as an upward acceleration of the whole body (Luh et al.)
+    av[:, :, 1] = vel
+    ia = data.inertia @ av  # I a and the momentum I v
     f = ia[:, :, 0] - (np.swapaxes(cr, 1, 2) @ ia[:, :, 1:])[:, :, 0]
     if f_ext is not None:
         f = f - f_ext
-    total = model.ancestors.T @ f  # each body's subtree
-    tau6 = (np.swapaxes(xm, 1, 2) @ total[:, :, None])[:, :, 0]
-    tau = tau6.ravel()[model.flat_dof] + model.armature_v * a
-    return (tau, total) if return_wrenches else tau
+    return model.subtree_sum @ f  # each body's subtree

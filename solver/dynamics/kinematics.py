@@ -14,25 +14,33 @@ from .model import Data, Model
 
 def update_frames(model: Model, data: Data, q):
     """World frames (nb, 4, 4), spatial transforms and world inertias for configuration q; cached
-    in `data` until q changes."""
+    in `data` until q changes (the world inertias are computed on first use, Data.inertia)."""
     q = np.asarray(q, dtype=float)
-    if data.q is not None and np.array_equal(q, data.q):
+    key = q.tobytes()  # a bytes comparison is ~10x cheaper than np.array_equal on a small q
+    if data.q is not None and key == data.key:
         return data
     nb = model.nb
     local = data.local
-    local[:nb, :3, :3] = model.tree_rotation @ spatial.quat_to_matrix(q[3:].reshape(nb, 4))
+    quats = q[3:].reshape(nb, 4)
+    outer = (quats[:, :, None] * quats[:, None, :]).reshape(nb, 1, 16)
+    # tree_rotation @ quat_to_matrix(quats) in one product: per body, the quaternion's outer
+    # product to the rotated matrix's entries (Model.tree_q2r)
+    local[:nb, :3, :3] = (outer @ model.tree_q2r).reshape(nb, 3, 3)
     local[0, :3, 3] = q[:3]
     frames = local
     for a in model.doubling:
         frames = frames[a] @ frames
-    data.frames = frames[:nb]
-    rot = data.frames[:, :3, :3]
-    lever = spatial.skew(data.frames[:, :3, 3]) @ rot
-    parts = np.concatenate((rot.reshape(nb, 9), lever.reshape(nb, 9), np.zeros((nb, 1))), axis=1)
+    frames = frames[:nb]
+    data.frames = frames
+    rot = frames[:, :3, :3]
+    lever = (frames[:, :3, 3] @ spatial._SKEW_MAP).reshape(nb, 3, 3) @ rot
+    parts = np.concatenate((rot.reshape(nb, 9), lever.reshape(nb, 9), data.zero_column), axis=1)
     data.motion = parts[:, model.motion_gather].reshape(nb, 6, 6)
-    xf = parts[:, model.force_gather].reshape(nb, 6, 6)
-    data.inertia = xf @ model.spatial_inertia @ np.swapaxes(xf, 1, 2)
+    data.set_force_transforms(parts)  # gathered when the world inertias are first asked for
+    data.subspace = None
+    data.velocity = None
     data.q = q.copy()
+    data.key = key
     return data
 
 
@@ -105,7 +113,10 @@ def point_accelerations(model, data, q, v, a, joints, points):
 def motion_subspace(model, data, q):
     """World motion subspace columns (nv, 6): the spatial velocity each DOF gives its body."""
     update_frames(model, data, q)
-    return np.swapaxes(data.motion, 1, 2).reshape(-1, 6)[model.flat_dof]
+    if data.subspace is None:  # cached with the frames (read-only: shared by every caller)
+        data.subspace = np.swapaxes(data.motion, 1, 2).reshape(-1, 6)[model.flat_dof]
+        data.subspace.flags.writeable = False
+    return data.subspace
 
 
 def body_jacobian(model, data, q, body):
@@ -179,26 +190,66 @@ def integrate(model, q, v, dt=1.0):
     """q (+) v dt on the configuration manifold: the root moves along its own axes, every
     quaternion turns by exp of its local angular velocity (locked axes stay at zero)."""
     q = np.asarray(q, dtype=float)
-    full = model.expand(np.asarray(v, float) * dt)
+    v = np.asarray(v, float)
+    full = model.expand(v if dt == 1.0 else v * dt)
     out = np.empty_like(q)
     quats = q[3:].reshape(model.nb, 4)
-    out[:3] = q[:3] + spatial.quat_to_matrix(quats[0]) @ full[0, 3:]
-    turned = spatial.quat_multiply(quats, spatial.quat_exp(full[:, :3]))
-    out[3:] = (turned / np.sqrt(np.einsum("bi,bi->b", turned, turned))[:, None]).ravel()
+    # the root's translation along its own axes (quat_to_matrix(quats[0]) @ step, on floats)
+    w, x, y, z = quats[0].tolist()
+    s0, s1, s2 = full[0, 3:].tolist()
+    out[:3] = q[:3] + np.array((
+        (w * w + x * x - y * y - z * z) * s0 + 2.0 * (x * y - w * z) * s1 + 2.0 * (x * z + w * y) * s2,
+        2.0 * (x * y + w * z) * s0 + (w * w - x * x + y * y - z * z) * s1 + 2.0 * (y * z - w * x) * s2,
+        2.0 * (x * z - w * y) * s0 + 2.0 * (y * z + w * x) * s1 + (w * w - x * x - y * y + z * z) * s2))
+    # quats * exp(w / 2): the left-multiplication matrices of quats times the turns
+    turned = np.add.reduce((quats @ spatial._QMUL).reshape(model.nb, 4, 4) * spatial.quat_exp(full[:, :3])[:, None, :], 2)
+    out[3:] = (turned / np.sqrt(np.add.reduce(turned * turned, 1))[:, None]).ravel()
     return out
 
 
 def difference(model, q0, q1):
     """The velocity-space step v with integrate(q0, v) ~ q1 (exact for the rotations on free
-    axes; the root translation is expressed in the root axes of q0)."""
+    axes; the root translation is expressed in the root axes of q0). q0, q1 may be stacks
+    (..., nq) (one batched pass over a motion's frames)."""
     q0 = np.asarray(q0, float)
     q1 = np.asarray(q1, float)
-    a = q0[3:].reshape(model.nb, 4)
-    b = q1[3:].reshape(model.nb, 4)
-    full = np.zeros((model.nb, 6))
-    full[:, :3] = spatial.quat_log(spatial.quat_multiply(spatial.quat_conjugate(a), b))
-    full[0, 3:] = spatial.quat_to_matrix(a[0]).T @ (q1[:3] - q0[:3])
-    return full.ravel()[model.flat_dof].copy()
+    lead = q0.shape[:-1]
+    a = q0[..., 3:].reshape(lead + (model.nb, 4))
+    b = q1[..., 3:].reshape(lead + (model.nb, 4))
+    full = np.zeros(lead + (model.nb, 6))
+    full[..., :3] = spatial.quat_log(spatial.quat_multiply(spatial.quat_conjugate(a), b))
+    if lead:
+        rot = spatial.quat_to_matrix(a[..., 0, :])
+        full[..., 0, 3:] = (np.swapaxes(rot, -1, -2) @ (q1[..., :3] - q0[..., :3])[..., None])[..., 0]
+    else:
+        full[0, 3:] = spatial.quat_to_matrix(a[0]).T @ (q1[:3] - q0[:3])
+    return full.reshape(lead + (-1,))[..., model.flat_dof].copy()
+
+
+def batch_frames(model, qs):
+    """World frames (F, nb, 4, 4) of a stack of configurations (F, nq): update_frames' products
+    for every frame of a motion at once."""
+    qs = np.asarray(qs, float)
+    nf, nb = len(qs), model.nb
+    local = np.empty((nf, nb + 1, 4, 4))
+    local[:, :nb] = model.tree
+    local[:, nb] = np.eye(4)
+    quats = qs[:, 3:].reshape(nf, nb, 4)
+    outer = (quats[..., :, None] * quats[..., None, :]).reshape(nf, nb, 1, 16)
+    local[:, :nb, :3, :3] = (outer @ model.tree_q2r).reshape(nf, nb, 3, 3)
+    local[:, 0, :3, 3] = qs[:, :3]
+    frames = local
+    for a in model.doubling:
+        frames = frames[:, a] @ frames
+    return frames[:, :nb]
+
+
+def batch_point_positions(model, qs, joints, points):
+    """World positions (F, k, 3) of points on bones (point_positions) for a stack of
+    configurations (F, nq)."""
+    bodies, local = points_on_bodies(model, joints, points)
+    f = batch_frames(model, qs)[:, bodies]
+    return np.einsum("fkij,kj->fki", f[..., :3, :3], local) + f[..., :3, 3]
 
 
 def configuration_rate(model, q, v):

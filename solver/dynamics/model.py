@@ -90,11 +90,17 @@ class Model:
                 anc[b, k] = 1.0
                 k = self.parent[k]
         self.ancestors = anc
+        self.subtree_sum = np.ascontiguousarray(anc.T)  # subtree sums: subtree_sum @ x
         dof_anc = anc[self.dof_body][:, self.dof_body] > 0  # [c, d]: d's body is c's body or above it
         self.dof_ancestor = dof_anc
+        # [b, c]: body b lies in the subtree of DOF c's body (a wrench on b loads DOF c)
+        self.dof_subtree = anc[:, self.dof_body].copy()
         self.dof_related = dof_anc | dof_anc.T
         self.spatial_inertia = spatial.body_spatial_inertia(self.mass, self.com, self.inertia)
         self.tree_rotation = self.tree[:, :3, :3].copy()
+        # (nb, 16, 9): a quaternion's outer product (16) to the entries of tree_rotation @ R(q)
+        q2r = spatial._Q2R.reshape(16, 3, 3)
+        self.tree_q2r = np.einsum("bij,kjl->bkil", self.tree_rotation, q2r).reshape(nb, 16, 9)
         self._build_levels(depth)
         self._build_doubling()
         self.free_mask = np.zeros((nb, 6, 3))
@@ -179,6 +185,17 @@ class Model:
         q[3:] = body_q.ravel()
         return q
 
+    def configurations(self, root_positions, root_orientations, joint_rotations):
+        """configuration() for every frame (F, nq) of a motion at once."""
+        joint_rotations = np.asarray(joint_rotations, dtype=float)
+        nf = len(joint_rotations)
+        q = np.empty((nf, self.nq))
+        q[:, :3] = root_positions
+        body_q = rotations.normalize(joint_rotations[:, self.body_joint])
+        body_q[:, 0] = rotations.normalize(root_orientations)
+        q[:, 3:] = body_q.reshape(nf, -1)
+        return q
+
     def joint_rotations(self, q, reference=None):
         """Every bone's local rotation (J, 4): body joints from q, the others from `reference`
         (J, 4) or the model's reference pose. The root's entry is its world orientation."""
@@ -210,13 +227,50 @@ class Data:
 
     def __init__(self, model: Model):
         nb = model.nb
+        self.model = model
         self.q = None
+        self.key = None  # q's bytes (kinematics.update_frames)
         self.local = np.zeros((nb + 1, 4, 4))
         self.local[:nb] = model.tree
         self.local[nb] = np.eye(4)
         self.frames = np.zeros((nb, 4, 4))
         self.motion = np.zeros((nb, 6, 6))  # Xm: body (omega, v) at its origin -> world at origin
-        self.inertia = np.zeros((nb, 6, 6))  # world spatial inertia of each body about the origin
+        self.zero_column = np.zeros((nb, 1))
+        self._force = None
+        self._inertia = np.zeros((nb, 6, 6))
+        self._composite = None
+        self.subspace = None  # world motion subspace (nv, 6), kinematics.motion_subspace
+        self.velocity = None  # (v bytes, velocity terms), inverse_dynamics.velocity_terms
+
+    def set_force_transforms(self, parts):
+        """The rotations and levers (nb, 19) of a new configuration (kinematics.update_frames):
+        the force transforms and world inertias follow from them when first asked for (a
+        configuration that only needs frames skips them)."""
+        self._force = parts
+        self._inertia = None
+        self._composite = None
+
+    @property
+    def inertia(self):
+        """World spatial inertia (nb, 6, 6) of each body about the origin."""
+        if self._inertia is None:
+            xf = self._force[:, self.model.force_gather].reshape(self.model.nb, 6, 6)
+            self._inertia = xf @ self.model.spatial_inertia @ np.swapaxes(xf, 1, 2)
+        return self._inertia
+
+    @inertia.setter
+    def inertia(self, value):
+        self._inertia = value
+        self._composite = None
+
+    @property
+    def composite(self):
+        """World spatial inertia (nb, 6, 6) of each body's subtree (inertia_matrix.composite_inertias)."""
+        if self._composite is None:
+            nb = self.model.nb
+            self._composite = (self.model.ancestors.T @ self.inertia.reshape(nb, 36)).reshape(nb, 6, 6)
+            self._composite.flags.writeable = False
+        return self._composite
 
 
 def _segment_loads(skeleton, loads):

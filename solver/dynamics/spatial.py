@@ -55,13 +55,16 @@ def quat_to_matrix(q):
 def quat_exp(w):
     """Unit quaternions exp(w / 2) for rotation vectors w (..., 3): the rotation by |w| about w."""
     w = np.asarray(w, dtype=float)
-    angle = np.sqrt(np.einsum("...i,...i->...", w, w))[..., None]
+    angle = np.sqrt(np.add.reduce(w * w, -1))[..., None]  # (einsum costs ~3x more on small stacks)
     half = 0.5 * angle
-    # sin(x/2)/x, with its Taylor series near zero to stay exact
+    # sin(x/2)/x, with its Taylor series near zero to stay exact (angle + small: no division by
+    # zero in the branch np.where drops)
     small = angle < 1e-6
-    scale = np.where(small, 0.5 - angle * angle / 48.0,
-                     np.sin(half) / np.where(small, 1.0, angle))
-    return np.concatenate((np.cos(half), scale * w), axis=-1)
+    scale = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / (angle + small))
+    out = np.empty(w.shape[:-1] + (4,))
+    out[..., :1] = np.cos(half)
+    out[..., 1:] = scale * w
+    return out
 
 
 def quat_log(q):
@@ -71,7 +74,7 @@ def quat_log(q):
     xyz = q[..., 1:] * np.where(q[..., :1] < 0.0, -1.0, 1.0)
     s = np.sqrt(np.einsum("...i,...i->...", xyz, xyz))[..., None]
     small = s < 1e-8
-    scale = np.where(small, 2.0 / np.maximum(w, 1e-300), 2.0 * np.arctan2(s, w) / np.where(small, 1.0, s))
+    scale = np.where(small, 2.0 / np.maximum(w, 1e-300), 2.0 * np.arctan2(s, w) / (s + small))
     return scale * xyz
 
 

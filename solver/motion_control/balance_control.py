@@ -18,14 +18,16 @@ falls: it turns about the MMP with the torque the ground cannot supply over the 
 of inertia about that axis (sec. 2.3.3).
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import lapack
 
 from ..dynamics.balance import convex_hull, inside, minimum_moment_point
 from ..dynamics.inertia_matrix import composite_inertias
 from ..dynamics.kinematics import body_com, motion_subspace, update_frames
-from .comfort_control import ControlLog, bounded, control_sequence, part_matrix, required_torques
+from .comfort_control import ControlLog, bounded, control_sequence, part_matrix, pinv, required_torques
 
 
 # ---- support polygon, ZMP, MMP ---------------------------------------------------------------
@@ -35,9 +37,16 @@ def support_polygon(state):
 
     The hull's vertex indices are remembered per body parts and contact set: while the feet stay
     (every sole point within _HULL_REUSE of where the hull was built; planted feet do not move)
-    the polygon is those points at their current positions, without a new hull."""
+    the polygon is those points at their current positions, without a new hull. Once per state."""
+    polygon = state._cache.get("polygon")
+    if polygon is None:
+        polygon = state._cache["polygon"] = _support_polygon(state)
+    return polygon
+
+
+def _support_polygon(state):
     soles = state.sole_world()
-    pts = [soles[s][:, :2] for s in np.flatnonzero(state.feet)]
+    pts = [soles[s][:, :2] for s in state.sides()]
     if not pts:
         return np.zeros((0, 2))
     pts = np.concatenate(pts)
@@ -46,7 +55,10 @@ def support_polygon(state):
     if cached is not None and cached[0].shape == pts.shape and np.abs(cached[0] - pts).max() < _HULL_REUSE:
         return pts[cached[1]]
     hull = convex_hull(pts)
-    idx = np.array([int(np.flatnonzero((pts == v).all(axis=1))[0]) for v in hull], int)
+    first = {}
+    for i, p in enumerate(map(tuple, pts.tolist())):
+        first.setdefault(p, i)
+    idx = np.array([first[p] for p in map(tuple, hull.tolist())], int)
     if len(_hull_cache) > 16:
         _hull_cache.clear()
     _hull_cache[key] = (pts, idx)
@@ -64,31 +76,59 @@ MIN_SUPPORT = 0.2
 
 
 def _weight(model):
-    return float(model.mass.sum() * np.linalg.norm(model.gravity))
+    cached = model.__dict__.get("_weight")  # (mass, gravity, weight): once per model
+    if cached is None or cached[0] is not model.mass or cached[1] is not model.gravity:
+        cached = model._weight = (model.mass, model.gravity, float(model.mass.sum() * np.linalg.norm(model.gravity)))
+    return cached[2]
 
 
 def zmp_of(wrench, ground_height=0.0):
     """ZMP (2,) of a ground wrench (world, about the origin: torque, force)."""
-    n, f, h = wrench[:3], wrench[3:], ground_height
-    return np.array([(h * f[0] - n[1]) / f[2], (n[0] + h * f[1]) / f[2]])
+    n0, n1, _, f0, f1, f2 = (float(x) for x in wrench)
+    h = float(ground_height)
+    return np.array([(h * f0 - n1) / f2, (n0 + h * f1) / f2])
 
 
 def moment_about(wrench, point):
     """The wrench's torque (3,) about a world point."""
-    return wrench[:3] - np.cross(point, wrench[3:])
+    (p0, p1, p2), (f0, f1, f2) = _xyz(point), _xyz(wrench[3:])  # np.cross on floats
+    return wrench[:3] - np.array([p1 * f2 - p2 * f1, p2 * f0 - p0 * f2, p0 * f1 - p1 * f0])
+
+
+def _xyz(x):
+    return tuple(float(c) for c in x[:3])
+
+
+def _skew(p):
+    """skew(p) (3, 3): skew(p) @ x = p x x (np.cross(p, columns) as one product)."""
+    p0, p1, p2 = _xyz(p)
+    return np.array([[0.0, -p2, p1], [p2, 0.0, -p0], [-p1, p0, 0.0]])
 
 
 def balance_error(state, wrench, polygon=None):
     """(zmp, mmp, distance) of a ground wrench on the current support polygon; mmp is None when
-    nothing supports the body (no foot down) or nothing pushes on the ground."""
+    nothing supports the body (no foot down) or nothing pushes on the ground. Remembered per
+    state, wrench and polygon (the control sequence asks for the same one several times)."""
     polygon = support_polygon(state) if polygon is None else polygon
+    memo = state._cache.setdefault("balance", {})
+    key = (np.asarray(wrench, float).tobytes(), id(polygon))
+    known = memo.get(key)
+    if known is not None and known[0] is polygon:
+        return known[1]
+    out = _balance_error(state, wrench, polygon)
+    memo[key] = (polygon, out)
+    return out
+
+
+def _balance_error(state, wrench, polygon):
     if len(polygon) == 0 or wrench[5] <= MIN_SUPPORT * state.cached("weight", lambda: _weight(state.model)):
         return None, None, 0.0
     p = zmp_of(wrench, state.ground_height)
     if len(polygon) >= 3 and inside(polygon, p):
         return p, p.copy(), 0.0
     mmp = minimum_moment_point(polygon, p)
-    return p, mmp, float(np.linalg.norm(mmp - p))
+    dx, dy = float(mmp[0] - p[0]), float(mmp[1] - p[1])
+    return p, mmp, math.sqrt(dx * dx + dy * dy)
 
 
 # ---- the augmented body (fig. 2.5, eq. 2.13-2.14) ---------------------------------------------
@@ -130,14 +170,14 @@ def _subtree_mc(model, data, q):
 def zmp_jacobian(state, wrench, dofs=None):
     """Eq. 2.13-2.14 (Z up): d ZMP / d theta'' (2, k) at the ZMP of `wrench`."""
     rate = augmented_body(state, dofs).momentum_rate
-    p = np.r_[zmp_of(wrench, state.ground_height), state.ground_height]
-    dn = rate[:3] - np.cross(p, rate[3:].T).T  # moment change about the ZMP
+    p = np.append(zmp_of(wrench, state.ground_height), state.ground_height)
+    dn = rate[:3] - _skew(p) @ rate[3:]  # moment change about the ZMP
     return np.vstack((-dn[1], dn[0])) / wrench[5]
 
 
 def moment_rows(rate, point):
     """(2, k): horizontal moment about a ground point of the momentum rate columns (6, k)."""
-    return (rate[:3] - np.cross(point, rate[3:].T).T)[:2]
+    return rate[:2] - _skew(point)[:2] @ rate[3:]
 
 
 # ---- balance control of one part --------------------------------------------------------------
@@ -154,7 +194,7 @@ def balance_candidates(state, part, a):
     # the ZMP goes back just inside the tolerance: the MMP itself for a tolerance of ~0, the input's
     # own excursion for captured motion (controller's baseline)
     target = mmp + (p - mmp) * (0.9 * state.settings.zmp_tolerance / dist)
-    point = np.r_[target, state.ground_height]
+    point = np.append(target, state.ground_height)
     rate = state.cached("momentum_rate", lambda: _momentum_rate(state.model, state.data, state.q))
     matrix = part_matrix(state, part)
     if part == "legs":  # horizontally: unloading the feet is no way to balance
@@ -162,7 +202,7 @@ def balance_candidates(state, part, a):
     rows = moment_rows(rate @ matrix, point)
     if np.abs(rows).max() < 1e-9:
         return []
-    x = np.linalg.pinv(rows, rcond=state.settings.rcond) @ -moment_about(wrench, point)[:2]
+    x = pinv(rows, rcond=state.settings.rcond) @ -moment_about(wrench, point)[:2]
     return [bounded(state, part, x)]
 
 
@@ -186,7 +226,7 @@ class Falling:
 def falling(state, wrench, mmp):
     """Rotation about the MMP: the ground's missing horizontal moment about it, over the whole
     body's moment of inertia about that axis; None when the moment vanishes."""
-    point = np.r_[mmp, state.ground_height]
+    point = np.append(mmp, state.ground_height)
     torque = moment_about(wrench, point)
     torque[2] = 0.0
     size = np.linalg.norm(torque)
@@ -196,7 +236,9 @@ def falling(state, wrench, mmp):
     alpha = -torque / float(axis @ whole_body_inertia(state, point) @ axis)
     m, d = state.model, state.data
     base = np.zeros(m.nv)
-    base[:6] = np.linalg.solve(d.motion[0], np.r_[alpha, np.cross(point, alpha)])
+    # np.linalg.solve's LU (gesv) without numpy.linalg's per-call overhead
+    _, _, x, info = lapack.dgesv(d.motion[0], np.concatenate((alpha, np.cross(point, alpha))))
+    base[:6] = x if info == 0 else np.linalg.solve(d.motion[0], np.concatenate((alpha, np.cross(point, alpha))))
     return Falling(np.asarray(mmp, float), _supporting_foot(state, mmp), alpha, base)
 
 

@@ -21,13 +21,13 @@ bpy-free: numpy only.
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import lapack
 
 from ..dynamics import spatial
 from ..dynamics.ground_contact import default_contacts
 from ..dynamics.inertia_matrix import inertia_block
-from ..dynamics.inverse_dynamics import rnea
+from ..dynamics.inverse_dynamics import subtree_wrenches
 from ..dynamics.kinematics import motion_subspace, point_positions, segment_jacobian, update_frames
-from ..dynamics.strength import joint_angles
 
 SIDES = ("L", "R")
 
@@ -136,6 +136,13 @@ class ControlState:
             self._cache[key] = make()
         return self._cache[key]
 
+    def sides(self):
+        """Indices (array) of the feet in contact (np.flatnonzero(feet), once per state)."""
+        out = self._cache.get("sides")
+        if out is None:
+            out = self._cache["sides"] = np.flatnonzero(self.feet)
+        return out
+
     @property
     def limits(self):
         """(tau_min, tau_max) (nv,) of every DOF (eq. 2.2); the base is unbounded."""
@@ -143,9 +150,14 @@ class ControlState:
 
     def _limits(self):
         m = self.model
-        j, s = m.dof_joint[6:], m.dof_slot[6:]
-        low, high = np.full(m.nv, -np.inf), np.full(m.nv, np.inf)
-        low[6:], high[6:] = self.strength.select(j, s).limits(joint_angles(m, self.q)[j, s], self.v[6:])
+        low, high = _UNBOUNDED_LOW.get(m.nv), _UNBOUNDED_HIGH.get(m.nv)
+        if low is None:
+            low = _UNBOUNDED_LOW[m.nv] = np.full(m.nv, -np.inf)
+            high = _UNBOUNDED_HIGH[m.nv] = np.full(m.nv, np.inf)
+        low, high = low.copy(), high.copy()
+        # joint_angles(m, q)[dof_joint, dof_slot]: the rotation vector of each DOF's own body
+        angles = spatial.quat_log(self.q[7:].reshape(-1, 4))[m.dof_body[6:] - 1, m.dof_slot[6:]]
+        low[6:], high[6:] = _dof_strength(m, self.strength).limits(angles, self.v[6:])
         if self.allowance is not None:
             low, high = low - self.allowance, high + self.allowance
         return low, high
@@ -165,70 +177,136 @@ class ControlState:
         return self.cached("jp", lambda: pelvis_jacobian(self))
 
 
+_UNBOUNDED_LOW, _UNBOUNDED_HIGH = {}, {}  # per nv: the limits' templates (the base is unbounded)
+
+
+def _dof_strength(model, strength):
+    """strength.select of the model's actuated DOFs, remembered per model and strength."""
+    cache = model.__dict__.setdefault("_dof_strength", [])
+    for known, selected in cache:
+        if known is strength:
+            return selected
+    selected = strength.select(model.dof_joint[6:], model.dof_slot[6:])
+    cache.append((strength, selected))
+    del cache[:-4]
+    return selected
+
+
 # ---- eq. 2.8-2.9: required torques and stress --------------------------------------------------
 
 def required_torques(state, a):
     """Joint torques (nv,) for the acceleration a (eq. 2.8), and the ground wrench the motion
     needs (6,) (world, about the origin: torque, force). The ground wrench is shared between the
-    feet in contact, so tau[:6] is ~0 when a foot is down."""
+    feet in contact, so tau[:6] is ~0 when a foot is down.
+
+    Remembered per state and acceleration (the control sequence asks for the same one several
+    times); the arrays are read-only."""
+    a = np.asarray(a, float)
+    memo = state._cache.setdefault("torques", {})
+    key = a.tobytes()
+    out = memo.get(key)
+    if out is None:
+        out = memo[key] = _required_torques(state, a)
+    return out
+
+
+def _required_torques(state, a):
     m, d = state.model, state.data
-    tau, total = rnea(m, d, state.q, state.v, a, f_ext=state.f_ext, return_wrenches=True)
-    ground = ground_reaction(state, total[0])
+    total = subtree_wrenches(m, d, state.q, state.v, a, f_ext=state.f_ext)  # rnea's inward pass
+    below = total[m.dof_body]
+    ground = _ground_wrenches(state, total[0])
     if ground is not None:
-        tau = tau + _wrench_forces(m, d, state.q, ground)
-    return tau, total[0]
-
-
-def _wrench_forces(model, data, q, wrenches):
-    """-J' f of world wrenches (nb, 6) without a second inverse-dynamics pass (same as
-    inertia_matrix.external_forces): each DOF's motion subspace column against the sum of the
-    wrenches on its body's subtree (the frames of the rnea pass are reused)."""
-    sub = motion_subspace(model, data, q)
-    below = model.ancestors.T @ wrenches
-    return -np.einsum("ki,ki->k", sub, below[model.dof_body])
+        # -J' f of the foot wrenches: each DOF against the wrenches on its body's subtree
+        bodies, wrenches = ground
+        below = below - m.dof_subtree[bodies].T @ wrenches
+    # rnea's tau: each DOF's motion subspace against the wrench its body's subtree needs
+    tau = np.add.reduce(motion_subspace(m, d, state.q) * below, 1) + m.armature_v * a
+    wrench = total[0]
+    tau.flags.writeable = False
+    wrench.flags.writeable = False
+    return tau, wrench
 
 
 def ground_reaction(state, wrench):
     """World wrenches (nb, 6) on the feet in contact that sum to `wrench`: the force at the ZMP,
     split between the feet by where the ZMP lies between their sole centres."""
-    if not state.feet.any() or wrench[5] <= 1e-9:
+    ground = _ground_wrenches(state, wrench)
+    if ground is None:
         return None
-    h = state.ground_height
-    n, f = wrench[:3], wrench[3:]
-    p = np.array([(h * f[0] - n[1]) / f[2], (n[0] + h * f[1]) / f[2], h])
-    sides = np.flatnonzero(state.feet)
-    centres = state.cached("sole_centres", lambda: _sole_centres(state, sides, h))
-    w = np.ones(1) if len(sides) == 1 else _split(centres[:, :2], p[:2])
-    x = centres + (p - w @ centres)  # application points, weighted mean at the ZMP
-    moment = n - spatial.cross(p, f)  # about the ZMP: vertical only
     out = np.zeros((state.model.nb, 6))
-    bodies = state.model.joint_body[np.asarray(state.parts.feet)[sides]]
-    out[bodies, :3] = spatial.cross(x, w[:, None] * f) + w[:, None] * moment
-    out[bodies, 3:] = w[:, None] * f
+    out[ground[0]] = ground[1]
     return out
+
+
+def _ground_wrenches(state, wrench):
+    """ground_reaction as the foot bodies (k,) and their wrenches (k, 6), on plain floats."""
+    n0, n1, n2, f0, f1, f2 = (float(x) for x in wrench)
+    if not state.feet.any() or f2 <= 1e-9:
+        return None
+    h = float(state.ground_height)
+    px, py = (h * f0 - n1) / f2, (n0 + h * f1) / f2
+    sides = state.sides()
+    centres = state.cached("sole_centres", lambda: _sole_centres(state, sides, h))
+    c = centres.tolist()
+    w = [1.0] if len(sides) == 1 else _split(c, px, py)
+    # application points: the sole centres moved so that their weighted mean is the ZMP
+    mx = sum(wi * ci[0] for wi, ci in zip(w, c))
+    my = sum(wi * ci[1] for wi, ci in zip(w, c))
+    mz = sum(wi * ci[2] for wi, ci in zip(w, c))
+    dx, dy, dz = px - mx, py - my, h - mz
+    # the moment about the ZMP (vertical only): n - p x f
+    m0 = n0 - (py * f2 - h * f1)
+    m1 = n1 - (h * f0 - px * f2)
+    m2 = n2 - (px * f1 - py * f0)
+    rows = []
+    for wi, (cx, cy, cz) in zip(w, c):
+        x0, x1, x2 = cx + dx, cy + dy, cz + dz
+        g0, g1, g2 = wi * f0, wi * f1, wi * f2
+        rows.append((x1 * g2 - x2 * g1 + wi * m0, x2 * g0 - x0 * g2 + wi * m1, x0 * g1 - x1 * g0 + wi * m2,
+                     g0, g1, g2))
+    bodies = state.model.joint_body[np.asarray(state.parts.feet)[sides]]
+    return bodies, np.array(rows)
 
 
 def _sole_centres(state, sides, height):
     soles = state.sole_world()
     out = np.full((len(sides), 3), float(height))
     for i, s in enumerate(sides):
-        out[i, :2] = soles[s][:, :2].mean(axis=0)
+        out[i, :2] = soles[s][:, :2].sum(axis=0) / len(soles[s])  # the mean, without its dispatch
     return out
 
 
-def _split(centres, p):
+def _split(centres, px, py):
     """Weights (2,) of two sole centres whose combination is the projection of p on their line."""
-    d = centres[1] - centres[0]
-    t = np.clip(np.dot(p - centres[0], d) / max(np.dot(d, d), 1e-12), 0.0, 1.0)
-    return np.array([1.0 - t, t])
+    (ax, ay, _), (bx, by, _) = centres[0], centres[1]
+    dx, dy = bx - ax, by - ay
+    t = ((px - ax) * dx + (py - ay) * dy) / max(dx * dx + dy * dy, 1e-12)
+    t = min(max(t, 0.0), 1.0)
+    return [1.0 - t, t]
 
 
 def joint_stress(tau, limits, tolerance=0.0):
     """Eq. 2.9: tau - tau_max above the range, tau - tau_min below it, zero inside (nv,)."""
     low, high = limits
-    s = tau - np.clip(tau, low, high)
+    s = tau - np.minimum(np.maximum(tau, low), high)  # np.clip, without its dispatch cost
     s[np.abs(s) <= tolerance] = 0.0
     return s
+
+
+def pinv(a, rcond):
+    """np.linalg.pinv(a, rcond) of a small matrix through LAPACK's gesdd directly (the same
+    factorisation without numpy.linalg's per-call overhead): singular values at or below rcond
+    times the largest are cut."""
+    a = np.asarray(a, float)
+    if a.size == 0:
+        return np.zeros(a.shape[::-1])
+    u, s, vt, info = lapack.dgesdd(a, full_matrices=0)
+    if info != 0:
+        return np.linalg.pinv(a, rcond=rcond)
+    large = s > rcond * s.max()
+    inv = np.zeros_like(s)
+    inv[large] = 1.0 / s[large]
+    return vt.T @ (inv[:, None] * u.T)
 
 
 # ---- eq. 2.17-2.18: passive control -------------------------------------------------------------
@@ -280,7 +358,7 @@ def pelvis_jacobian(state):
     for side in np.flatnonzero(state.feet):
         cols = state.parts.legs[side]
         jf = segment_jacobian(m, d, q, state.parts.feet[side])
-        jp[cols] = -np.linalg.pinv(jf[:, cols], rcond=state.settings.leg_rcond) @ (jf[:, 3:6] @ jp[3:6])
+        jp[cols] = -pinv(jf[:, cols], rcond=state.settings.leg_rcond) @ (jf[:, 3:6] @ jp[3:6])
     return jp
 
 
@@ -327,7 +405,7 @@ def comfort_candidates(state, part, a):
     reach = np.abs(sens).max(axis=1) > 1e-9
     if not reach.any():
         return []
-    return [bounded(state, part, np.linalg.pinv(sens[reach], rcond=state.settings.rcond)
+    return [bounded(state, part, pinv(sens[reach], rcond=state.settings.rcond)
                     @ -stress[rows[reach]])]
 
 

@@ -52,6 +52,8 @@ balance or falling); stress, ZMP and balance error are still reported.
 
 from dataclasses import dataclass, field, replace
 
+import math
+
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 from scipy.linalg.lapack import dposv
@@ -65,6 +67,7 @@ from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _t
                                     weld_static_helpers)
 from ..dynamics.ground_contact import default_contacts, point_jacobians
 from ..dynamics.inertia_matrix import bias_forces, crba
+from ..dynamics.inverse_dynamics import velocity_terms
 from ..dynamics.model import build_model
 from ..dynamics.strength import default_strength, limit_torques
 from ..dynamics.balance import inside, minimum_moment_point
@@ -215,6 +218,24 @@ class _Body:
         self.parts = body_parts(model, self.contacts)
         self.strength = strength
         self.spheres = self.contacts.on(model)  # bodies (k,), body-frame centres (k, 3)
+        # per side, once per model: the foot's body and frame offset, the DOFs of the foot's
+        # ancestors (its Jacobian's columns), and where the leg's own DOFs lie among them
+        p = self.parts
+        self.foot_body = [int(model.joint_body[f]) for f in p.feet]
+        self.foot_offset = [model.joint_offset[f] for f in p.feet]
+        self.leg_cols = [np.asarray(c, int) for c in p.legs]
+        self.leg_dofs = [np.flatnonzero(model.ancestors[b][model.dof_body] != 0) for b in self.foot_body]
+        self.leg_pos = [np.searchsorted(dofs, cols) for dofs, cols in zip(self.leg_dofs, self.leg_cols)]
+        # both legs batched when they have the same layout (a symmetric rig): Jacobian columns
+        # (2, k) and the leg's own columns among them (l,)
+        same = (len(self.leg_dofs[0]) == len(self.leg_dofs[1])
+                and np.array_equal(self.leg_pos[0], self.leg_pos[1]))
+        self.legs_batched = (np.array(self.foot_body), np.array(self.foot_offset), np.array(self.leg_dofs),
+                             self.leg_pos[0]) if same else None
+        # both feet's sole points on their bodies (_Loop._soles)
+        self.sole_bodies, self.sole_local = kinematics.points_on_bodies(
+            model, np.concatenate(p.sole_joints), np.concatenate(p.sole_points))
+        self.sole_split = len(p.sole_joints[0])
 
 
 class _Loop:
@@ -243,6 +264,13 @@ class _Loop:
         self.tracking = TrackingController(m, sk, tr, min_horizon=st.min_horizon, max_horizon=st.max_horizon)
         self.dt_frame = self.tracking.dt
         self.impulses = [self._impulse(i) for i in st.impulses]
+        # the input's sole points at every frame (unloaded body: one batched forward kinematics,
+        # shared by the input allowance and the rolling anchor)
+        rest = self._body(tuple(False for _ in self.st.loads))
+        k = rest.sole_split
+        pts = _sole_points(rest.model, self.tracking.q_d, rest.parts)
+        self._input_soles = (pts[:, :k], pts[:, k:])
+        self._criteria = {}
         self.allow_tau, self.allow_zmp = self._input_allowance() if st.input_allowance else (None, None)
         self.roll_weights, self.roll = self._rolling_anchor()
         self._grid_targets = [self._input_feet(self.body, f * self.dt_frame) for f in range(tr.frame_count)]
@@ -309,6 +337,7 @@ class _Loop:
         for f in range(nf):
             cs = control_state(m, body.data, tk.q_d[f], tk.v_d[f], self.support_in[f], body.strength,
                                ground_height=self.ground, parts=body.parts, settings=self.st.criteria)
+            cs._cache["soles"] = [self._input_soles[0][f], self._input_soles[1][f]]
             tau, wrench = required_torques(cs, tk.a_d[f])
             tau_x[f] = np.abs(joint_stress(tau, cs.limits))
             zmp_x[f] = balance_error(cs, wrench)[2]
@@ -340,9 +369,13 @@ class _Loop:
     def _allowance(self, t):
         if self.allow_tau is None:
             return None, self.st.criteria
-        fi = min(int(np.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
-        zmp = self.allow_zmp[fi]
-        crit = self.st.criteria if zmp <= self.st.criteria.zmp_tolerance else replace(self.st.criteria, zmp_tolerance=zmp)
+        fi = min(int(math.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+        zmp = float(self.allow_zmp[fi])
+        if zmp <= self.st.criteria.zmp_tolerance:
+            return self.allow_tau[fi], self.st.criteria
+        crit = self._criteria.get(zmp)  # one Settings per tolerance (dataclasses.replace is slow)
+        if crit is None:
+            crit = self._criteria[zmp] = replace(self.st.criteria, zmp_tolerance=zmp)
         return self.allow_tau[fi], crit
 
     def _impulse(self, imp):
@@ -370,11 +403,12 @@ class _Loop:
         f_ext = self._forces(body, t)
         feet = np.zeros(2, bool)
         if not self.fallen:
-            fi = min(int(np.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+            fi = min(int(math.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
             feet = self.support_in[fi].copy()
             self._update_plants(body, feet, t)
+        planted = bool(feet[0] or feet[1])  # (a Python bool: feet.any() costs a numpy call)
         a_raw = self.tracking.acceleration(t, q, v)
-        targets = self._foot_targets(body, feet, t) if feet.any() else None
+        targets = self._foot_targets(body, feet, t) if planted else None
         a_track = self._constrain_legs(body, q, v, a_raw, feet, targets) if targets is not None else a_raw
         fall = None
         if self.fallen:
@@ -392,7 +426,8 @@ class _Loop:
                 res = dynamic_control(cs, a_track)
                 if res.falling is not None:
                     a_track, res = self._slower_return(body, cs, t, a_raw, a_track, res, feet, targets)
-                a = a_track + _bounded(res.delta, st.max_dynamic_acceleration)
+                # no action: the change is exactly zero (DynamicResult.acted)
+                a = a_track + _bounded(res.delta, st.max_dynamic_acceleration) if res.acted else a_track
                 fall = res.falling
                 if record:
                     self._record_result(f, cs, res, feet)
@@ -424,18 +459,19 @@ class _Loop:
                     self.fallen = True
                     self.planted = [None, None]
                     feet[:] = False
-                if feet.any():  # the feet's velocity over the step: the targets' at its end
+                planted = planted and fall is None  # a fall releases the feet (above)
+                if planted:  # the feet's velocity over the step: the targets' at its end
                     targets = self._foot_targets(body, feet, t + dt)
                     v = self._project_velocity(body, q, v, feet, targets)
                 # semi-implicit Euler: with tracking.step_consistent's input velocities it steps
                 # onto the input's frames and velocities exactly (test_motion_control_tracking)
                 q = kinematics.integrate(m, q, v * dt)
                 self.t = t + dt
-                if feet.any():
+                if planted:
                     q = self._project_position(body, q, feet, targets)
         except (np.linalg.LinAlgError, FloatingPointError) as exc:
             raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}: {exc}") from None
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        if not (np.isfinite(q).all() and np.isfinite(v).all()):
             raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}")
         self.q, self.v = q, v
 
@@ -461,12 +497,16 @@ class _Loop:
 
     def _record_result(self, f, cs, res, feet):
         m = cs.model
-        self.stress[f] = stress_by_bone(m, res.stress_after)
+        # stress_by_bone into the frame's (zero) row
+        self.stress[f, m.dof_joint[6:], m.dof_slot[6:]] = res.stress_after[6:]
         self.polygon[f] = res.polygon
         if res.zmp is not None:
             self.zmp[f] = res.zmp
             self.mmp[f] = res.mmp
-            self.err[f] = self._excess(float(np.linalg.norm(res.zmp - res.mmp)), cs)
+            dx, dy = float(res.zmp[0] - res.mmp[0]), float(res.zmp[1] - res.mmp[1])
+            self.err[f] = self._excess(math.sqrt(dx * dx + dy * dy), cs)
+        if not res.acted:  # no mask is set: the row stays zero
+            return
         code = np.zeros(m.nv, np.int8)
         code[res.log.passive] = PASSIVE
         code[res.log.comfort] = np.maximum(code[res.log.comfort], COMFORT)
@@ -544,8 +584,8 @@ class _Loop:
         support; held while no foot supports). The capture's own root travel is otherwise kept."""
         m = self.body.model
         pos, ori = tr.root_pose(self.sk)
-        qs = [m.configuration(pos[f], ori[f], tr.rotations[f]) for f in range(tr.frame_count)]
-        steps = [_contact_steps(m, self.desired_data, qs, self.body.parts, s)[1] for s in range(2)]
+        qs = m.configurations(pos, ori, tr.rotations)
+        steps = [step for _, step in _contact_steps(m, qs, self.body.parts)]
         out = np.zeros((tr.frame_count, 2))
         for f in range(1, tr.frame_count):
             sides = [s for s in range(2) if self.support_in[f, s] and self.support_in[f - 1, s]]
@@ -562,8 +602,7 @@ class _Loop:
         body = self._body(tuple(False for _ in self.st.loads))
         nf = self.tr.frame_count
         weights, roll = [], np.zeros((nf, 2, 3))
-        for s in range(2):
-            w, step = _contact_steps(body.model, self.desired_data, self.tracking.q_d, body.parts, s)
+        for s, (w, step) in enumerate(_contact_steps(body.model, self.tracking.q_d, body.parts, self._input_soles)):
             weights.append(w)
             for f in range(1, nf):
                 if self.support_in[f, s] and self.support_in[f - 1, s]:
@@ -589,10 +628,11 @@ class _Loop:
         (shared by the control state, the support polygon and the drift measure)."""
         key = (q.tobytes(), id(body))
         if self._soles_cache is None or self._soles_cache[0] != key:
-            p = body.parts
-            pts = kinematics.point_positions(body.model, body.data, q, np.concatenate(p.sole_joints),
-                                             np.concatenate(p.sole_points))
-            self._soles_cache = (key, np.split(pts, [len(p.sole_joints[0])]))
+            kinematics.update_frames(body.model, body.data, q)
+            f = body.data.frames[body.sole_bodies]
+            pts = np.einsum("kij,kj->ki", f[:, :3, :3], body.sole_local) + f[:, :3, 3]
+            k = body.sole_split
+            self._soles_cache = (key, [pts[:k], pts[k:]])
         return self._soles_cache[1]
 
     def _contact_drift(self, body, q, s, f):
@@ -603,7 +643,8 @@ class _Loop:
         if self._drift[s] is not None:
             drift = drift + self.roll_weights[s][f] @ (pts[:, :2] - self._drift[s][1][:, :2])
         self._drift[s] = (drift, pts)
-        return float(np.linalg.norm(drift))
+        dx, dy = drift.tolist()
+        return math.sqrt(dx * dx + dy * dy)
 
     def _foot_targets(self, body, feet, t):
         key = (t, tuple(feet), tuple(None if p is None else p[0].tobytes() for p in self.planted), id(body))
@@ -619,7 +660,9 @@ class _Loop:
         f = self.tracking._on_frame(t)
         feet_in = self._grid_targets[f] if f is not None else self._input_feet(body, t)
         out = [None, None]
-        for s in np.flatnonzero(feet):
+        for s in (0, 1):
+            if not feet[s]:
+                continue
             rot, pos, vel, acc = feet_in[s]
             out[s] = (rot, pos + (self.planted[s][0] - self.planted[s][1]), vel, acc)
         return out
@@ -646,32 +689,56 @@ class _Loop:
         return out
 
     def _leg_jacobians(self, body, q, feet):
-        """Per planted side: the (6, nv) Jacobian of the foot's angular velocity and head velocity
-        (zero outside the foot's ancestors), the foot's world frame, and the leg's DOFs; one
-        forward-kinematics pass for both legs (cached for the same q: the legs' acceleration and
-        velocity projections share it)."""
-        key = (q.tobytes(), tuple(feet), id(body))
+        """Per planted side: the (6, k) Jacobian of the foot's angular velocity and head velocity
+        on the DOFs of the foot's ancestors (the rest of its (6, nv) Jacobian is zero), the foot's
+        world frame, those DOFs (k,), and the Jacobian's columns of the leg's own DOFs (6, l) with
+        those DOFs (l,); one forward-kinematics pass for both legs (cached for the same q: the
+        legs' acceleration and velocity projections share it)."""
+        key = (q.tobytes(), bool(feet[0]), bool(feet[1]), id(body))
         if self._legs_cache is not None and self._legs_cache[0] == key:
             return self._legs_cache[1]
         m, d = body.model, body.data
         kinematics.update_frames(m, d, q)
         sub = kinematics.motion_subspace(m, d, q)  # (nv, 6) world (omega, v at origin)
         out = [None, None]
-        for s in np.flatnonzero(feet):
-            foot = body.parts.feet[s]
-            b = m.joint_body[foot]
-            frame = d.frames[b] @ m.joint_offset[foot]
-            x = frame[:3, 3]
-            mask = m.ancestors[b][m.dof_body] != 0
-            jac = np.zeros((6, m.nv))
-            jac[:3, mask] = sub[mask, :3].T
-            jac[3:, mask] = (sub[mask, 3:] - _cross(x, sub[mask, :3])).T
-            out[s] = (jac, frame, np.asarray(body.parts.legs[s]))
+        if feet[0] and feet[1] and body.legs_batched is not None:
+            out = self._both_legs(body, d, sub)
+            self._legs_cache = (key, out)
+            return out
+        for s in (0, 1):
+            if not feet[s]:
+                continue
+            frame = d.frames[body.foot_body[s]] @ body.foot_offset[s]
+            x0, x1, x2 = frame[:3, 3].tolist()
+            dofs = body.leg_dofs[s]
+            cols = sub[dofs]  # (k, 6)
+            jac = np.empty((6, len(dofs)))
+            jac[:3] = cols[:, :3].T
+            # head velocity v_O + omega x x = v_O - x x omega; rows @ K = x x row
+            cross = np.array([[0.0, x2, -x1], [-x2, 0.0, x0], [x1, -x0, 0.0]])
+            jac[3:] = (cols[:, 3:] - cols[:, :3] @ cross).T
+            out[s] = (jac, frame, dofs, jac[:, body.leg_pos[s]], body.leg_cols[s])
         self._legs_cache = (key, out)
         return out
 
+    def _both_legs(self, body, d, sub):
+        """_leg_jacobians of two planted legs of the same layout, in batched products."""
+        bodies, offsets, dofs, pos = body.legs_batched
+        frames = d.frames[bodies] @ offsets  # (2, 4, 4)
+        (a0, a1, a2), (b0, b1, b2) = frames[:, :3, 3].tolist()
+        cross = np.array([[[0.0, a2, -a1], [-a2, 0.0, a0], [a1, -a0, 0.0]],
+                          [[0.0, b2, -b1], [-b2, 0.0, b0], [b1, -b0, 0.0]]])
+        cols = sub[dofs]  # (2, k, 6)
+        jac = np.empty((2, 6, dofs.shape[1]))
+        jac[:, :3] = np.swapaxes(cols[:, :, :3], 1, 2)
+        jac[:, 3:] = np.swapaxes(cols[:, :, 3:] - cols[:, :, :3] @ cross, 1, 2)
+        leg = jac[:, :, pos]  # (2, 6, l)
+        return [(jac[i], frames[i], dofs[i], leg[i], body.leg_cols[i]) for i in (0, 1)]
+
     def _dls(self, jac, r):
-        """Damped least squares J' (J J' + lambda^2)^-1 r of a (6, k) leg Jacobian."""
+        """Damped least squares J' (J J' + lambda^2)^-1 r of a (6, k) leg Jacobian (one right-hand
+        side per solve: OpenBLAS wakes its thread pool for a matrix of right-hand sides, whose
+        spinning then costs more CPU than the factorisations it would share)."""
         _, x, info = dposv(jac @ jac.T + self._eye6, r)
         if info != 0:
             raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
@@ -682,26 +749,31 @@ class _Loop:
         ones plus the least change (the acceleration form of the leg's IK for the pelvis's
         acceleration)."""
         m, d = body.model, body.data
-        vel, acc = kinematics.body_accelerations(m, d, q, v, a)
+        legs = self._leg_jacobians(body, q, feet)  # the frames at q
+        # kinematics.body_accelerations, the accelerations only at the feet's bodies
+        vel, _, product = velocity_terms(m, d, q, v)  # shared with the inverse dynamics
+        own = (d.motion @ m.expand(a)[:, :, None])[:, :, 0] + product
+        feet_bodies = body.foot_body
+        acc = (m.ancestors[feet_bodies] @ own).tolist()
+        vel = vel[feet_bodies].tolist()
         a = a.copy()
-        for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
+        for s, leg in enumerate(legs):
             if leg is None:
                 continue
-            jac, frame, cols = leg
-            b = m.joint_body[body.parts.feet[s]]
-            x = frame[:3, 3]
-            w, vo, al, ao = vel[b, :3], vel[b, 3:], acc[b, :3], acc[b, 3:]
-            xd = vo + _cross(w, x)
-            now = np.concatenate((al, ao + _cross(al, x) + _cross(w, xd)))
-            a[cols] += self._dls(jac[:, cols], targets[s][3] - now)
+            _, frame, _, jac, cols = leg
+            x = frame[:3, 3].tolist()
+            w, vo, al, ao = vel[s][:3], vel[s][3:], acc[s][:3], acc[s][3:]
+            xd = _add(vo, _cross3(w, x))
+            now = al + _add(_add(ao, _cross3(al, x)), _cross3(w, xd))
+            a[cols] += self._dls(jac, targets[s][3] - np.array(now))
         return a
 
     def _project_velocity(self, body, q, v, feet, targets):
         v = v.copy()
         for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
             if leg is not None:  # the foot's velocity is linear in v: J v
-                jac, frame, cols = leg
-                v[cols] += self._dls(jac[:, cols], targets[s][2] - jac @ v)
+                full, _, dofs, jac, cols = leg
+                v[cols] += self._dls(jac, targets[s][2] - full @ v[dofs])
         return v
 
     def _project_position(self, body, q, feet, targets):
@@ -711,10 +783,10 @@ class _Loop:
             for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
                 if leg is None:
                     continue
-                jac, frame, cols = leg
+                _, frame, _, jac, cols = leg
                 rot, pos = targets[s][0], targets[s][1]
                 error = np.concatenate((_rotation_log(rot @ frame[:3, :3].T), pos - frame[:3, 3]))
-                step[cols] = self._dls(jac[:, cols], error)
+                step[cols] = self._dls(jac, error)
             q = kinematics.integrate(m, q, step)
         return q
 
@@ -897,10 +969,23 @@ class _Loop:
         return (1 - w) * pos[f0] + w * pos[f1], (1 - w) * vel[f0] + w * vel[f1]
 
 
+
+
+def _cross3(a, b):
+    """Cross product of two 3-sequences of floats (a list)."""
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _add(a, b):
+    return [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+
+
 def _cross(a, b):
     """Cross products of 3-vectors or (k, 3) stacks (np.cross costs ~20 us per call)."""
     a = np.asarray(a, float)
     b = np.asarray(b, float)
+    if a.shape == (3,) and b.shape == (3,):  # plain floats: a tenth of the numpy calls' cost
+        return np.array(_cross3(a.tolist(), b.tolist()))
     a, b = np.broadcast_arrays(a, b)
     out = np.empty(a.shape)
     out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
@@ -1022,16 +1107,25 @@ _BALANCED = 1e-3  # m: a ZMP tolerance above this is an input allowance (_Loop._
 _CAPTURE_TOLERANCE = 0.2
 
 
-def _contact_steps(model, data, qs, parts, side):
-    """Per frame the weights (F, k) of a foot's sole points in contact (the lowest ones, by
-    exp(-height above the lowest / _CONTACT_SCALE)) and the horizontal step (F - 1, 2) of that
-    contact point from each frame to the next."""
-    pts = np.array([kinematics.point_positions(model, data, q, parts.sole_joints[side], parts.sole_points[side])
-                    for q in qs])
-    z = pts[..., 2]
-    w = np.exp(-(z - z.min(axis=1, keepdims=True)) / _CONTACT_SCALE)
-    w /= w.sum(axis=1, keepdims=True)
-    return w, np.einsum("fk,fkc->fc", w[1:], pts[1:, :, :2] - pts[:-1, :, :2])
+def _sole_points(model, qs, parts):
+    """Both feet's sole points (F, k, 3) at every configuration (one batched forward kinematics)."""
+    return kinematics.batch_point_positions(model, qs, np.concatenate(parts.sole_joints),
+                                            np.concatenate(parts.sole_points))
+
+
+def _contact_steps(model, qs, parts, soles=None):
+    """Per side: per frame the weights (F, k) of a foot's sole points in contact (the lowest ones,
+    by exp(-height above the lowest / _CONTACT_SCALE)) and the horizontal step (F - 1, 2) of that
+    contact point from each frame to the next; `soles`: the sides' sole points if known."""
+    if soles is None:
+        soles = np.split(_sole_points(model, qs, parts), [len(parts.sole_joints[0])], axis=1)
+    out = []
+    for pts in soles:
+        z = pts[..., 2]
+        w = np.exp(-(z - z.min(axis=1, keepdims=True)) / _CONTACT_SCALE)
+        w /= w.sum(axis=1, keepdims=True)
+        out.append((w, np.einsum("fk,fkc->fc", w[1:], pts[1:, :, :2] - pts[:-1, :, :2])))
+    return out
 
 
 _SKATE_SMOOTHING = 0.02  # s, standard deviation of _Loop._foot_skate's smoothing
@@ -1096,8 +1190,10 @@ def _quat(rot):
 
 def _rotation_log(rot):
     """Rotation vector (3,) of a rotation matrix (angle below pi; the legs' small corrections)."""
-    w = 0.5 * np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
-    sin = float(np.sqrt(w @ w))
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = np.asarray(rot, float).tolist()
+    w = [0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)]
+    sin = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
     if sin < 1e-12:
-        return w
-    return w * (np.arctan2(sin, 0.5 * (rot[0, 0] + rot[1, 1] + rot[2, 2] - 1.0)) / sin)
+        return np.array(w)
+    scale = math.atan2(sin, 0.5 * (r00 + r11 + r22 - 1.0)) / sin
+    return np.array([w[0] * scale, w[1] * scale, w[2] * scale])

@@ -56,7 +56,7 @@ def step_consistent(model, q_d, v_c, a_c, dt):
     if nf < 3:
         return q_d, v_c, a_c, dt
     v = np.empty_like(v_c)
-    v[1:] = [kinematics.difference(model, q_d[f], q_d[f + 1]) / dt for f in range(nf - 1)]
+    v[1:] = kinematics.difference(model, q_d[:-1], q_d[1:]) / dt  # every frame at once
     v[0] = v[1]
     a = np.empty_like(a_c)
     a[:-1] = (v[1:] - v[:-1]) / dt
@@ -83,6 +83,7 @@ class TrackingController:
         self.next_extremum = next_extremum_times(self.v_d, self.dt)
         self._quats = self.q_d[:, 3:].reshape(len(self.q_d), model.nb, 4)
         self._precompute_frames()
+        self._precompute_indices()
 
     # ---- targets ----
 
@@ -128,6 +129,33 @@ class TrackingController:
         ff = self.a_d - self._ferguson(self.q_d, self.v_d, target, horizon) if self.feedforward else None
         self._frame_data = (target, horizon, ff)
 
+    def _precompute_indices(self):
+        """Index arrays and constants of the per-step error (_frame_error), once per model."""
+        m = self.model
+        slot = m.dof_slot
+        lin = slot >= 3
+        axis = np.where(lin, slot - 3, slot)
+        # each DOF's body quaternion in q, and the rows of the root translation's DOFs
+        self._cur_index = 3 + 4 * m.dof_body[:, None] + np.arange(4)[None, :]
+        self._k = np.arange(m.nv)
+        self._axis = axis
+        self._lin = np.flatnonzero(lin)
+        self._lin_axis = slot[lin] - 3
+        self._has_lin = bool(lin.any())
+        # the diagonal entry R[axis, axis] of a quaternion's rotation matrix: w^2 + c_axis^2 - the
+        # other two components squared (quat_to_matrix's terms)
+        sign = -np.ones((m.nv, 4))
+        sign[:, 0] = 1.0
+        sign[self._k, 1 + axis] = 1.0
+        self._diag_sign = sign
+        target, horizon, ff = self._frame_data
+        quat = target[0]
+        # conj(cur) * target = R(target) conj(cur): the right-multiplication matrices of the
+        # targets with the conjugation folded in, per frame (F, nv, 4, 4)
+        right = (quat @ _QMUL_RIGHT).reshape(quat.shape[:-1] + (4, 4)) * np.array([1.0, -1.0, -1.0, -1.0])
+        self._frame_right = right
+        self._frame_h2 = horizon ** 2
+
     # ---- control ----
 
     def acceleration(self, t, q, v):
@@ -136,8 +164,9 @@ class TrackingController:
         f = self._on_frame(t)
         if f is not None:  # on the frame grid (every step without substeps): precomputed
             target, horizon, ff = self._frame_data
-            target = tuple(x[f] for x in target)
-            out = self._ferguson(q, v, target, horizon[f])
+            error, vel_t = self._frame_error(f, q)
+            h = horizon[f]
+            out = (6.0 * error - (2.0 * vel_t + 4.0 * np.asarray(v, float)) * h) / self._frame_h2[f]
             return out + ff[f] if self.feedforward else out
         times = self.target_times(t)
         horizon = times - t
@@ -166,6 +195,32 @@ class TrackingController:
         q = kinematics.integrate(self.model, self.q_d[f0], kinematics.difference(self.model, self.q_d[f0], self.q_d[f1]) * w)
         return q, (1 - w) * self.v_d[f0] + w * self.v_d[f1], (1 - w) * self.a_d[f0] + w * self.a_d[f1]
 
+    def _frame_error(self, f, q):
+        """_error for one configuration q against frame f's precomputed targets (the same
+        arithmetic in about a third of the numpy calls)."""
+        target = self._frame_data[0]
+        q = np.asarray(q, float)
+        cur = q[self._cur_index]  # (nv, 4)
+        rel = np.add.reduce(self._frame_right[f] * cur[:, None, :], 2)  # conj(cur) * target
+        # quat_log's arithmetic on the one component each DOF needs
+        w = rel[:, 0]
+        neg = w < 0.0
+        aw = np.abs(w)
+        xyz = rel[:, 1:]
+        s = np.sqrt(np.add.reduce(xyz * xyz, 1))
+        small = s < 1e-8
+        scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
+        comp = xyz[self._k, np.minimum(self._axis, 2)]
+        error = scale * np.where(neg, -comp, comp)
+        # target angular velocity carried into the current axes: R(rel)[axis, axis] * vel_t
+        vel = np.add.reduce(rel * rel * self._diag_sign, 1) * target[2][f]
+        if self._has_lin:
+            lin = self._lin
+            r0 = spatial.quat_to_matrix(q[3:7])
+            offset = (target[1][f][lin] - q[:3]) @ r0  # r0.T @ (p_t - p)
+            error[lin] = offset[np.arange(len(lin)), self._lin_axis]
+        return error, vel
+
     def _error(self, q, quat, pos, vel_t):
         """Per DOF "theta_t - theta" (..., nv) and the target velocity carried into current axes
         (q may be a stack (..., nq) with targets (..., nv, 4), (..., nv, 3), (..., nv))."""
@@ -191,6 +246,19 @@ class TrackingController:
             offset = np.einsum("...li,...ij->...lj", pos[..., lin, :] - q[..., None, :3], r0)  # r0.T @ (p_t - p)
             error[..., lin] = offset[..., np.arange(lin.sum()), slot[lin] - 3]
         return error, vel
+
+
+# a quaternion product a * b = (b @ _QMUL_RIGHT).reshape(4, 4) @ a: the right-multiplication matrix of b
+_QMUL_RIGHT = np.zeros((4, 16))
+for _r in range(4):
+    for _c in range(4):
+        _e = np.zeros(4)
+        _e[_c] = 1.0
+        for _k in range(4):
+            _b = np.zeros(4)
+            _b[_k] = 1.0
+            _QMUL_RIGHT[_k, 4 * _r + _c] = spatial.quat_multiply(_e, _b)[_r]
+del _r, _c, _e, _k, _b
 
 
 def next_extremum_times(v_d, dt):
