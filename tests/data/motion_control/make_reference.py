@@ -1,6 +1,7 @@
 """Record the control loop's outputs for tests/solver/test_motion_control_reference.py.
 
-reference.npz was recorded with the implementation before the speed work (commit 8b3ebab, numpy
+reference.npz was recorded with the implementation before the speed work (commit bed5782: the
+controller with swept collider contacts and leg comfort control in double support only, numpy
 1.26): the optimised loop must reproduce it within rounding. Run from a checkout of that commit:
 
     PYTHONPATH=<checkout parent> python tests/data/motion_control/make_reference.py
@@ -14,12 +15,16 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent.parent / "solver"))
 
-from humananim.solver.motion_control import ControlSettings, Impulse, control  # noqa: E402
+from humananim.solver.motion_control import ControlSettings, Impulse, Load, control  # noqa: E402
 from humananim.solver.trajectories import Trajectories  # noqa: E402
 from test_dynamics_closed_loop_rigs import load  # noqa: E402
-from test_motion_control_controller import hand_loads, squat_motion  # noqa: E402
+from test_motion_control_controller import squat_motion  # noqa: E402
 
 KEYS = ("rotations", "translations", "stress", "balance_error", "zmp", "control", "falling", "foot_slide")
+
+
+def hand_loads(sk, kg):
+    return tuple(Load(sk.roles.bone(f"hand.{s}"), kg / 2) for s in "LR")
 
 
 def chest_push(sk, time, newton_seconds):
