@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from humananim.solver.cloth import CapsuleBody, build_mesh, fit_skirt
+from humananim.solver.cloth import CapsuleBody, MeshBody, build_mesh, capsule_mesh, fit_skirt
 
 
 def sheet(nx=6, ny=6, size=0.5, z=1.0):
@@ -43,37 +43,30 @@ def walking_skirt(**kw):
     return build_mesh(pos, faces), pinned, body
 
 
-class SkinnedLegs:
+class SkinnedLegs(MeshBody):
     """The walking capsules as one closed triangle mesh per capsule, re-tessellated every frame
     (a skinned body): a MeshBody with `update(a0, b0, a1, b1)` for the frame's motion."""
 
-    def __new__(cls, *args, **kw):
-        from humananim.solver.cloth import MeshBody
+    def __init__(self):
+        a, b = legs(0.0)
+        self.update(a, b, a, b)
+        super().__init__(self.tris, len(self.v_end))
+        self.set_motion(self.v_start, self.v_end, 1 / 30)
 
-        class _Skinned(MeshBody):
-            def __init__(self):
-                a, b = legs(0.0)
-                self.update(a, b, a, b)
-                super().__init__(self.tris, len(self.v_end))
-                self.set_motion(self.v_start, self.v_end, 1 / 30)
+    def update(self, a0, b0, a1, b1):
+        self.v_start, self.tris = _capsules_mesh(a0, b0)
+        self.v_end, _ = _capsules_mesh(a1, b1)
+        if hasattr(self, "parts"):  # after MeshBody.__init__
+            self.set_motion(self.v_start, self.v_end, 1 / 30)
 
-            def update(self, a0, b0, a1, b1):
-                from humananim.solver.cloth import capsule_mesh
 
-                def mesh(a, b):
-                    vs, ts, n = [], [], 0
-                    for k in range(len(RADII)):
-                        v, t = capsule_mesh(a[k], b[k], RADII[k], segments=20, rings=24)
-                        vs.append(v), ts.append(t + n)
-                        n += len(v)
-                    return np.vstack(vs), np.vstack(ts)
-
-                self.v_start, self.tris = mesh(a0, b0)
-                self.v_end, _ = mesh(a1, b1)
-                if hasattr(self, "parts"):  # after MeshBody.__init__
-                    self.set_motion(self.v_start, self.v_end, 1 / 30)
-
-        return _Skinned()
+def _capsules_mesh(a, b):
+    vs, ts, n = [], [], 0
+    for k in range(len(RADII)):
+        v, t = capsule_mesh(a[k], b[k], RADII[k], segments=20, rings=24)
+        vs.append(v), ts.append(t + n)
+        n += len(v)
+    return np.vstack(vs), np.vstack(ts)
 
 
 def reference_walk(collider, frames=20):

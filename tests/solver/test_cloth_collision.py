@@ -3,7 +3,7 @@ and the face case, tangential velocity only; a skirt on a walking body stays out
 
 import numpy as np
 
-from cloth_scenes import RADII, legs, walking_skirt
+from cloth_scenes import RADII, SkinnedLegs, legs, walking_skirt
 from humananim.solver.cloth import (CapsuleBody, ClothSimulation, MeshBody, capsule_mesh, preset,
                                     resolve_contacts)
 from humananim.solver.cloth.collision import closest_on_segments, closest_on_triangles
@@ -139,32 +139,8 @@ def test_a_skirt_on_walking_capsules_stays_outside_and_keeps_its_size():
     assert np.isfinite(sim.x).all() and np.abs(sim.v).max() < 20.0
 
 
-class _SkinnedCapsules(MeshBody):
-    """The walking capsules as one triangle mesh, re-tessellated each frame (skinned)."""
-
-    def __init__(self):
-        a, b = legs(0.0)
-        self.update(a, b, a, b)
-        super().__init__(self.tris, len(self.v_end))
-        self.set_motion(self.v_start, self.v_end, 1 / 30)
-
-    def update(self, a0, b0, a1, b1):
-        def mesh(a, b):
-            vs, ts, n = [], [], 0
-            for k in range(len(RADII)):
-                v, t = capsule_mesh(a[k], b[k], RADII[k], segments=20, rings=24)
-                vs.append(v), ts.append(t + n)
-                n += len(v)
-            return np.vstack(vs), np.vstack(ts)
-
-        self.v_start, self.tris = mesh(a0, b0)
-        self.v_end, _ = mesh(a1, b1)
-        if hasattr(self, "parts"):  # after MeshBody.__init__
-            self.set_motion(self.v_start, self.v_end, 1 / 30)
-
-
 def test_a_skirt_on_a_skinned_mesh_body_stays_outside():
-    sim, worst, stretch = _run_skirt(lambda caps: [_SkinnedCapsules()], frames=45)
+    sim, worst, stretch = _run_skirt(lambda caps: [SkinnedLegs()], frames=45)
     # the mesh lies inside the exact capsules by its faceting (r (1 - cos(pi/20)) < 1.4 mm)
     assert worst < 0.002
     assert np.abs(stretch).max() < 0.02
