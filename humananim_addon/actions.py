@@ -186,15 +186,19 @@ def _rotation_channels(obj, skeleton, traj):
             by_mode.setdefault(obj.pose.bones[bone].rotation_mode, []).append(j)
     out = {}
     for mode, joints in by_mode.items():
-        q = quats[:, joints]
-        if mode == "QUATERNION":
-            values, prop = q, "rotation_quaternion"
-        elif mode == "AXIS_ANGLE":
-            values, prop = rotations.to_axis_angle(q), "rotation_axis_angle"
-        else:
-            values, prop = rotations.unroll_euler(rotations.to_euler(q, mode), mode), "rotation_euler"
+        prop, values = rotation_channels(quats[:, joints], mode)
         out.update({j: (prop, values[:, i]) for i, j in enumerate(joints)})
     return out
+
+
+def rotation_channels(quaternions, mode):
+    """(property, values) keying continuous `quaternions` (F, ..., 4) in a Blender rotation mode:
+    the quaternions, axis-angle, or Euler angles of that order unrolled over the frames."""
+    if mode == "QUATERNION":
+        return "rotation_quaternion", quaternions
+    if mode == "AXIS_ANGLE":
+        return "rotation_axis_angle", rotations.to_axis_angle(quaternions)
+    return "rotation_euler", rotations.unroll_euler(rotations.to_euler(quaternions, mode), mode)
 
 
 def _write_channels(writer, data_path, group, frames, values):

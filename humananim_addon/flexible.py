@@ -26,7 +26,7 @@ from ..solver.flexible.forces import Plane
 from ..solver.flexible.keyframe import animate
 from ..solver.flexible.simulate import Controller, State
 from . import action_api
-from .actions import scene_fps
+from .actions import rotation_channels, scene_fps
 from .properties import settings_registration
 
 log = logging.getLogger(__name__)
@@ -507,13 +507,7 @@ def _bake_transform(obj, worlds, frames, name):
         locs.append(tuple(loc))
         quats.append(tuple(rot))
     quats = rotations.make_continuous(np.array(quats))
-    mode = obj.rotation_mode
-    if mode == "QUATERNION":
-        prop, values = "rotation_quaternion", quats
-    elif mode == "AXIS_ANGLE":
-        prop, values = "rotation_axis_angle", rotations.to_axis_angle(quats)
-    else:
-        prop, values = "rotation_euler", rotations.unroll_euler(rotations.to_euler(quats, mode), mode)
+    prop, values = rotation_channels(quats, obj.rotation_mode)
     old = obj.animation_data.action if obj.animation_data else None
     if old is not None:
         old.use_fake_user = True  # the source stays, unassigned but kept

@@ -802,13 +802,7 @@ def write_controls(obj, scene, skeleton, crig, frames, bases, name, keys=None):
         pb = obj.pose.bones[c]
         path = actions.bone_path(c)
         q = rotations.make_continuous(rotations.from_matrix(b[:, :3, :3]))
-        mode = pb.rotation_mode
-        if mode == "QUATERNION":
-            prop, values = "rotation_quaternion", q
-        elif mode == "AXIS_ANGLE":
-            prop, values = "rotation_axis_angle", rotations.to_axis_angle(q)
-        else:
-            prop, values = "rotation_euler", rotations.unroll_euler(rotations.to_euler(q, mode), mode)
+        prop, values = actions.rotation_channels(q, pb.rotation_mode)
         for i in range(values.shape[1]):
             _key_channel(keys.find, f"{path}.{prop}", i, c, frames, values[:, i])
         loc = b[:, :3, 3]
