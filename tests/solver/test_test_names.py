@@ -7,5 +7,5 @@ from pathlib import Path
 
 def test_test_modules_have_unique_names():
     tests = Path(__file__).resolve().parent.parent
-    names = Counter(p.name for p in tests.rglob("*.py") if p.name != "__init__.py" and p.name != "conftest.py")
+    names = Counter(p.name for p in tests.rglob("test_*.py"))
     assert not [n for n, c in names.items() if c > 1]
