@@ -624,7 +624,7 @@ def _keep_off_object(skeleton, frames, armature_to_world, side, chain, shape, re
     if world is None:
         world = skeleton.world_frames(frames[0], armature_to_world)
     span = frames[1:reach_frames]
-    w_all = ik.update_world(skeleton, span, world, chain.joints + moved)
+    w_all = ik.update_world(skeleton, span, world, chain.joints + moved, armature_to_world=armature_to_world)
     depth_all = radii - shape.distance(sensor_centres(sensors, w_all, skeleton))
     for t in 1 + np.flatnonzero(depth_all.max(axis=1) > 0):
         w = w_all[t - 1]
@@ -640,7 +640,7 @@ def _keep_off_object(skeleton, frames, armature_to_world, side, chain, shape, re
             base = ik.chain_base(chain, w)
             res = ik.solve(chain, frames[t], base, goal[:3, 3], goal[:3, :3], iterations=30)
             frames[t] = res.basis
-            w = ik.update_world(skeleton, frames[t], w, chain.joints)
+            w = ik.update_world(skeleton, frames[t], w, chain.joints, armature_to_world=armature_to_world)
 
 
 # --- the whole grasp ------------------------------------------------------------------------
@@ -720,7 +720,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         pre = basis.copy()
         for j, r in preshape.items():
             pre[j, :3, :3] = r
-        wpre = ik.update_world(skeleton, pre, world, list(preshape))
+        wpre = ik.update_world(skeleton, pre, world, list(preshape), armature_to_world=armature_to_world)
         inv = rigid_inv(wpre[hand])
         cen = sensor_centres(sens, wpre, skeleton) @ inv[:3, :3].T + inv[:3, 3]
         loc = np.column_stack((cen, [x.radius for x in sens]))
@@ -754,7 +754,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         approach = ik.solve(chain, res.basis, base, target_p - n_w * APPROACH, c.hand_world[:3, :3], iterations=40)
         goal = res.basis
         if pinch_pat[0] is not None:  # the fingertips meet inside the object where it ended up
-            hw = ik.update_world(skeleton, goal, world, chain.joints)
+            hw = ik.update_world(skeleton, goal, world, chain.joints, armature_to_world=armature_to_world)
             aperture = extent_along(shape, hw[hand][:3, :3] @ pinch_axis) + 0.012
             shut = pinch_closed(skeleton, s, basis, world, geom, gtype, c.grip[:3, 3], warm=first)
             preshape = None
@@ -763,7 +763,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
                 pre = goal.copy()
                 for j, r in preshape.items():
                     pre[j, :3, :3] = r
-                wpre = ik.update_world(skeleton, pre, hw, list(preshape))
+                wpre = ik.update_world(skeleton, pre, hw, list(preshape), armature_to_world=armature_to_world)
                 depth = np.array([x.radius for x in sens]) - shape.distance(sensor_centres(sens, wpre, skeleton))
                 if depth.max() < -0.001:
                     break
@@ -796,13 +796,13 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
     if avoid_body:  # the arms keep out of the trunk and head (sec. 4.6) on every frame of the reach
         # (the reach moves the arms and fingers only: their share of the kinematics, every frame at once)
         reach = frames[:reach_frames + 1]
+        reach_world = ik.update_world(skeleton, reach, world, moved, armature_to_world=armature_to_world)
         frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, reach, armature_to_world,
                                                               sides=tuple(chosen), with_spine=with_spine,
-                                                              legs=(), world=ik.update_world(skeleton, reach, world,
-                                                                                             moved))
+                                                              legs=(), world=reach_world)
         frames[reach_frames:] = frames[reach_frames][None]
     final = frames[reach_frames]
-    world_f = ik.update_world(skeleton, final, world, moved)
+    world_f = ik.update_world(skeleton, final, world, moved, armature_to_world=armature_to_world)
     for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
         hand = skeleton.role_index(sided("hand", s))
         centre_local = rigid_inv(world_f[hand]) @ shape_frame(shape)
@@ -817,5 +817,5 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         fingers = tuple(sorted({x.split(".")[0] for x in touching}))
         results.append(HandGrasp(s, rigid_inv(world_f[hand]) @ shape_frame(shape), touching, fingers,
                                  res.position_error, sensors))
-    world_end = ik.update_world(skeleton, frames[-1], world, moved)
+    world_end = ik.update_world(skeleton, frames[-1], world, moved, armature_to_world=armature_to_world)
     return GraspResult(gtype, kind(shape), results, frames, nfr, reach_frames, close_frames, world_end)

@@ -315,18 +315,23 @@ def _below(skeleton, joints):
     return cache[key]
 
 
-def update_world(skeleton, basis, world, joints):
+def update_world(skeleton, basis, world, joints, armature_to_world=None):
     """World frames (..., J, 4, 4) of `basis` (..., J, 4, 4) where only `joints` differ from the
     pose whose world frames are `world`: those joints and their descendants are recomputed, the
-    others copied (a hand's or a chain's share of forward kinematics, not the whole body's)."""
+    others copied (a hand's or a chain's share of forward kinematics, not the whole body's). A
+    root among them (a control rig's spine chain can start at one) needs `armature_to_world`."""
     basis = np.asarray(basis, float)
     out = np.array(np.broadcast_to(world, basis.shape))
     rest_local, parents = skeleton.rest_local, skeleton.parents
     for j in _below(skeleton, joints):
         p = parents[j]
-        if p < 0:
-            raise ValueError("update_world needs joints below a root")
-        out[..., j, :, :] = out[..., p, :, :] @ (rest_local[j] @ basis[..., j, :, :])
+        if p >= 0:
+            parent = out[..., p, :, :]
+        elif armature_to_world is not None:
+            parent = np.asarray(armature_to_world, float)
+        else:
+            raise ValueError("update_world needs armature_to_world to move a root")
+        out[..., j, :, :] = parent @ (rest_local[j] @ basis[..., j, :, :])
     return out
 
 
