@@ -181,7 +181,7 @@ class _Volumes:
             d = self.radii[:, None] - np.stack([v.distance(pts) for v in self.volumes], axis=-1)
             return np.where(self.own, -np.inf, d), None
         rel = pts[..., :, None, :] - self.a  # (..., S, V, 3)
-        t = np.clip(np.einsum("...vi,vi->...v", rel, self.ab) * self.inv, 0.0, 1.0)
+        t = np.minimum(np.maximum(np.einsum("...vi,vi->...v", rel, self.ab) * self.inv, 0.0), 1.0)
         off = rel - t[..., None] * self.ab
         dist = np.sqrt(np.einsum("...i,...i->...", off, off))
         d = self.radii[:, None] - (dist - self.r)
@@ -207,6 +207,28 @@ class _ChainCorrector:
         self.vols = _Volumes(sensors, volumes)
         # the sub-chain root..sensor of each sensor (eq. 4-2): the DOFs at or above its bone
         self.sub = (chain._k[None, :] <= self.pos[:, None]).astype(float)  # (S, n)
+
+    def frames(self, eul, offsets, base):
+        """Chain.frames with the bones' rest offsets and pose translations folded into `offsets`
+        (n, 3) once per frame: the chain's world frames (rows 0-2) and the DOF axes in world."""
+        local = ik.matrix_xyz(eul)
+        rest_r = self.chain._rest_r
+        n = len(rest_r)
+        world = np.empty((n, 4, 4))
+        world[:, 3] = (0.0, 0.0, 0.0, 1.0)
+        pre = np.empty((n, 3, 3))  # each bone's rest orientation in world, before its own turn
+        pr, pp = base[:3, :3], base[:3, 3]
+        for k in range(n):
+            pp = pp + pr @ offsets[k]
+            pre[k] = r = pr @ rest_r[k]
+            world[k, :3, :3] = pr = r @ local[k]
+            world[k, :3, 3] = pp
+        axes = np.empty((n, 3, 3))
+        a = eul[:, 0, None]
+        axes[:, 0] = pre[:, :, 0]
+        axes[:, 1] = pre[:, :, 1] * np.cos(a) + pre[:, :, 2] * np.sin(a)
+        axes[:, 2] = world[:, :3, 2]
+        return world, axes
 
     def points(self, frames):
         return (frames[self.pos, :3, :3] @ self.local[:, :, None])[:, :, 0] + frames[self.pos, :3, 3]
@@ -234,6 +256,8 @@ class _ChainCorrector:
         chain = self.chain
         base = ik.chain_base(chain, world)
         eul0 = ik.euler_xyz(basis[chain.joints, :3, :3])
+        # each bone's head from its parent's frame: rest offset plus the pose's translation
+        offsets = chain._rest_t + (chain._rest_r @ basis[chain.joints][:, :3, 3, None])[:, :, 0]
         theta = eul0[chain._k, chain._a]
         target_pos = np.asarray(target_pos, float)
         before = None  # the depth at the start: from the first step's test (the same pose)
@@ -244,7 +268,7 @@ class _ChainCorrector:
         for steps in range(1, max_steps + 1):
             eul = eul0.copy()
             eul[chain._k, chain._a] = theta
-            frames, axes = chain.frames(eul, basis, base)
+            frames, axes = self.frames(eul, offsets, base)
             pts = self.points(frames)
             depth, off = self.vols.depths(pts)
             if before is None:
@@ -286,18 +310,18 @@ class _ChainCorrector:
             jac = chain.jacobian(frames, axes)
             if target_rot is not None:
                 jac[:3] *= w
-                dx = np.concatenate((er * w, np.clip(ep, -0.05, 0.05)))
+                dx = np.concatenate((er * w, np.minimum(np.maximum(ep, -0.05), 0.05)))
             else:
-                jac, dx = jac[3:], np.clip(ep, -0.05, 0.05)
+                jac, dx = jac[3:], np.minimum(np.maximum(ep, -0.05), 0.05)
             dq = ik.null_space_step(jac, dx, dz)
-            theta = np.clip(theta + dq, chain.lower, chain.upper)
+            theta = np.minimum(np.maximum(theta + dq, chain.lower), chain.upper)
             frames = None  # theta moved
             if np.abs(dq).max() < CONVERGED:  # a fixed point: the response and the goal balance
                 break
         eul = eul0.copy()
         eul[chain._k, chain._a] = theta
         if frames is None:
-            frames, _ = chain.frames(eul, basis, base)
+            frames, _ = self.frames(eul, offsets, base)
             depth, _ = self.vols.depths(self.points(frames))
         out = np.array(basis, float)
         out[chain.joints, :3, :3] = ik.matrix_xyz(eul)
@@ -384,6 +408,18 @@ class _Tally:
         self.steps += steps
 
 
+MAIN_STEPS = 1  # on a frame between: batched main-task steps before it is corrected on its own
+STRIDE = 3  # an arm near the body: every STRIDE-th frame corrected, the ones between interpolated and checked
+
+
+def _between(shift, solved, t):
+    """The correction at frame t, linear between the corrected frames on either side."""
+    k = np.searchsorted(solved, t)
+    t0, t1 = solved[k - 1], solved[k]
+    u = (t - t0) / (t1 - t0)
+    return (1.0 - u) * shift[t0] + u * shift[t1]
+
+
 class ArmPass:
     """One arm over the frames of a motion (table 4-1 per frame)."""
 
@@ -437,7 +473,7 @@ class ArmPass:
     def _stretch(self, out, a, b):
         """Frames a..b, all near the body: every other one corrected, the others checked."""
         chain = self.chain
-        solved = list(range(a, b + 1, 2))
+        solved = list(range(a, b + 1, STRIDE))
         if solved[-1] != b:
             solved.append(b)
         shift = {}
@@ -458,12 +494,14 @@ class ArmPass:
         if not len(between):
             return
         eul = ik.euler_xyz(out[between][:, chain.joints, :3, :3])
-        guess = np.array([0.5 * (shift[t - 1] + shift[t + 1]) for t in between])
+        guess = np.array([_between(shift, solved, t) for t in between])
         theta = np.clip(eul[:, chain._k, chain._a] + guess, chain.lower, chain.upper)
         eul[:, chain._k, chain._a] = theta
         ok, hand = self._passes(eul, out[between], between)
-        if not ok.all():  # one step of the main task (eq. 2-1, dz = 0) on the others, then the test again
-            bad = ~ok
+        for _ in range(MAIN_STEPS):  # steps of the main task (eq. 2-1, dz = 0) on the others, then the test again
+            bad = np.flatnonzero(~ok)
+            if not len(bad):
+                break
             eul[bad] = self._main_step(eul[bad], out[between[bad]], between[bad])
             ok[bad], hand[bad] = self._passes(eul[bad], out[between[bad]], between[bad])
         for k, t in enumerate(between):
