@@ -597,7 +597,7 @@ def _offsets_clear(shape, rot, t0, n, start, sensors_local, step=0.003, tries=60
         offs[k] = v
         v += step
     dist0 = shape.distance(pts0 - n[:, None] * offs[0])
-    need = (radii + 0.001 - dist0).max(axis=1) / np.maximum(np.linalg.norm(n, axis=1), 1e-12)
+    need = (radii + 0.001 - dist0).max(axis=1, initial=-np.inf) / np.maximum(np.linalg.norm(n, axis=1), 1e-12)
     k = np.where(need > 1e-9, np.floor((need - 1e-9) / step) + 1, 0).astype(int)
     k = np.minimum(k, tries - 1)  # none clear within the tries: the last one tried
     todo = (k < tries - 1) & ~((k == 0) & np.all(dist0 - radii > 0.001, axis=-1))
