@@ -409,7 +409,7 @@ class _Tally:
 
 
 MAIN_STEPS = 1  # on a frame between: batched main-task steps before it is corrected on its own
-STRIDE = 3  # an arm near the body: every STRIDE-th frame corrected, the ones between interpolated and checked
+STRIDE = 2  # an arm near the body: every STRIDE-th frame corrected, the ones between interpolated and checked
 
 
 def _between(shift, solved, t):
