@@ -457,7 +457,7 @@ class ArmPass:
             self.solve(out, t, start)
 
     def skipping(self, out):
-        chain = self.chain
+        """Each stretch of frames near the body (on the input) through _stretch; the others left."""
         f = len(out)
         t = 0
         while t < f:
