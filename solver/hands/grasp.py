@@ -586,21 +586,31 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
 def _offsets_clear(shape, rot, t0, n, start, sensors_local, step=0.003, tries=60):
     """Per hand frame, move the object away from the palm (the hand back along -n) in `step`s
     until no hand sensor penetrates it (the thesis moves the origin toward the border until no
-    collision); all frames at once."""
+    collision); all frames at once. The primitives' distances are exact (they change no faster
+    than the point moves), so the steps that cannot clear the deepest sensor are skipped: the
+    same first clear step, without testing the ones before it."""
     pts0 = (rot[:, None] @ sensors_local[None, :, :3, None])[..., 0] + t0[:, None]  # (D, S, 3) at offset 0
     radii = sensors_local[:, 3]
-    off = np.full(len(rot), float(start))
-    todo = np.ones(len(rot), bool)
-    for i in range(tries):
+    offs = np.empty(tries)  # the offsets tried, summed step by step as the search walks
+    v = float(start)
+    for k in range(tries):
+        offs[k] = v
+        v += step
+    dist0 = shape.distance(pts0 - n[:, None] * offs[0])
+    need = (radii + 0.001 - dist0).max(axis=1, initial=-np.inf) / np.maximum(np.linalg.norm(n, axis=1), 1e-12)
+    k = np.where(need > 1e-9, np.floor((need - 1e-9) / step) + 1, 0).astype(int)
+    k = np.minimum(k, tries - 1)  # none clear within the tries: the last one tried
+    todo = (k < tries - 1) & ~((k == 0) & np.all(dist0 - radii > 0.001, axis=-1))
+    while True:
         idx = np.flatnonzero(todo)
         if not len(idx):
             break
-        pts = pts0[idx] - n[idx, None] * off[idx, None, None]
-        clear = np.all(shape.distance(pts) - radii > 0.001, axis=-1)
-        todo[idx[clear]] = False
-        if i < tries - 1:
-            off[todo] += step
-    return off
+        p = pts0[idx] - n[idx, None] * offs[k[idx], None, None]
+        clear = np.all(shape.distance(p) - radii > 0.001, axis=-1)
+        last = k[idx] >= tries - 1
+        todo[idx[clear | last]] = False
+        k[idx[~clear & ~last]] += 1
+    return offs[k]
 
 
 def _shape_normal(shape, p, h=1e-5):

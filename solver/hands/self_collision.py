@@ -26,7 +26,7 @@ import numpy as np
 from ..body_roles import sided
 from ..errors import RigError
 from . import ik
-from .body import body_sensors, body_volumes, own_volume, sensor_points
+from .body import Capsule, body_sensors, body_volumes, own_volume, sensor_points
 
 
 @dataclass
@@ -78,21 +78,30 @@ def _near_frames(skeleton, sensors, worlds, volumes, margin):
 
 def correct_frame(skeleton, basis, armature_to_world, side, target_pos, target_rot, volumes=None,
                   margin=0.01, max_steps=40, with_spine=False, method="SECONDARY", sensors=None, world=None,
-                  _full=False):
+                  _full=False, _corrector=None):
     """One frame of table 4-1 for one arm. `method` 'SECONDARY' (default) moves the colliding
     elbow and forearm sensors in the null space; 'GOAL' uses temporary end-effector goals for
     every sensor (sec. 4.6.3). `world` (the basis's world frames) saves computing them.
     Returns (basis, depth before, depth after, steps)."""
     world = skeleton.world_frames(basis, armature_to_world) if world is None else world
+    chain = _arm_chain(skeleton, side, with_spine)
+    if _corrector is None:
+        _corrector = arm_corrector(skeleton, world, side, with_spine, method, sensors, volumes)
+    out = _correct_chain(skeleton, basis, world, armature_to_world, chain, None, None, None, target_pos,
+                         target_rot, margin, max_steps, method, corrector=_corrector)
+    return out if _full else out[:4]  # _full: also the chain's angles and the wrist (for the motion pass)
+
+
+def arm_corrector(skeleton, world, side, with_spine=False, method="SECONDARY", sensors=None, volumes=None):
+    """The arm's sensors against the volumes (default the trunk and head) as one _ChainCorrector,
+    to reuse over the frames of a motion."""
     hand = skeleton.role_index(sided("hand", side))
     chain = _arm_chain(skeleton, side, with_spine)
     sensors = [x for x in (sensors if sensors is not None else body_sensors(skeleton, world))
                if x.limb == "arm" and x.chain_side == side and x.joint in chain.joints]
     if volumes is None:
         volumes = [v for v in body_volumes(skeleton, world) if v.name in ("trunk", "head")]
-    out = _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, volumes,
-                         lambda x: x.joint == hand, target_pos, target_rot, margin, max_steps, method)
-    return out if _full else out[:4]  # _full: also the chain's angles and the wrist (for the motion pass)
+    return _ChainCorrector(skeleton, chain, sensors, volumes, lambda x: x.joint == hand, method)
 
 
 def _arm_chain(skeleton, side, with_spine):
@@ -147,82 +156,192 @@ def correct_leg(skeleton, basis, armature_to_world, side, target_pos, target_rot
                           max_steps, method, sticky_goal=True)[:4]
 
 
+class _Volumes:
+    """The volumes as arrays, for every sensor against every volume in one product (capsules;
+    any other volume through its own distance and normal)."""
+
+    def __init__(self, sensors, volumes):
+        self.volumes = list(volumes)
+        self.radii = np.array([s.radius for s in sensors], float)
+        own = np.array([[own_volume(s, v) for v in self.volumes] for s in sensors], bool)
+        self.own = own.reshape(len(sensors), len(self.volumes))
+        self.capsules = all(isinstance(v, Capsule) for v in self.volumes)
+        if self.capsules and self.volumes:
+            self.a = np.array([v.a for v in self.volumes], float)
+            self.ab = np.array([v.b - v.a for v in self.volumes], float)
+            self.inv = 1.0 / np.maximum(np.einsum("vi,vi->v", self.ab, self.ab), 1e-12)
+            self.r = np.array([v.radius for v in self.volumes], float)
+
+    def depths(self, pts):
+        """(S, V) depths (radius minus distance; -inf for a sensor's own volume) and, for
+        capsules, the (S, V, 3) offsets from each volume's axis (the response direction)."""
+        if not self.volumes:
+            return np.full(pts.shape[:-1] + (0,), -np.inf), None
+        if not self.capsules:
+            d = self.radii[:, None] - np.stack([v.distance(pts) for v in self.volumes], axis=-1)
+            return np.where(self.own, -np.inf, d), None
+        rel = pts[..., :, None, :] - self.a  # (..., S, V, 3)
+        t = np.minimum(np.maximum(np.einsum("...vi,vi->...v", rel, self.ab) * self.inv, 0.0), 1.0)
+        off = rel - t[..., None] * self.ab
+        dist = np.sqrt(np.einsum("...i,...i->...", off, off))
+        d = self.radii[:, None] - (dist - self.r)
+        return np.where(self.own, -np.inf, d), off
+
+    def normal(self, off, i, k, p):
+        if off is None:
+            return self.volumes[k].normal(p)
+        o = off[i, k]
+        n = np.sqrt(o @ o)
+        return o / n if n > 1e-9 else np.array([0.0, 0.0, 1.0])
+
+
+class _ChainCorrector:
+    """Table 4-1 on one chain for a fixed set of sensors and volumes: what does not change from
+    frame to frame (the sensors' bones and offsets, the volumes as arrays) made once."""
+
+    def __init__(self, skeleton, chain, sensors, volumes, on_end, method):
+        self.chain, self.sensors = chain, sensors
+        self.pos = np.array([chain.joints.index(x.joint) for x in sensors], int)
+        self.local = np.array([[0.0, x.along * skeleton.lengths[x.joint], 0.0] for x in sensors]).reshape(-1, 3)
+        self.ends = np.array([bool(on_end(x)) or method == "GOAL" for x in sensors], bool)
+        self.vols = _Volumes(sensors, volumes)
+        # the sub-chain root..sensor of each sensor (eq. 4-2): the DOFs at or above its bone
+        self.sub = (chain._k[None, :] <= self.pos[:, None]).astype(float)  # (S, n)
+
+    def frames(self, eul, offsets, base):
+        """Chain.frames with the bones' rest offsets and pose translations folded into `offsets`
+        (n, 3) once per frame: the chain's world frames (rows 0-2) and the DOF axes in world."""
+        local = ik.matrix_xyz(eul)
+        rest_r = self.chain._rest_r
+        n = len(rest_r)
+        world = np.empty((n, 4, 4))
+        world[:, 3] = (0.0, 0.0, 0.0, 1.0)
+        pre = np.empty((n, 3, 3))  # each bone's rest orientation in world, before its own turn
+        pr, pp = base[:3, :3], base[:3, 3]
+        for k in range(n):
+            pp = pp + pr @ offsets[k]
+            pre[k] = r = pr @ rest_r[k]
+            world[k, :3, :3] = pr = r @ local[k]
+            world[k, :3, 3] = pp
+        axes = np.empty((n, 3, 3))
+        a = eul[:, 0, None]
+        axes[:, 0] = pre[:, :, 0]
+        axes[:, 1] = pre[:, :, 1] * np.cos(a) + pre[:, :, 2] * np.sin(a)
+        axes[:, 2] = world[:, :3, 2]
+        return world, axes
+
+    def points(self, frames):
+        return (frames[self.pos, :3, :3] @ self.local[:, :, None])[:, :, 0] + frames[self.pos, :3, 3]
+
+    def secondary(self, frames, axes, idx, pts, pushes):
+        """dz = sum over the hit sensors of J'+ dz' (eq. 4-2), every sensor's sub-chain Jacobian
+        at once; a 3x3 solve (J' J'^T) where J' has full rank, the SVD pseudo-inverse where not."""
+        ch = self.chain
+        w = axes[ch._k, ch._a]  # (n, 3)
+        o = frames[ch._k, :3, 3]  # (n, 3)
+        jac = ik.cross(w[None], pts[:, None, :] - o[None]) * self.sub[idx][:, :, None]  # (H, n, 3) = J'^T
+        m = np.einsum("hni,hnj->hij", jac, jac)  # J' J'^T (H, 3, 3)
+        tr = np.trace(m, axis1=1, axis2=2)
+        det = np.linalg.det(m)
+        dz = np.zeros(ch.n)
+        good = det > 1e-9 * np.maximum(tr, 1e-30) ** 3
+        if good.any():
+            y = np.linalg.solve(m[good], pushes[good][:, :, None])[:, :, 0]
+            dz += np.einsum("hni,hi->n", jac[good], y)
+        for h in np.flatnonzero(~good):  # a sub-chain short of rank 3: the pseudo-inverse
+            dz += np.linalg.pinv(jac[h].T) @ pushes[h]
+        return dz
+
+    def run(self, basis, world, target_pos, target_rot, margin, max_steps, sticky_goal=False):
+        chain = self.chain
+        base = ik.chain_base(chain, world)
+        eul0 = ik.euler_xyz(basis[chain.joints, :3, :3])
+        # each bone's head from its parent's frame: rest offset plus the pose's translation
+        offsets = chain._rest_t + (chain._rest_r @ basis[chain.joints][:, :3, 3, None])[:, :, 0]
+        theta = eul0[chain._k, chain._a]
+        target_pos = np.asarray(target_pos, float)
+        before = None  # the depth at the start: from the first step's test (the same pose)
+        goal = target_pos.copy()
+        steps = 0
+        depth = None
+        frames = None
+        for steps in range(1, max_steps + 1):
+            eul = eul0.copy()
+            eul[chain._k, chain._a] = theta
+            frames, axes = self.frames(eul, offsets, base)
+            pts = self.points(frames)
+            depth, off = self.vols.depths(pts)
+            if before is None:
+                before = max(float(depth.max(initial=-np.inf)), 0.0)
+            x, r = chain.effector(frames)
+            # temporary goal for the hand: pushed out along the response, else its own target
+            if not sticky_goal:
+                goal = target_pos
+            pushed = None
+            dz = np.zeros(chain.n)
+            hs, ks = np.nonzero(depth > -margin)  # sensor order, then volume order, as before
+            sec_i, sec_push = [], []
+            for i, k in zip(hs, ks):
+                d = depth[i, k]
+                push = self.vols.normal(off, i, k, pts[i]) * (d + margin)
+                if self.ends[i]:
+                    if sticky_goal:
+                        pushed = (x if pushed is None else pushed) + push
+                    else:
+                        goal = goal + push
+                    continue
+                if sec_i and sec_i[-1] == i:  # one sensor, two volumes: the pushes add (dz is linear)
+                    sec_push[-1] = sec_push[-1] + push
+                else:
+                    sec_i.append(i)
+                    sec_push.append(push)
+            if sec_i:
+                dz = self.secondary(frames, axes, np.array(sec_i), pts[sec_i], np.array(sec_push))
+            if pushed is not None:
+                goal = pushed
+            ep = goal - x
+            er = ik.rot_log(target_rot @ r.T) if target_rot is not None else np.zeros(3)
+            # done when every sensor keeps half the margin (the response aims at the whole margin,
+            # which it only approaches geometrically) and the effector is on its goal
+            clear = not len(hs) or bool((depth[hs, ks] <= -0.5 * margin).all())
+            if clear and np.sqrt(ep @ ep) < 2e-4 and np.sqrt(er @ er) < 1e-3:
+                break  # theta is the pose just tested: its frames and depths stand
+            w = 0.15
+            jac = chain.jacobian(frames, axes)
+            if target_rot is not None:
+                jac[:3] *= w
+                dx = np.concatenate((er * w, np.minimum(np.maximum(ep, -0.05), 0.05)))
+            else:
+                jac, dx = jac[3:], np.minimum(np.maximum(ep, -0.05), 0.05)
+            dq = ik.null_space_step(jac, dx, dz)
+            theta = np.minimum(np.maximum(theta + dq, chain.lower), chain.upper)
+            frames = None  # theta moved
+            if np.abs(dq).max() < CONVERGED:  # a fixed point: the response and the goal balance
+                break
+        eul = eul0.copy()
+        eul[chain._k, chain._a] = theta
+        if frames is None:
+            frames, _ = self.frames(eul, offsets, base)
+            depth, _ = self.vols.depths(self.points(frames))
+        out = np.array(basis, float)
+        out[chain.joints, :3, :3] = ik.matrix_xyz(eul)
+        after = max(float(depth.max(initial=-np.inf)), 0.0)
+        if before is None:  # no step was taken
+            before = after
+        return out, before, after, steps, theta, chain.effector(frames)[0]
+
+
 def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, volumes, on_end, target_pos,
-                   target_rot, margin, max_steps, method, sticky_goal=False):
+                   target_rot, margin, max_steps, method, sticky_goal=False, corrector=None):
     """Table 4-1 on one chain; `on_end(sensor)` tells the sensors that ride on the end effector
     (they get temporary goals, the others the secondary task). The arm's temporary goal is its
     target pushed by the current response; with `sticky_goal` (the legs) it is the effector's
     place pushed out, and it stays there once clear, so a goal inside the body is left for good
-    on that frame instead of being sought again."""
-    base = ik.chain_base(chain, world)
-    eul0 = ik.euler_xyz(basis[chain.joints, :3, :3])
-    theta = eul0[chain._k, chain._a]
-    # every sensor rides on a bone of the chain: its place from the chain's frames alone
-    pos = np.array([chain.joints.index(x.joint) for x in sensors], int)
-    local = np.array([[0.0, x.along * skeleton.lengths[x.joint], 0.0] for x in sensors]).reshape(-1, 3)
-    ends = np.array([bool(on_end(x)) or method == "GOAL" for x in sensors], bool)
-    dof_k = chain._k
-
-    def points(frames):
-        return (frames[pos, :3, :3] @ local[:, :, None])[:, :, 0] + frames[pos, :3, 3]
-
-    before = None  # the depth at the start: from the first step's test (the same pose)
-    goal = np.asarray(target_pos, float).copy()
-    steps = 0
-    for steps in range(1, max_steps + 1):
-        eul = eul0.copy()
-        eul[chain._k, chain._a] = theta
-        frames, axes = chain.frames(eul, basis, base)
-        hit = _inside(skeleton, sensors, None, volumes, margin, pts=points(frames))
-        if before is None:
-            before = max([d for _, _, d, _ in hit if d > 0], default=0.0)
-        x, r = chain.effector(frames)
-        # temporary goal for the hand: pushed out along the response, else its own target
-        if not sticky_goal:
-            goal = np.asarray(target_pos, float).copy()
-        pushed = None
-        dz = np.zeros(chain.n)
-        for i, v, d, p in hit:
-            push = v.normal(p) * (d + margin)
-            if ends[i]:
-                if sticky_goal:
-                    pushed = (x if pushed is None else pushed) + push
-                else:
-                    goal = goal + push
-                continue
-            # secondary task on the sub-chain root..sensor (eq. 4-2)
-            jac = chain.jacobian(frames, axes, target_point=p)[3:]
-            jsub = jac * (dof_k <= pos[i])
-            dz += np.linalg.pinv(jsub) @ push
-        if pushed is not None:
-            goal = pushed
-        ep = goal - x
-        er = ik.rot_log(target_rot @ r.T) if target_rot is not None else np.zeros(3)
-        # done when every sensor keeps half the margin (the response aims at the whole margin,
-        # which it only approaches geometrically) and the effector is on its goal
-        clear = all(d <= -0.5 * margin for _, _, d, _ in hit)
-        if clear and np.linalg.norm(ep) < 2e-4 and np.linalg.norm(er) < 1e-3:
-            break
-        w = 0.15
-        jac = chain.jacobian(frames, axes)
-        if target_rot is not None:
-            jac[:3] *= w
-            dx = np.concatenate((er * w, np.clip(ep, -0.05, 0.05)))
-        else:
-            jac, dx = jac[3:], np.clip(ep, -0.05, 0.05)
-        dq = ik.null_space_step(jac, dx, dz)
-        theta = np.clip(theta + dq, chain.lower, chain.upper)
-        if np.abs(dq).max() < CONVERGED:  # a fixed point: the response and the goal balance
-            break
-    eul = eul0.copy()
-    eul[chain._k, chain._a] = theta
-    frames, _ = chain.frames(eul, basis, base)
-    out = chain.apply(theta, basis)
-    after = max([d for _, _, d, _ in _inside(skeleton, sensors, None, volumes, 0.0, pts=points(frames))],
-                default=0.0)
-    if before is None:  # no step was taken
-        before = after
-    return out, before, after, steps, theta, chain.effector(frames)[0]
+    on that frame instead of being sought again. `corrector` (made by the caller once for many
+    frames) saves building the per-chain arrays."""
+    if corrector is None:
+        corrector = _ChainCorrector(skeleton, chain, sensors, volumes, on_end, method)
+    return corrector.run(basis, world, target_pos, target_rot, margin, max_steps, sticky_goal)
 
 
 CONVERGED = 1e-6  # radians: a correction step this small ends the frame's iterations
@@ -235,67 +354,246 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
     The hand's target on each frame is its position and orientation in the input (or
     `targets[side]` = (positions (F, 3), rotations (F, 3, 3))); the foot's goal likewise (or
     `leg_targets[side]`, the ankle's positions and the foot's rotations). `world` (F, J, 4, 4),
-    the input's world frames, saves computing them. Returns (corrected frames, CorrectionReport)."""
+    the input's world frames, saves computing them. Returns (corrected frames, CorrectionReport).
+
+    On its own targets (no `targets`), an arm is corrected on every other frame of each stretch
+    near the body; the frames between take the mean of their neighbours' corrections (the motion
+    is smooth) and are kept only if they pass the same test a corrected frame ends on (every
+    sensor half the margin clear, the hand on its target), all in one batched check; the others
+    are corrected from that guess."""
     frames = np.array(frames, float)
     out = frames.copy()
-    corrected, worst_before, worst_after, goal_err, steps = 0, 0.0, 0.0, 0.0, 0
-    leg_corrected, foot_err = 0, 0.0
+    tally = _Tally()
     # `world`: the frames' world frames when the caller has them (F, J, 4, 4)
     world_in = skeleton.world_frames(frames, armature_to_world) if world is None else np.asarray(world, float)
     rest_world = world_in[0]
     volumes = [v for v in body_volumes(skeleton, rest_world) if v.name in ("trunk", "head")]
     sensors = body_sensors(skeleton, rest_world)  # sized once, on the first frame
-    shift = {}  # per arm, the change the correction made on the previous frame
-    arm_near = {s: _near_frames(skeleton, [x for x in sensors if x.limb == "arm" and x.chain_side == s], world_in,
-                                volumes, margin) for s in sides}
-    for t in range(len(frames)):
-        w_in = world_in[t]
-        cur = out[t]
-        for s in sides:
-            hand = skeleton.role_index(sided("hand", s))
-            if hand is None:
-                continue
-            if targets is not None and s in targets:
-                tp = targets[s][0][t]
-                tr = None if targets[s][1] is None else targets[s][1][t]
-            else:
-                tp, tr = w_in[hand][:3, 3], w_in[hand][:3, :3]
-            chain = _arm_chain(skeleton, s, with_spine)
-            near, before = arm_near[s][0][t], arm_near[s][1][t]
-            if not near and targets is None:  # clear of the body, on its own target: nothing to do
-                shift[s] = None
-                continue
-            # warm start from the previous corrected frame keeps the motion continuous
-            angles_in = chain.angles(cur)
-            if t > 0 and targets is not None:
-                start = chain.apply(chain.angles(out[t - 1]), cur)
-            elif shift.get(s) is not None:  # the previous frame's correction, as a first guess
-                start = chain.apply(angles_in + shift[s], cur)
-            else:
-                start = cur.copy()
-            # the chain's base is not moved by either arm's correction: the input's world serves
-            cur, _, after, n, theta, hw = correct_frame(skeleton, start, armature_to_world, s, tp, tr, volumes,
-                                                        margin, max_steps, with_spine, method, sensors, world=w_in,
-                                                        _full=True)
-            shift[s] = theta - angles_in
-            steps += n
-            corrected += before > 0
-            worst_before, worst_after = max(worst_before, before), max(worst_after, after)
-            radius = max(x.radius for x in sensors if x.joint == hand)
-            clear = min(v.distance(tp) for v in volumes) > radius + margin
-            if clear:
-                goal_err = max(goal_err, float(np.linalg.norm(hw - tp)))
-        if legs:
-            cur, n, depths, err = _correct_legs(skeleton, cur, out[t - 1] if t > 0 else None, w_in, t,
-                                                armature_to_world, legs, leg_targets, sensors, margin, max_steps,
-                                                method)
-            steps += n
-            leg_corrected += depths[0] > 0
-            worst_before, worst_after = max(worst_before, depths[0]), max(worst_after, depths[1])
-            foot_err = max(foot_err, err)
+    # each arm moves only its chain (the base, above it, is the input's): the arms one after the other
+    for s in sides:
+        hand = skeleton.role_index(sided("hand", s))
+        if hand is None:
+            continue
+        arm = ArmPass(skeleton, s, world_in, sensors, volumes, margin, max_steps, with_spine, method,
+                      None if targets is None else targets.get(s), tally)
+        if targets is None:
+            arm.skipping(out)
+        else:
+            arm.sequential(out)
+    leg_corrected, foot_err, steps = 0, 0.0, 0
+    worst_before, worst_after = tally.before, tally.after
+    for t in range(len(frames)) if legs else ():
+        cur, n, depths, err = _correct_legs(skeleton, out[t], out[t - 1] if t > 0 else None, world_in[t], t,
+                                            armature_to_world, legs, leg_targets, sensors, margin, max_steps, method)
+        steps += n
+        leg_corrected += depths[0] > 0
+        worst_before, worst_after = max(worst_before, depths[0]), max(worst_after, depths[1])
+        foot_err = max(foot_err, err)
         out[t] = cur
-    return out, CorrectionReport(int(corrected), worst_before, worst_after, goal_err, steps, foot_err,
-                                 int(leg_corrected))
+    return out, CorrectionReport(int(tally.corrected), worst_before, worst_after, tally.goal_err,
+                                 tally.steps + steps, foot_err, int(leg_corrected))
+
+
+class _Tally:
+    """The arms' share of the CorrectionReport."""
+
+    def __init__(self):
+        self.corrected, self.before, self.after, self.goal_err, self.steps = 0, 0.0, 0.0, 0.0, 0
+
+    def add(self, before, after, goal_err, steps):
+        self.corrected += before > 0
+        self.before, self.after = max(self.before, before), max(self.after, after)
+        if goal_err is not None:
+            self.goal_err = max(self.goal_err, goal_err)
+        self.steps += steps
+
+
+MAIN_STEPS = 1  # on a frame between: batched main-task steps before it is corrected on its own
+STRIDE = 2  # an arm near the body: every STRIDE-th frame corrected, the ones between interpolated and checked
+
+
+def _between(shift, solved, t):
+    """The correction at frame t, linear between the corrected frames on either side."""
+    k = np.searchsorted(solved, t)
+    t0, t1 = solved[k - 1], solved[k]
+    u = (t - t0) / (t1 - t0)
+    return (1.0 - u) * shift[t0] + u * shift[t1]
+
+
+class ArmPass:
+    """One arm over the frames of a motion (table 4-1 per frame)."""
+
+    def __init__(self, skeleton, side, world_in, sensors, volumes, margin, max_steps, with_spine, method, target,
+                 tally):
+        self.sk, self.world_in, self.margin, self.max_steps, self.tally = skeleton, world_in, margin, max_steps, tally
+        hand = skeleton.role_index(sided("hand", side))
+        self.chain = _arm_chain(skeleton, side, with_spine)
+        self.cor = arm_corrector(skeleton, world_in[0], side, with_spine, method, sensors, volumes)
+        if target is not None:
+            self.tp = np.asarray(target[0], float)
+            self.tr = None if target[1] is None else np.asarray(target[1], float)
+        else:
+            self.tp, self.tr = world_in[:, hand, :3, 3], world_in[:, hand, :3, :3]
+        self.near, self.depth_in = _near_frames(skeleton, self.cor.sensors, world_in, volumes, margin)
+        # the hand's goal error counts where its target is clear of the body
+        radius = max(x.radius for x in sensors if x.joint == hand)
+        dist = np.min([v.distance(self.tp) for v in volumes], axis=0) if volumes else np.full(len(self.tp), np.inf)
+        self.target_clear = dist > radius + margin
+
+    def solve(self, out, t, start):
+        """Correct frame t from `start`; returns the chain's angles."""
+        res = self.cor.run(start, self.world_in[t], self.tp[t], None if self.tr is None else self.tr[t],
+                           self.margin, self.max_steps)
+        out[t] = res[0]
+        err = float(np.linalg.norm(res[5] - self.tp[t])) if self.target_clear[t] else None
+        self.tally.add(self.depth_in[t], res[2], err, res[3])
+        return res[4]
+
+    def sequential(self, out):
+        """Every frame (given targets): warm started from the previous corrected frame."""
+        chain = self.chain
+        for t in range(len(out)):
+            start = chain.apply(chain.angles(out[t - 1]), out[t]) if t > 0 else out[t].copy()
+            self.solve(out, t, start)
+
+    def skipping(self, out):
+        """Each stretch of frames near the body (on the input) through _stretch; the others left."""
+        f = len(out)
+        t = 0
+        while t < f:
+            if not self.near[t]:  # clear of the body, on its own target: nothing to do
+                t += 1
+                continue
+            b = t
+            while b + 1 < f and self.near[b + 1]:
+                b += 1
+            self._stretch(out, t, b)
+            t = b + 1
+
+    def _stretch(self, out, a, b):
+        """Frames a..b, all near the body: every other one corrected, the others checked."""
+        chain = self.chain
+        solved = list(range(a, b + 1, STRIDE))
+        if solved[-1] != b:
+            solved.append(b)
+        shift = {}
+        done = []  # the corrected frames so far: their changes, extrapolated, are the next one's first guess
+        for t in solved:
+            angles_in = chain.angles(out[t])
+            if not done:
+                start = out[t].copy()
+            else:
+                guess = shift[done[-1]]
+                if len(done) > 1:  # the correction grows or shrinks smoothly over the reach
+                    t0, t1 = done[-2], done[-1]
+                    guess = guess + (shift[t1] - shift[t0]) * ((t - t1) / (t1 - t0))
+                start = chain.apply(angles_in + guess, out[t])
+            shift[t] = self.solve(out, t, start) - angles_in
+            done.append(t)
+        between = np.array([t for t in range(a, b + 1) if t not in shift], int)
+        if not len(between):
+            return
+        eul = ik.euler_xyz(out[between][:, chain.joints, :3, :3])
+        guess = np.array([_between(shift, solved, t) for t in between])
+        theta = np.clip(eul[:, chain._k, chain._a] + guess, chain.lower, chain.upper)
+        eul[:, chain._k, chain._a] = theta
+        ok, hand = self._passes(eul, out[between], between)
+        for _ in range(MAIN_STEPS):  # steps of the main task (eq. 2-1, dz = 0) on the others, then the test again
+            bad = np.flatnonzero(~ok)
+            if not len(bad):
+                break
+            eul[bad] = self._main_step(eul[bad], out[between[bad]], between[bad])
+            ok[bad], hand[bad] = self._passes(eul[bad], out[between[bad]], between[bad])
+        for k, t in enumerate(between):
+            start = out[t].copy()
+            start[chain.joints, :3, :3] = ik.matrix_xyz(eul[k])
+            if ok[k]:
+                out[t] = start
+                err = float(np.linalg.norm(hand[k] - self.tp[t])) if self.target_clear[t] else None
+                self.tally.add(self.depth_in[t], 0.0, err, 0)
+            else:
+                self.solve(out, t, start)
+
+    def _passes(self, eul, basis, idx):
+        """Per pose (eul (B, n, 3) of the chain on basis (B, J, 4, 4) at frames idx): the test a
+        corrected frame ends on: every sensor at least half the margin clear (the hand's sensor
+        the whole margin: inside it the hand's goal would be pushed) and the hand on its target.
+        Returns (passes (B,), hand positions (B, 3))."""
+        chain, cor = self.chain, self.cor
+        wf = _chain_frames_many(chain, eul, basis, self.world_in[idx])
+        pts = (wf[:, cor.pos, :3, :3] @ cor.local[:, :, None])[..., 0] + wf[:, cor.pos][..., :3, 3]
+        depth, _ = cor.vols.depths(pts)
+        depth = depth.max(axis=-1, initial=-np.inf)  # (B, S)
+        limit = np.where(cor.ends, -self.margin, -0.5 * self.margin)
+        tip = wf[:, chain._tip_k]
+        hand = tip[:, :3, :3] @ chain.point + tip[:, :3, 3]
+        ok = (depth <= limit).all(axis=1) & (np.linalg.norm(self.tp[idx] - hand, axis=1) < 2e-4)
+        if self.tr is not None:
+            ok &= ik.rot_angle(self.tr[idx] @ np.swapaxes(tip[:, :3, :3], 1, 2)) < 1e-3
+        return ok, hand
+
+    def _main_step(self, eul, basis, idx):
+        """One damped least-squares step (ik.null_space_step without the secondary term) toward
+        the hand's target for B poses at once; returns the new angles (B, n, 3)."""
+        chain = self.chain
+        wf, axes = _chain_frames_many(chain, eul, basis, self.world_in[idx], with_axes=True)
+        tip = wf[:, chain._tip_k]
+        x = tip[:, :3, :3] @ chain.point + tip[:, :3, 3]
+        ep = np.clip(self.tp[idx] - x, -0.05, 0.05)
+        w = axes[:, chain._k, chain._a]  # (B, n, 3)
+        lin = ik.cross(w, x[:, None, :] - wf[:, chain._k][..., :3, 3])
+        if self.tr is not None:
+            er = _rot_log_many(self.tr[idx] @ np.swapaxes(tip[:, :3, :3], 1, 2))
+            jac = np.concatenate((0.15 * w, lin), axis=2).transpose(0, 2, 1)  # (B, 6, n)
+            dx = np.concatenate((0.15 * er, ep), axis=1)
+        else:
+            jac, dx = lin.transpose(0, 2, 1), ep
+        u, sv, vt = np.linalg.svd(jac, full_matrices=False)
+        eps, lam_max = 0.02, 0.05  # ik.damped_pinv's rule
+        smin = sv[:, -1]
+        lam2 = np.where(smin >= eps, 0.0, lam_max ** 2 * (1.0 - (smin / eps) ** 2))
+        y = np.einsum("bji,bj->bi", u, dx) * sv / (sv ** 2 + lam2[:, None])
+        dq = np.einsum("bij,bi->bj", vt, y)
+        out = eul.copy()
+        out[:, chain._k, chain._a] = np.clip(eul[:, chain._k, chain._a] + dq, chain.lower, chain.upper)
+        return out
+
+
+def _rot_log_many(r):
+    """ik.rot_log of (B, 3, 3) rotations away from a half turn."""
+    v = np.stack((r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]), axis=1)
+    s = 0.5 * np.sqrt(np.einsum("bi,bi->b", v, v))
+    th = np.arctan2(s, 0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0))
+    return v * np.where(th < 1e-6, 0.5, th / (2.0 * np.maximum(s, 1e-300)))[:, None]
+
+
+def _chain_frames_many(chain, eul, basis, world, with_axes=False):
+    """World frames (B, n, 4, 4) of the chain's bones for B poses: angles eul (B, n, 3) on
+    basis (B, J, 4, 4), the chain's base from the world frames (B, J, 4, 4)."""
+    p = chain.skeleton.parents[chain.joints[0]]
+    b = len(eul)
+    base = np.broadcast_to(np.eye(4), (b, 4, 4)) if p < 0 else world[:, p]
+    local = ik.matrix_xyz(eul)
+    bt = basis[:, chain.joints][..., :3, 3]
+    out = np.zeros((b, len(chain.joints), 4, 4))
+    out[..., 3, 3] = 1.0
+    pr, pp = base[:, :3, :3], base[:, :3, 3]
+    pre = np.empty((b, len(chain.joints), 3, 3))  # each bone's rest orientation in world, before its turn
+    for k in range(len(chain.joints)):
+        r = pr @ chain._rest_r[k]
+        pp = pr @ chain._rest_t[k] + pp + (r @ bt[:, k, :, None])[..., 0]
+        pr = r @ local[:, k]
+        pre[:, k] = r
+        out[:, k, :3, :3] = pr
+        out[:, k, :3, 3] = pp
+    if not with_axes:
+        return out
+    axes = np.empty((b, len(chain.joints), 3, 3))  # as Chain.frames: the X, Y' and Z'' axes in world
+    a = eul[..., 0][..., None]
+    axes[:, :, 0] = pre[..., 0]
+    axes[:, :, 1] = pre[..., 1] * np.cos(a) + pre[..., 2] * np.sin(a)
+    axes[:, :, 2] = out[:, :, :3, 2]
+    return out, axes
 
 
 def _leg_depth(skeleton, sensors, world, margin=0.0):
