@@ -52,7 +52,8 @@ import numpy as np
 from humananim.solver.flexible import Ground, ModeGains, Settings, Simulator
 from humananim.solver.flexible.control import AnnealSettings, CostSpec, anneal
 from humananim.solver.flexible.demo import blob_body, table_body
-from humananim.solver.flexible.simulate import Controller, State, _drain
+from humananim.solver.flexible.simulate import Controller, State
+from humananim.solver.progress import run_to_end
 
 
 def cpu_ms(fn, repeat=3):
@@ -110,7 +111,7 @@ def annealing(trials=60, step=0.02):
     ctl = table_controller(body)
     start = State.rest(4, t=(0, 0, 0.3))
     t0 = time.process_time()
-    result = _drain(anneal(lambda c: Simulator(body, gains, settings, c), ctl, start, CostSpec("energy_distance"),
+    result = run_to_end(anneal(lambda c: Simulator(body, gains, settings, c), ctl, start, CostSpec("energy_distance"),
                            AnnealSettings(trials=trials, seed=1)))
     seconds = time.process_time() - t0
     steps = trials * int(round(12.0 / step))

@@ -29,6 +29,7 @@ import math
 import numpy as np
 from scipy.linalg.lapack import dposv as _dposv
 
+from ..progress import run_to_end
 from .body import FlexibleError, check_modes, quat_from_rotvec, quat_matrix, quat_multiply, skew
 from .forces import GRAVITY, Contacts, ModeGains
 from .kernel import Kernel
@@ -419,7 +420,7 @@ class Simulator:
     def run(self, state, duration, record_every=None, start_time=0.0, track_energy=False):
         """Simulate `duration` seconds from `state`; record every `record_every` steps (default:
         only the ends). Returns a Result."""
-        return _drain(self.iter_run(state, duration, record_every, start_time, track_energy))
+        return run_to_end(self.iter_run(state, duration, record_every, start_time, track_energy))
 
     def iter_run(self, state, duration, record_every=None, start_time=0.0, track_energy=False):
         """run() as a step generator (yields progress in [0, 1], returns the Result). The steps
@@ -464,14 +465,6 @@ def _mode_problems(body):
         cached = (key, check_modes(body))
         body._mode_check = cached
     return cached[1]
-
-
-def _drain(gen):
-    while True:
-        try:
-            next(gen)
-        except StopIteration as done:
-            return done.value
 
 
 def _snapshot(sim, st, time, track_energy):

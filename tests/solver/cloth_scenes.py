@@ -80,6 +80,14 @@ def reference_walk(collider, frames=20):
     sim = ClothSimulation(mesh, preset("COTTON"), pinned, bodies, level=2, fps=30)
     pin0 = mesh.rest[pinned]
     xs = [sim.x.copy()]
+    for _ in walk(sim, pin0, capsules, bodies, frames):
+        xs.append(sim.x.copy())
+    return np.array(xs), sim.surface(), sim
+
+
+def walk(sim, pin0, capsules, bodies, frames):
+    """Step `sim` through `frames` frames of the walking legs at 30 fps, the capsules and any
+    skinned body following them; yields each frame's capsule ends (a, b) after its step."""
     a0, b0 = legs(0.0)
     for f in range(1, frames + 1):
         a1, b1 = legs(f / 30.0)
@@ -88,6 +96,5 @@ def reference_walk(collider, frames=20):
             if body is not capsules:
                 body.update(a0, b0, a1, b1)
         sim.step(pin0, 1 / 30)
-        xs.append(sim.x.copy())
+        yield a1, b1
         a0, b0 = a1, b1
-    return np.array(xs), sim.surface(), sim

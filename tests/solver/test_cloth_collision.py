@@ -3,7 +3,7 @@ and the face case, tangential velocity only; a skirt on a walking body stays out
 
 import numpy as np
 
-from cloth_scenes import RADII, SkinnedLegs, legs, walking_skirt
+from cloth_scenes import RADII, SkinnedLegs, walk, walking_skirt
 from humananim.solver.cloth import (CapsuleBody, ClothSimulation, MeshBody, capsule_mesh, preset,
                                     resolve_contacts)
 from humananim.solver.cloth.collision import closest_on_segments, closest_on_triangles
@@ -117,17 +117,9 @@ def _run_skirt(bodies_for, frames=60, **param_changes):
     sim = ClothSimulation(mesh, preset("COTTON", **param_changes), pinned, bodies, level=2, fps=30)
     pin0 = mesh.rest[pinned]
     worst, stretch = 0.0, []
-    a0, b0 = legs(0.0)
-    for f in range(1, frames + 1):
-        a1, b1 = legs(f / 30.0)
-        capsules.set_motion(a0, b0, a1, b1, 1 / 30)
-        for body in bodies:
-            if body is not capsules:
-                body.update(a0, b0, a1, b1)
-        sim.step(pin0, 1 / 30)
+    for a1, b1 in walk(sim, pin0, capsules, bodies, frames):
         worst = max(worst, capsule_depth(sim.x, a1, b1, RADII).max())
         stretch.append(sim.stretch())
-        a0, b0 = a1, b1
     return sim, worst, np.array(stretch)
 
 

@@ -9,7 +9,8 @@ from humananim.solver.flexible.body import quat_matrix
 from humananim.solver.flexible.demo import table_body
 from humananim.solver.flexible.ffd import grid_points
 from humananim.solver.flexible.keyframe import animate, keyframed
-from humananim.solver.flexible.simulate import State, _drain
+from humananim.solver.flexible.simulate import State
+from humananim.solver.progress import run_to_end
 
 
 def box_body(size=(0.4, 0.4, 0.2), mass=5.0):
@@ -105,7 +106,7 @@ def test_table_hops_off_a_ledge():
                     Settings(dt=0.005, ground=Ground.ledge(height, edge)))
     start = State.rest(4, t=(0, 0, height + 0.3))
     keys = ([0.0, 0.4, 0.5], [[0, 0, 0, 0], [-0.2, 0, 0.8, 0], [0.2, 0, -0.8, 0]])
-    track, result = _drain(animate(sim, start, 8.0, 50, keys, handover_time=0.5))
+    track, result = run_to_end(animate(sim, start, 8.0, 50, keys, handover_time=0.5))
     assert track.handover == 26 and len(track.times) == 401
     assert np.allclose(track.gamma[25], [0.2, 0, -0.8, 0])        # key-framed up to the handover
     assert track.t[:, 2].max() > height + 0.3 + 0.2              # it jumped
@@ -119,7 +120,7 @@ def test_ground_needs_a_time_step_that_divides_the_frame():
     body = table_body()
     sim = Simulator(body, settings=Settings(dt=0.003))
     with pytest.raises(FlexibleError, match="divide"):
-        _drain(animate(sim, State.rest(4), 1.0, 24))
+        run_to_end(animate(sim, State.rest(4), 1.0, 24))
 
 
 def test_springs_and_ground_together():

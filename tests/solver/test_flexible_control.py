@@ -7,7 +7,8 @@ from humananim.solver.flexible import FlexibleError, Ground, ModeGains, Settings
 from humananim.solver.flexible.control import (HIGH_COST, AnnealSettings, CostSpec, anneal, cost_of,
                                                motion_measures, neighbour)
 from humananim.solver.flexible.demo import table_body
-from humananim.solver.flexible.simulate import Controller, Result, State, _drain
+from humananim.solver.flexible.simulate import Controller, Result, State
+from humananim.solver.progress import run_to_end
 
 
 def pd_gains(body, active, hertz=4.0, ratio=0.8):
@@ -93,7 +94,7 @@ def test_annealing_finds_a_table_gait_repeatably():
     body, ctl, make, start = table_problem()
     cost = CostSpec("energy_distance")
     settings = AnnealSettings(optimize="both", trials=6, duration=12.0, seed=1)
-    first = _drain(anneal(make, ctl, start, cost, settings))
+    first = run_to_end(anneal(make, ctl, start, cost, settings))
     length = body.extent()[0]
     assert first.initial_cost >= HIGH_COST                        # the guess goes backwards
     assert first.measures["distance_m"] >= length
@@ -102,6 +103,6 @@ def test_annealing_finds_a_table_gait_repeatably():
     # the controller found, simulated again, does what the annealing measured
     again = make(ctl.with_parameters(first.poses, first.durations)).run(start, 12.0)
     assert cost_of(cost, again)[0] == pytest.approx(first.cost)
-    second = _drain(anneal(make, ctl, start, cost, settings))
+    second = run_to_end(anneal(make, ctl, start, cost, settings))
     assert second.costs == first.costs
     assert np.array_equal(second.poses, first.poses) and np.array_equal(second.durations, first.durations)
