@@ -58,6 +58,19 @@ register, unregister = settings_registration((HumanAnimHands,), bpy.types.Scene,
 
 
 # --- reading Blender -----------------------------------------------------------------------
+def solver_view(obj, skeleton, sides=("L", "R"), with_spine=False):
+    """(control rig or None, the skeleton the solver works on) for the rig's `skeleton`: on a
+    control rig the solver keeps the bones it must not move still (see ControlRig)."""
+    crig = require_posable_hands(obj, skeleton, sides, with_spine)
+    return crig, (crig.solver_skeleton(skeleton) if crig else skeleton)
+
+
+def rig_pose(obj, scene, skeleton, crig, frames):
+    """pose_frames, made rigid on a control rig (its stretch removed, see ControlRig.rigid)."""
+    base = pose_frames(obj, scene, skeleton, frames)
+    return base if crig is None else crig.rigid(base)
+
+
 def require_posable_hands(obj, skeleton, sides=("L", "R"), with_spine=False):
     """The control rig of `obj` (see `control_rig`), or None for a plain FK rig. A rig whose arm
     or finger role bones follow other bones through constraints and have no control that moves
@@ -197,17 +210,15 @@ def run_grasp(obj, scene, target, props=None):
     props = props or scene.humananim_hands
     skeleton = hand_skeleton(obj, scene)
     sides = ("L", "R") if props.side == "AUTO" else (props.side,)
-    crig = require_posable_hands(obj, skeleton, sides, props.with_spine)
-    rig_skeleton, skeleton = skeleton, crig.solver_skeleton(skeleton) if crig else skeleton
+    rig_skeleton = skeleton
+    crig, skeleton = solver_view(obj, skeleton, sides, props.with_spine)
     shape = object_shape(target, scene)
     fps = actions.scene_fps(scene)
     reach = max(1, int(round(props.duration * fps)))
     close = max(1, int(round(props.close_duration * fps)))
     start = props.start_frame
     yield 0.1
-    basis0 = pose_frames(obj, scene, skeleton, [start])[0]
-    if crig is not None:
-        basis0 = crig.rigid(basis0)
+    basis0 = rig_pose(obj, scene, skeleton, crig, [start])[0]
     pattern = None
     if props.pattern is not None:
         pattern = pose_frames_of_action(obj, scene, skeleton, props.pattern)
@@ -225,9 +236,7 @@ def run_grasp(obj, scene, target, props=None):
     release = props.release_frame if props.release_frame > end else 0
     last = max(end, release)
     frames = np.arange(start, last + 1)
-    base = pose_frames(obj, scene, skeleton, frames)
-    if crig is not None:
-        base = crig.rigid(base)
+    base = rig_pose(obj, scene, skeleton, crig, frames)
     moved = _moved_joints(skeleton, result)
     if crig is not None:  # the twist segments the solver kept still stay as they were at the start
         moved = np.union1d(moved, np.array(crig.frozen, dtype=int))
@@ -332,12 +341,10 @@ def run_follow(obj, scene, target, props=None):
     if len(frames) < 2:
         raise MotionError("the frame range is empty")
     side = skeleton.roles.role_of(con.subtarget).split(".")[-1]
-    crig = require_posable_hands(obj, skeleton, (side,))
-    rig_skeleton, skeleton = skeleton, crig.solver_skeleton(skeleton) if crig else skeleton
+    rig_skeleton = skeleton
+    crig, skeleton = solver_view(obj, skeleton, (side,))
     a2w = armature_to_world(obj, scene)
-    base = pose_frames(obj, scene, skeleton, frames)
-    if crig is not None:
-        base = crig.rigid(base)
+    base = rig_pose(obj, scene, skeleton, crig, frames)
     yield 0.2
     objects = object_world_frames(target, scene, frames)
     hand = skeleton.role_index(sided("hand", side))
@@ -363,8 +370,8 @@ def run_hold(obj, scene, props=None):
         raise HumanAnimError(f"'{other.name}' has no bone '{props.other_bone}'")
     skeleton = hand_skeleton(obj, scene)
     sides = ("L", "R") if props.side == "AUTO" else (props.side,)
-    crig = require_posable_hands(obj, skeleton, sides)
-    rig_skeleton, skeleton = skeleton, crig.solver_skeleton(skeleton) if crig else skeleton
+    rig_skeleton = skeleton
+    crig, skeleton = solver_view(obj, skeleton, sides)
     other_sk = hand_skeleton(other, scene)
     fps = actions.scene_fps(scene)
     reach = max(1, int(round(props.duration * fps)))
@@ -374,9 +381,7 @@ def run_hold(obj, scene, props=None):
     frames_other = np.arange(grasp_end, max(props.frame_end, grasp_end + 1) + 1)
     other_basis = pose_frames(other, scene, other_sk, frames_other)
     yield 0.2
-    basis0 = pose_frames(obj, scene, skeleton, [start])[0]
-    if crig is not None:
-        basis0 = crig.rigid(basis0)
+    basis0 = rig_pose(obj, scene, skeleton, crig, [start])[0]
     out, g, report = manipulation.hold(skeleton, basis0, armature_to_world(obj, scene), other_sk, other_basis,
                                        armature_to_world(other, scene), props.other_bone,
                                        side=props.side, reach_frames=reach, close_frames=close, fps=fps)
@@ -396,11 +401,9 @@ def run_self_collisions(obj, scene, props=None):
     skeleton = hand_skeleton(obj, scene)
     frames = np.arange(props.frame_start, props.frame_end + 1)
     sides = tuple(s for s in ("L", "R") if skeleton.role_index(sided("hand", s)) is not None)
-    crig = require_posable_hands(obj, skeleton, sides, props.with_spine)
-    rig_skeleton, skeleton = skeleton, crig.solver_skeleton(skeleton) if crig else skeleton
-    base = pose_frames(obj, scene, skeleton, frames)
-    if crig is not None:
-        base = crig.rigid(base)
+    rig_skeleton = skeleton
+    crig, skeleton = solver_view(obj, skeleton, sides, props.with_spine)
+    base = rig_pose(obj, scene, skeleton, crig, frames)
     yield 0.2
     out, rep = self_collision.remove_self_collisions(skeleton, base, armature_to_world(obj, scene), sides=sides,
                                                      with_spine=props.with_spine)
