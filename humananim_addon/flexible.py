@@ -407,13 +407,6 @@ def add_spring(obj, target=None):
     return sp
 
 
-def remove_spring(obj):
-    props = obj.humananim_flexible
-    if 0 <= props.spring_index < len(props.springs):
-        props.springs.remove(props.spring_index)
-        props.spring_index = min(props.spring_index, len(props.springs) - 1)
-
-
 # -- simulate and bake ----------------------------------------------------------------------------
 
 def run(obj, scene):
@@ -607,13 +600,6 @@ def add_pose(obj):
         pose.values, pose.duration = prev.values, prev.duration
     props.pose_index = len(props.poses) - 1
     return pose
-
-
-def remove_pose(obj):
-    props = obj.humananim_flexible
-    if 0 <= props.pose_index < len(props.poses):
-        props.poses.remove(props.pose_index)
-        props.pose_index = min(props.pose_index, len(props.poses) - 1)
 
 
 # -- demo ----------------------------------------------------------------------------------------------

@@ -62,19 +62,24 @@ class AddOnActiveBone:
 
 
 class RemoveActiveItem:
-    """Removes the active item of a list in the scene's settings: the subclass names the settings
-    (`settings`), the collection (`items`) and its active index (`index`)."""
+    """Removes the active item of a list: the subclass names the scene's settings (`settings`, or
+    overrides `settings_of` for settings elsewhere), the collection (`items`) and its active
+    index (`index`)."""
 
     bl_options = {"REGISTER", "UNDO"}
     settings = items = index = ""
 
     @classmethod
+    def settings_of(cls, context):
+        return getattr(context.scene, cls.settings)
+
+    @classmethod
     def poll(cls, context):
-        props = getattr(context.scene, cls.settings)
-        return 0 <= getattr(props, cls.index) < len(getattr(props, cls.items))
+        props = cls.settings_of(context)
+        return props is not None and 0 <= getattr(props, cls.index) < len(getattr(props, cls.items))
 
     def execute(self, context):
-        props = getattr(context.scene, self.settings)
+        props = self.settings_of(context)
         items, i = getattr(props, self.items), getattr(props, self.index)
         items.remove(i)
         setattr(props, self.index, min(i, len(items) - 1))

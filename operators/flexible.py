@@ -4,7 +4,7 @@ import bpy
 
 from ..humananim_addon import flexible
 from ..solver.flexible import FlexibleError
-from .common import JobOperator, run_reporting
+from .common import JobOperator, RemoveActiveItem, run_reporting
 
 
 def flexible_object(context):
@@ -89,21 +89,19 @@ class HUMANANIM_OT_flexible_pose_add(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class HUMANANIM_OT_flexible_pose_remove(bpy.types.Operator):
+class _RemoveFlexibleItem(RemoveActiveItem):
+    @classmethod
+    def settings_of(cls, context):
+        obj = flexible_object(context)
+        return None if obj is None else obj.humananim_flexible
+
+
+class HUMANANIM_OT_flexible_pose_remove(_RemoveFlexibleItem, bpy.types.Operator):
     """Remove the selected pose from the pose graph"""
 
     bl_idname = "humananim.flexible_pose_remove"
     bl_label = "Remove Pose"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        obj = flexible_object(context)
-        return obj is not None and 0 <= obj.humananim_flexible.pose_index < len(obj.humananim_flexible.poses)
-
-    def execute(self, context):
-        flexible.remove_pose(flexible_object(context))
-        return {"FINISHED"}
+    items, index = "poses", "pose_index"
 
 
 class HUMANANIM_OT_flexible_spring_add(bpy.types.Operator):
@@ -124,21 +122,12 @@ class HUMANANIM_OT_flexible_spring_add(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class HUMANANIM_OT_flexible_spring_remove(bpy.types.Operator):
+class HUMANANIM_OT_flexible_spring_remove(_RemoveFlexibleItem, bpy.types.Operator):
     """Remove the selected spring"""
 
     bl_idname = "humananim.flexible_spring_remove"
     bl_label = "Remove Spring"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        obj = flexible_object(context)
-        return obj is not None and 0 <= obj.humananim_flexible.spring_index < len(obj.humananim_flexible.springs)
-
-    def execute(self, context):
-        flexible.remove_spring(flexible_object(context))
-        return {"FINISHED"}
+    items, index = "springs", "spring_index"
 
 
 class HUMANANIM_OT_flexible_demo_table(bpy.types.Operator):
