@@ -403,8 +403,10 @@ class _FingersClose:
         pts = (sr @ self.local[..., None])[..., 0] + sp
         if not self.shapes:
             return np.full(pts.shape[:-1], -np.inf)
-        d = np.max([self.radii - sh.distance(pts) for sh in self.shapes], axis=0)
-        return np.where(np.isfinite(self.radii), d, -np.inf)
+        d = self.radii - self.shapes[0].distance(pts)  # the padding's radius -inf keeps it -inf
+        for sh in self.shapes[1:]:
+            d = np.maximum(d, self.radii - sh.distance(pts))
+        return d
 
     def close(self, frames, tolerance, touching):
         nf = len(self.chains)

@@ -10,9 +10,11 @@ Each bone turns on its free axes as intrinsic X-Y-Z Euler angles, so limits are 
 Jacobian is exact: the column of an axis is that axis in world (turning about the bone's head).
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import lapack
 from scipy.spatial.transform import Rotation
 
 from ..body_roles import sided
@@ -42,23 +44,43 @@ def euler_xyz(r):
     return np.stack((a, b, c), axis=-1)
 
 
+def _xyz_map():
+    """The 9 entries of Rx(a) Ry(b) Rz(c) as a linear map of the 27 products u_a u_b u_c, with
+    u = (1, cos, sin) of each angle: one product instead of a dozen small ones."""
+    m = np.zeros((3, 3, 3, 3, 3))
+    one, c, s = 0, 1, 2
+    terms = {(0, 0): [(1, (one, c, c))], (0, 1): [(-1, (one, c, s))], (0, 2): [(1, (one, s, one))],
+             (1, 0): [(1, (c, one, s)), (1, (s, s, c))], (1, 1): [(1, (c, one, c)), (-1, (s, s, s))],
+             (1, 2): [(-1, (s, c, one))],
+             (2, 0): [(1, (s, one, s)), (-1, (c, s, c))], (2, 1): [(1, (s, one, c)), (1, (c, s, s))],
+             (2, 2): [(1, (c, c, one))]}
+    for (row, col), products in terms.items():
+        for sign, (i, j, k) in products:
+            m[i, j, k, row, col] = sign
+    return m.reshape(27, 9)
+
+
+_XYZ = _xyz_map()
+
+
+def _unit_trig(e):
+    """(..., 3, 3): (1, cos, sin) of each angle of (..., 3)."""
+    u = np.empty(e.shape + (3,))
+    u[..., 0] = 1.0
+    u[..., 1] = np.cos(e)
+    u[..., 2] = np.sin(e)
+    return u
+
+
+def _matrix_xyz(u):
+    lead = u.shape[:-2]
+    m = u[..., 0, :, None, None] * u[..., 1, None, :, None] * u[..., 2, None, None, :]
+    return (m.reshape(lead + (27,)) @ _XYZ).reshape(lead + (3, 3))
+
+
 def matrix_xyz(e):
     """Rotations (..., 3, 3) of intrinsic X-Y-Z angles (..., 3)."""
-    e = np.asarray(e, float)
-    c, s = np.cos(e), np.sin(e)
-    ca, cb, cc = c[..., 0], c[..., 1], c[..., 2]
-    sa, sb, sc = s[..., 0], s[..., 1], s[..., 2]
-    out = np.empty(e.shape[:-1] + (3, 3))
-    out[..., 0, 0] = cb * cc
-    out[..., 0, 1] = -cb * sc
-    out[..., 0, 2] = sb
-    out[..., 1, 0] = ca * sc + sa * sb * cc
-    out[..., 1, 1] = ca * cc - sa * sb * sc
-    out[..., 1, 2] = -sa * cb
-    out[..., 2, 0] = sa * sc - ca * sb * cc
-    out[..., 2, 1] = sa * cc + ca * sb * sc
-    out[..., 2, 2] = ca * cb
-    return out
+    return _matrix_xyz(_unit_trig(np.asarray(e, float)))
 
 
 def cross(a, b):
@@ -81,15 +103,46 @@ def rot_angle(r):
 
 def rot_log(r):
     """World axis-angle vector of a rotation matrix."""
-    v = np.array((r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]))
-    s = 0.5 * np.sqrt(v @ v)
-    c = 0.5 * (r[0, 0] + r[1, 1] + r[2, 2] - 1.0)
-    th = np.arctan2(s, c)
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r.tolist()
+    vx, vy, vz = r21 - r12, r02 - r20, r10 - r01
+    s = 0.5 * math.sqrt(vx * vx + vy * vy + vz * vz)
+    th = math.atan2(s, 0.5 * (r00 + r11 + r22 - 1.0))
     if th < 1e-6:
-        return 0.5 * v
-    if th < np.pi - 1e-3:
-        return v * (th / (2.0 * s))
+        return np.array((0.5 * vx, 0.5 * vy, 0.5 * vz))
+    if th < math.pi - 1e-3:
+        f = th / (2.0 * s)
+        return np.array((vx * f, vy * f, vz * f))
     return Rotation.from_matrix(r).as_rotvec()  # near a half turn the skew part loses the axis
+
+
+def chain_frames(eul, rest_r, offsets, base):
+    """World frames (..., n, 4, 4) of a chain's bones and the world directions (..., n, 3, 3) of
+    each bone's X, Y' and Z'' axes (intrinsic X-Y-Z), for angles eul (..., n, 3); each bone's
+    head is `offsets` (..., n, 3) from its parent's (the rest offset plus the pose's
+    translation), the first bone's parent frame is `base` (..., 4, 4).
+
+    The rotations down the chain are a prefix product, taken as a scan (log2 n batched products,
+    not n small ones): a chain's kinematics is a few dozen numpy calls whatever its length."""
+    n = eul.shape[-2]
+    u = _unit_trig(eul)
+    q = rest_r @ _matrix_xyz(u)  # each bone's turn in its parent's frame
+    step = 1
+    while step < n:  # q[k] <- q[k - step] q[k]: products over ever longer runs ending at k
+        q[..., step:, :, :] = q[..., :-step, :, :] @ q[..., step:, :, :]
+        step *= 2
+    base = np.asarray(base, float)
+    rot = base[..., None, :3, :3] @ q  # world rotations
+    before = np.concatenate((base[..., None, :3, :3], rot[..., :-1, :, :]), axis=-3)  # the parents'
+    pre = before @ rest_r  # each bone's rest orientation in world, before its own turn
+    world = np.zeros(rot.shape[:-2] + (4, 4))
+    world[..., :3, :3] = rot
+    world[..., :3, 3] = np.cumsum((before @ offsets[..., None])[..., 0], axis=-2) + base[..., None, :3, 3]
+    world[..., 3, 3] = 1.0
+    axes = np.empty(rot.shape)
+    axes[..., 0, :] = pre[..., :, 0]
+    axes[..., 1, :] = pre[..., :, 1] * u[..., 0, 1, None] + pre[..., :, 2] * u[..., 0, 2, None]
+    axes[..., 2, :] = rot[..., :, 2]
+    return world, axes
 
 
 def chain_joints(skeleton, side, with_spine=False):
@@ -167,29 +220,14 @@ class Chain:
         return out
 
     # --- kinematics -------------------------------------------------------------------
-    def frames(self, eul, basis, base):
-        """World frames of the chain's bones, and the world rotation of each DOF's axis."""
-        n = len(self.joints)
-        local = matrix_xyz(eul)  # (n, 3, 3): Rx Ry Rz per bone
-        bt = basis[self.joints, :3, 3]
-        world = np.zeros((n, 4, 4))
-        world[:, 3, 3] = 1.0
-        pre = np.empty((n, 3, 3))  # each bone's rest orientation in world, before its own turn
-        pr, pp = base[:3, :3], base[:3, 3]
-        for k in range(n):
-            r = pr @ self._rest_r[k]
-            pp = pr @ self._rest_t[k] + pp + r @ bt[k]
-            pr = r @ local[k]
-            pre[k] = r
-            world[k, :3, :3] = pr
-            world[k, :3, 3] = pp
-        # the world directions of each bone's X, Y' and Z'' axes (intrinsic X-Y-Z)
-        axes = np.empty((n, 3, 3))
-        axes[:, 0] = pre[:, :, 0]
-        a = eul[:, 0]
-        axes[:, 1] = pre[:, :, 1] * np.cos(a)[:, None] + pre[:, :, 2] * np.sin(a)[:, None]
-        axes[:, 2] = world[:, :3, 2]
-        return world, axes
+    def offsets(self, basis):
+        """Each bone's head from its parent's frame (n, 3): rest offset plus the pose's translation."""
+        return self._rest_t + (self._rest_r @ basis[self.joints][:, :3, 3, None])[:, :, 0]
+
+    def frames(self, eul, basis, base, offsets=None):
+        """World frames of the chain's bones, and the world rotation of each DOF's axis
+        (`offsets`: self.offsets(basis), when the caller has them)."""
+        return chain_frames(eul, self._rest_r, self.offsets(basis) if offsets is None else offsets, base)
 
     def effector(self, world):
         f = world[self._tip_k]
@@ -214,23 +252,60 @@ def damped_pinv(jac, epsilon=0.02, lam_max=0.05):
     return (vt.T * (s / (s ** 2 + lam2))) @ u.T
 
 
-def null_space_step(jac, dx, dz=None, active=None, eye=None, **kw):
-    """Eq. 2-1 with joint limits: columns of inactive DOFs are zeroed (they do not move)."""
-    n = jac.shape[1]
-    if active is None:  # every DOF free: no masking
-        jp = damped_pinv(jac, **kw)
-        dq = jp @ dx
+def null_space_step(jac, dx, dz=None, active=None, epsilon=0.02, lam_max=0.05):
+    """Eq. 2-1 with joint limits: columns of inactive DOFs are zeroed (they do not move).
+
+    The same step as damped_pinv's, through the normal equations: J+ = J^T (J J^T + l^2 I)^-1
+    (or (J^T J + l^2 I)^-1 J^T for fewer DOFs than rows), the smallest singular value from the
+    eigenvalues of that small symmetric matrix and one Cholesky solve for both terms: a third
+    of an SVD's numpy calls."""
+    if active is not None:
+        jac = jac * active
         if dz is not None:
-            dz = np.asarray(dz)
-            dq = dq + dz - jp @ (jac @ dz)
-        return dq
-    mask = active
-    jm = jac * mask
-    jp = damped_pinv(jm, **kw)
-    dq = jp @ dx
+            dz = np.asarray(dz, float) * active
+    rows, n = jac.shape
+    wide = n >= rows
+    g = jac @ jac.T if wide else jac.T @ jac
+    smin2 = lapack.dsyevd(g, compute_v=0)[0][0] if len(g) else 0.0
+    eps2 = epsilon * epsilon
+    lam2 = 0.0 if smin2 >= eps2 else lam_max ** 2 * (1.0 - max(smin2, 0.0) / eps2)
+    g.flat[::len(g) + 1] += lam2
     if dz is not None:
-        dq = dq + ((np.eye(n) if eye is None else eye) - jp @ jm) @ (np.asarray(dz) * mask)
-    return dq * mask
+        dz = np.asarray(dz, float)
+    if wide:  # dq = J^T y with (J J^T + l^2) y = dx (- J dz for the secondary task)
+        rhs = dx if dz is None else dx - jac @ dz
+        _, y, info = lapack.dposv(g, rhs)
+        dq = jac.T @ y
+    else:
+        rhs = jac.T @ (dx if dz is None else dx - jac @ dz)
+        _, dq, info = lapack.dposv(g, rhs)
+    if info:  # not positive definite to rounding (no damping on an exactly singular J): the SVD
+        jp = damped_pinv(jac, epsilon, lam_max)
+        dq = jp @ (dx if dz is None else dx - jac @ dz)
+    if dz is not None:
+        dq = dq + dz
+    return dq if active is None else dq * active
+
+
+def null_space_steps(jac, dx, dz=None, epsilon=0.02, lam_max=0.05):
+    """null_space_step (no joint-limit masking) for a batch: jac (B, r, n), dx (B, r), dz (B, n);
+    each pose damped by its own smallest singular value."""
+    jt = np.swapaxes(jac, 1, 2)
+    rhs = dx if dz is None else dx - (jac @ dz[:, :, None])[:, :, 0]
+    wide = jac.shape[2] >= jac.shape[1]
+    g = jac @ jt if wide else jt @ jac
+    eps2 = epsilon * epsilon
+    eye = np.eye(g.shape[1])
+    try:  # every smallest singular value above epsilon (the usual case): no damping, no eigenvalues
+        np.linalg.cholesky(g - eps2 * eye)
+    except np.linalg.LinAlgError:
+        smin2 = np.maximum(np.linalg.eigvalsh(g)[:, 0], 0.0)
+        g = g + np.where(smin2 >= eps2, 0.0, lam_max ** 2 * (1.0 - smin2 / eps2))[:, None, None] * eye
+    if wide:
+        dq = (jt @ np.linalg.solve(g, rhs[:, :, None]))[:, :, 0]
+    else:
+        dq = np.linalg.solve(g, jt @ rhs[:, :, None])[:, :, 0]
+    return dq if dz is None else dq + dz
 
 
 STILL = 1e-7  # radians: a step that moves no DOF more than this ends the solve
@@ -255,12 +330,13 @@ def solve(chain, basis, base, target_pos, target_rot=None, secondary=None, itera
     theta = eul0[chain._k, chain._a] if theta0 is None else np.array(theta0, float)
     pos = np.asarray(target_pos, float)
     rows = slice(0, 6) if target_rot is not None else slice(3, 6)
-    eye = np.eye(chain.n)
+
+    offsets = chain.offsets(basis)
 
     def pose(th):
         eul = eul0.copy()
         eul[chain._k, chain._a] = th
-        return chain.frames(eul, basis, base)
+        return chain.frames(eul, basis, base, offsets)
 
     it = 0
     zero3 = np.zeros(3)
@@ -285,7 +361,7 @@ def solve(chain, basis, base, target_pos, target_rot=None, secondary=None, itera
         dz = secondary(theta, world, axes) if secondary is not None else None
         active = None
         for _ in range(3):
-            dq = null_space_step(jac, dx, dz, active, eye=eye, epsilon=0.02 * chain.scale, lam_max=0.05 * chain.scale)
+            dq = null_space_step(jac, dx, dz, active, epsilon=0.02 * chain.scale, lam_max=0.05 * chain.scale)
             new = theta + dq
             out = ((new < chain.lower) & (dq < 0)) | ((new > chain.upper) & (dq > 0))
             if not out.any():

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .sensors import Box, Sphere
+from .sensors import Box, Sphere, length
 
 
 @dataclass
@@ -18,8 +18,10 @@ class Cylinder:
 
     def distance(self, points):
         local = (np.asarray(points) - self.frame[:3, 3]) @ self.frame[:3, :3]
-        d = np.stack((np.linalg.norm(local[..., :2], axis=-1) - self.radius, np.abs(local[..., 2]) - self.half), -1)
-        return np.minimum(np.max(d, axis=-1), 0.0) + np.linalg.norm(np.maximum(d, 0.0), axis=-1)
+        radial = length(local[..., :2]) - self.radius
+        axial = np.abs(local[..., 2]) - self.half
+        out_r, out_a = np.maximum(radial, 0.0), np.maximum(axial, 0.0)
+        return np.minimum(np.maximum(radial, axial), 0.0) + np.sqrt(out_r * out_r + out_a * out_a)
 
     def transformed(self, m):
         return Cylinder(m @ self.frame, self.radius, self.half)
@@ -40,7 +42,7 @@ class Frustum:
     def distance(self, points):
         # exact capped-cone distance (Quilez), in the (radial, axial) half plane
         local = (np.asarray(points) - self.frame[:3, 3]) @ self.frame[:3, :3]
-        q = np.stack((np.linalg.norm(local[..., :2], axis=-1), local[..., 2]), -1)
+        q = np.stack((length(local[..., :2]), local[..., 2]), -1)
         h, r1, r2 = self.half, self.r0, self.r1
         k1 = np.array([r2, h])
         k2 = np.array([r2 - r1, 2.0 * h])

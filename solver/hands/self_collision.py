@@ -101,7 +101,7 @@ def arm_corrector(skeleton, world, side, with_spine=False, method="SECONDARY", s
                if x.limb == "arm" and x.chain_side == side and x.joint in chain.joints]
     if volumes is None:
         volumes = [v for v in body_volumes(skeleton, world) if v.name in ("trunk", "head")]
-    return _ChainCorrector(skeleton, chain, sensors, volumes, lambda x: x.joint == hand, method)
+    return _ChainCorrector(skeleton, chain, sensors, volumes, lambda x: x.joint == hand, method, ARM_GAIN)
 
 
 def _arm_chain(skeleton, side, with_spine):
@@ -187,20 +187,23 @@ class _Volumes:
         d = self.radii[:, None] - (dist - self.r)
         return np.where(self.own, -np.inf, d), off
 
-    def normal(self, off, i, k, p):
+    def normals(self, off, pts):
+        """(..., S, V, 3) unit directions out of each volume at each sensor (pts (..., S, 3); `off`
+        from depths)."""
         if off is None:
-            return self.volumes[k].normal(p)
-        o = off[i, k]
-        n = np.sqrt(o @ o)
-        return o / n if n > 1e-9 else np.array([0.0, 0.0, 1.0])
+            flat = pts.reshape(-1, 3)
+            out = np.array([[v.normal(p) for v in self.volumes] for p in flat]).reshape(flat.shape[:1] + (-1, 3))
+            return out.reshape(pts.shape[:-1] + (len(self.volumes), 3))
+        n = np.sqrt(np.einsum("...i,...i->...", off, off))[..., None]
+        return np.where(n > 1e-9, off / np.maximum(n, 1e-300), (0.0, 0.0, 1.0))
 
 
 class _ChainCorrector:
     """Table 4-1 on one chain for a fixed set of sensors and volumes: what does not change from
     frame to frame (the sensors' bones and offsets, the volumes as arrays) made once."""
 
-    def __init__(self, skeleton, chain, sensors, volumes, on_end, method):
-        self.chain, self.sensors = chain, sensors
+    def __init__(self, skeleton, chain, sensors, volumes, on_end, method, gain=1.0):
+        self.chain, self.sensors, self.gain = chain, sensors, gain
         self.pos = np.array([chain.joints.index(x.joint) for x in sensors], int)
         self.local = np.array([[0.0, x.along * skeleton.lengths[x.joint], 0.0] for x in sensors]).reshape(-1, 3)
         self.ends = np.array([bool(on_end(x)) or method == "GOAL" for x in sensors], bool)
@@ -208,127 +211,123 @@ class _ChainCorrector:
         # the sub-chain root..sensor of each sensor (eq. 4-2): the DOFs at or above its bone
         self.sub = (chain._k[None, :] <= self.pos[:, None]).astype(float)  # (S, n)
 
-    def frames(self, eul, offsets, base):
-        """Chain.frames with the bones' rest offsets and pose translations folded into `offsets`
-        (n, 3) once per frame: the chain's world frames (rows 0-2) and the DOF axes in world."""
-        local = ik.matrix_xyz(eul)
-        rest_r = self.chain._rest_r
-        n = len(rest_r)
-        world = np.empty((n, 4, 4))
-        world[:, 3] = (0.0, 0.0, 0.0, 1.0)
-        pre = np.empty((n, 3, 3))  # each bone's rest orientation in world, before its own turn
-        pr, pp = base[:3, :3], base[:3, 3]
-        for k in range(n):
-            pp = pp + pr @ offsets[k]
-            pre[k] = r = pr @ rest_r[k]
-            world[k, :3, :3] = pr = r @ local[k]
-            world[k, :3, 3] = pp
-        axes = np.empty((n, 3, 3))
-        a = eul[:, 0, None]
-        axes[:, 0] = pre[:, :, 0]
-        axes[:, 1] = pre[:, :, 1] * np.cos(a) + pre[:, :, 2] * np.sin(a)
-        axes[:, 2] = world[:, :3, 2]
-        return world, axes
-
     def points(self, frames):
-        return (frames[self.pos, :3, :3] @ self.local[:, :, None])[:, :, 0] + frames[self.pos, :3, 3]
+        """Sensor centres (..., S, 3) of the chain's frames (..., n, 4, 4)."""
+        f = frames[..., self.pos, :, :]
+        return (f[..., :3, :3] @ self.local[:, :, None])[..., 0] + f[..., :3, 3]
 
-    def secondary(self, frames, axes, idx, pts, pushes):
-        """dz = sum over the hit sensors of J'+ dz' (eq. 4-2), every sensor's sub-chain Jacobian
-        at once; a 3x3 solve (J' J'^T) where J' has full rank, the SVD pseudo-inverse where not."""
+    def secondary(self, frames, axes, pts, hit, pushes, sub):
+        """dz (B, n) = sum over each frame's hit sensors of J'+ dz' (eq. 4-2): every sensor's
+        sub-chain Jacobian of every frame at once, a 3x3 solve (J' J'^T) where J' has full rank,
+        the SVD pseudo-inverse where not. pts, pushes (B, S, 3); hit (B, S); sub: the sensors' rows of
+        self.sub."""
         ch = self.chain
-        w = axes[ch._k, ch._a]  # (n, 3)
-        o = frames[ch._k, :3, 3]  # (n, 3)
-        jac = ik.cross(w[None], pts[:, None, :] - o[None]) * self.sub[idx][:, :, None]  # (H, n, 3) = J'^T
-        m = np.einsum("hni,hnj->hij", jac, jac)  # J' J'^T (H, 3, 3)
-        tr = np.trace(m, axis1=1, axis2=2)
-        det = np.linalg.det(m)
-        dz = np.zeros(ch.n)
-        good = det > 1e-9 * np.maximum(tr, 1e-30) ** 3
-        if good.any():
-            y = np.linalg.solve(m[good], pushes[good][:, :, None])[:, :, 0]
-            dz += np.einsum("hni,hi->n", jac[good], y)
-        for h in np.flatnonzero(~good):  # a sub-chain short of rank 3: the pseudo-inverse
-            dz += np.linalg.pinv(jac[h].T) @ pushes[h]
+        w = axes[:, ch._k, ch._a]  # (B, n, 3)
+        o = frames[:, ch._k][..., :3, 3]
+        jac = ik.cross(w[:, None], pts[:, :, None, :] - o[:, None]) * sub[:, :, None]  # (B, S, n, 3) = J'^T
+        m = np.einsum("bsni,bsnj->bsij", jac, jac)  # J' J'^T (B, S, 3, 3)
+        tr = np.trace(m, axis1=2, axis2=3)
+        good = np.linalg.det(m) > 1e-9 * np.maximum(tr, 1e-30) ** 3
+        # a sensor not hit, or short of rank 3, solves against I (its push is zero, or replaced below)
+        y = np.linalg.solve(np.where(good[..., None, None], m, np.eye(3)),
+                            np.where((hit & good)[..., None], pushes, 0.0)[..., None])[..., 0]
+        dz = np.einsum("bsni,bsi->bn", jac, y)
+        for b, h in zip(*np.nonzero(hit & ~good)):  # a sub-chain short of rank 3: the pseudo-inverse
+            dz[b] += np.linalg.pinv(jac[b, h].T) @ pushes[b, h]
         return dz
 
     def run(self, basis, world, target_pos, target_rot, margin, max_steps, sticky_goal=False):
+        """One frame: run_many on a batch of one."""
+        out = self.run_many(basis[None], world[None], np.asarray(target_pos, float)[None],
+                            None if target_rot is None else np.asarray(target_rot, float)[None],
+                            margin, max_steps, sticky_goal)
+        return tuple(x[0] for x in out)
+
+    def run_many(self, bases, worlds, target_pos, target_rot, margin, max_steps, sticky_goal=False):
+        """Table 4-1 on B frames at once (bases, worlds (B, J, 4, 4); targets (B, 3) and (B, 3, 3) or
+        None): each frame iterates until it is done, then drops out of the batch. Returns the
+        corrected bases, the deepest sensor before and after (B,), the steps taken (B,), the
+        chain's angles (B, n) and the effector positions (B, 3)."""
         chain = self.chain
-        base = ik.chain_base(chain, world)
-        eul0 = ik.euler_xyz(basis[chain.joints, :3, :3])
+        count = len(bases)
+        parent = chain.skeleton.parents[chain.joints[0]]
+        base = np.broadcast_to(np.eye(4), (count, 4, 4)) if parent < 0 else worlds[:, parent]
+        eul0 = ik.euler_xyz(bases[:, chain.joints][..., :3, :3])
         # each bone's head from its parent's frame: rest offset plus the pose's translation
-        offsets = chain._rest_t + (chain._rest_r @ basis[chain.joints][:, :3, 3, None])[:, :, 0]
-        theta = eul0[chain._k, chain._a]
-        target_pos = np.asarray(target_pos, float)
-        before = None  # the depth at the start: from the first step's test (the same pose)
-        goal = target_pos.copy()
-        steps = 0
-        depth = None
-        frames = None
-        for steps in range(1, max_steps + 1):
-            eul = eul0.copy()
-            eul[chain._k, chain._a] = theta
-            frames, axes = self.frames(eul, offsets, base)
+        offsets = chain._rest_t + (chain._rest_r @ bases[:, chain.joints][..., :3, 3, None])[..., 0]
+        theta = eul0[:, chain._k, chain._a]
+        goal = np.array(target_pos, float)  # the legs' sticky goals
+        before, after, steps = np.zeros(count), np.zeros(count), np.zeros(count, int)
+        effector = np.zeros((count, 3))
+        tested = np.zeros(count, bool)  # theta is the pose whose depth and effector are known
+        live = np.arange(count)
+        for step in range(1, max_steps + 1):
+            if not len(live):
+                break
+            steps[live] = step
+            eul = eul0[live]
+            eul[:, chain._k, chain._a] = theta[live]
+            frames, axes = ik.chain_frames(eul, chain._rest_r, offsets[live], base[live])
             pts = self.points(frames)
-            depth, off = self.vols.depths(pts)
-            if before is None:
-                before = max(float(depth.max(initial=-np.inf)), 0.0)
-            x, r = chain.effector(frames)
-            # temporary goal for the hand: pushed out along the response, else its own target
-            if not sticky_goal:
-                goal = target_pos
-            pushed = None
-            dz = np.zeros(chain.n)
-            hs, ks = np.nonzero(depth > -margin)  # sensor order, then volume order, as before
-            sec_i, sec_push = [], []
-            for i, k in zip(hs, ks):
-                d = depth[i, k]
-                push = self.vols.normal(off, i, k, pts[i]) * (d + margin)
-                if self.ends[i]:
-                    if sticky_goal:
-                        pushed = (x if pushed is None else pushed) + push
-                    else:
-                        goal = goal + push
-                    continue
-                if sec_i and sec_i[-1] == i:  # one sensor, two volumes: the pushes add (dz is linear)
-                    sec_push[-1] = sec_push[-1] + push
-                else:
-                    sec_i.append(i)
-                    sec_push.append(push)
-            if sec_i:
-                dz = self.secondary(frames, axes, np.array(sec_i), pts[sec_i], np.array(sec_push))
-            if pushed is not None:
-                goal = pushed
-            ep = goal - x
-            er = ik.rot_log(target_rot @ r.T) if target_rot is not None else np.zeros(3)
+            depth, off = self.vols.depths(pts)  # (L, S, V)
+            deepest = depth.max(axis=(1, 2), initial=-np.inf)
+            if step == 1:
+                before[:] = np.maximum(deepest, 0.0)
+            after[live] = np.maximum(deepest, 0.0)
+            tested[live] = True
+            tip = frames[:, chain._tip_k]
+            x = tip[:, :3, :3] @ chain.point + tip[:, :3, 3]
+            effector[live] = x
+            # the response of every sensor within the margin, summed over the volumes it is near
+            hit = depth > -margin
+            push = (self.vols.normals(off, pts) * np.where(hit, depth + margin, 0.0)[..., None]).sum(axis=2)
+            ends = hit[:, self.ends].any(axis=(1, 2))
+            end_push = push[:, self.ends].sum(axis=1)
+            # temporary goal for the effector: pushed out along the response, else its own target
+            if sticky_goal:
+                goal[live] = np.where(ends[:, None], x + end_push, goal[live])
+                ep = goal[live] - x
+            else:
+                ep = target_pos[live] + end_push - x
+            er = np.zeros((len(live), 3)) if target_rot is None else \
+                _rot_log_many(target_rot[live] @ np.swapaxes(tip[:, :3, :3], 1, 2))
             # done when every sensor keeps half the margin (the response aims at the whole margin,
             # which it only approaches geometrically) and the effector is on its goal
-            clear = not len(hs) or bool((depth[hs, ks] <= -0.5 * margin).all())
-            if clear and np.sqrt(ep @ ep) < 2e-4 and np.sqrt(er @ er) < 1e-3:
-                break  # theta is the pose just tested: its frames and depths stand
-            w = 0.15
-            jac = chain.jacobian(frames, axes)
-            if target_rot is not None:
-                jac[:3] *= w
-                dx = np.concatenate((er * w, np.minimum(np.maximum(ep, -0.05), 0.05)))
-            else:
-                jac, dx = jac[3:], np.minimum(np.maximum(ep, -0.05), 0.05)
-            dq = ik.null_space_step(jac, dx, dz)
-            theta = np.minimum(np.maximum(theta + dq, chain.lower), chain.upper)
-            frames = None  # theta moved
-            if np.abs(dq).max() < CONVERGED:  # a fixed point: the response and the goal balance
+            done = (deepest <= -0.5 * margin) & (np.einsum("bi,bi->b", ep, ep) < 4e-8) & \
+                (np.einsum("bi,bi->b", er, er) < 1e-6)
+            go = ~done
+            live = live[go]
+            if not len(live):
                 break
+            frames, axes, pts, x, ep, er = frames[go], axes[go], pts[go], x[go], ep[go], er[go]
+            inner = hit[go][:, ~self.ends].any(axis=2)
+            dz = self.gain * self.secondary(frames, axes, pts[:, ~self.ends], inner, push[go][:, ~self.ends],
+                                                 self.sub[~self.ends]) if inner.any() else np.zeros((len(live), chain.n))
+            w = axes[:, chain._k, chain._a]
+            lin = np.swapaxes(ik.cross(w, x[:, None] - frames[:, chain._k][..., :3, 3]), 1, 2)
+            ep = np.minimum(np.maximum(ep, -0.05), 0.05)
+            if target_rot is not None:
+                wt = 0.15
+                jac = np.concatenate((wt * np.swapaxes(w, 1, 2), lin), axis=1)
+                dx = np.concatenate((wt * er, ep), axis=1)
+            else:
+                jac, dx = lin, ep
+            dq = ik.null_space_steps(jac, dx, dz)
+            theta[live] = np.minimum(np.maximum(theta[live] + dq, chain.lower), chain.upper)
+            tested[live] = False
+            live = live[np.abs(dq).max(axis=1) >= CONVERGED]  # a fixed point: the response and goal balance
         eul = eul0.copy()
-        eul[chain._k, chain._a] = theta
-        if frames is None:
-            frames, _ = self.frames(eul, offsets, base)
+        eul[:, chain._k, chain._a] = theta
+        moved = np.flatnonzero(~tested)
+        if len(moved):
+            frames, _ = ik.chain_frames(eul[moved], chain._rest_r, offsets[moved], base[moved])
             depth, _ = self.vols.depths(self.points(frames))
-        out = np.array(basis, float)
-        out[chain.joints, :3, :3] = ik.matrix_xyz(eul)
-        after = max(float(depth.max(initial=-np.inf)), 0.0)
-        if before is None:  # no step was taken
-            before = after
-        return out, before, after, steps, theta, chain.effector(frames)[0]
+            after[moved] = np.maximum(depth.max(axis=(1, 2), initial=-np.inf), 0.0)
+            tip = frames[:, chain._tip_k]
+            effector[moved] = tip[:, :3, :3] @ chain.point + tip[:, :3, 3]
+        out = np.array(bases, float)
+        out[:, chain.joints, :3, :3] = ik.matrix_xyz(eul)
+        return out, before, after, steps, theta, effector
 
 
 def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, volumes, on_end, target_pos,
@@ -345,6 +344,11 @@ def _correct_chain(skeleton, basis, world, armature_to_world, chain, sensors, vo
 
 
 CONVERGED = 1e-6  # radians: a correction step this small ends the frame's iterations
+# the arm's step takes eq. 4-2's dz twice: the main task's null space passes on a quarter to a half
+# of the response each step (a deep elbow took 10-14 steps at 1); 2 halves that, 3 and more
+# overshoot and leave the hand 0.1-0.2 mm off its goal. The legs keep 1: each leg's response also
+# moves the volumes the other leg answers to, and more overshoots into them.
+ARM_GAIN = 2.0
 
 
 def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R"), targets=None, margin=0.01,
@@ -356,11 +360,10 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
     `leg_targets[side]`, the ankle's positions and the foot's rotations). `world` (F, J, 4, 4),
     the input's world frames, saves computing them. Returns (corrected frames, CorrectionReport).
 
-    On its own targets (no `targets`), an arm is corrected on every other frame of each stretch
-    near the body; the frames between take the mean of their neighbours' corrections (the motion
-    is smooth) and are kept only if they pass the same test a corrected frame ends on (every
-    sensor half the margin clear, the hand on its target), all in one batched check; the others
-    are corrected from that guess."""
+    On its own targets (no `targets`), an arm's frames near the body are corrected together, as one
+    batch, each from its own pose; with `targets`, frame by frame, each warm started from the one
+    before.
+    """
     frames = np.array(frames, float)
     out = frames.copy()
     tally = _Tally()
@@ -377,7 +380,7 @@ def remove_self_collisions(skeleton, frames, armature_to_world, sides=("L", "R")
         arm = ArmPass(skeleton, s, world_in, sensors, volumes, margin, max_steps, with_spine, method,
                       None if targets is None else targets.get(s), tally)
         if targets is None:
-            arm.skipping(out)
+            arm.together(out)
         else:
             arm.sequential(out)
     leg_corrected, foot_err, steps = 0, 0.0, 0
@@ -406,18 +409,6 @@ class _Tally:
         if goal_err is not None:
             self.goal_err = max(self.goal_err, goal_err)
         self.steps += steps
-
-
-MAIN_STEPS = 1  # on a frame between: batched main-task steps before it is corrected on its own
-STRIDE = 2  # an arm near the body: every STRIDE-th frame corrected, the ones between interpolated and checked
-
-
-def _between(shift, solved, t):
-    """The correction at frame t, linear between the corrected frames on either side."""
-    k = np.searchsorted(solved, t)
-    t0, t1 = solved[k - 1], solved[k]
-    u = (t - t0) / (t1 - t0)
-    return (1.0 - u) * shift[t0] + u * shift[t1]
 
 
 class ArmPass:
@@ -456,144 +447,29 @@ class ArmPass:
             start = chain.apply(chain.angles(out[t - 1]), out[t]) if t > 0 else out[t].copy()
             self.solve(out, t, start)
 
-    def skipping(self, out):
-        """Each stretch of frames near the body (on the input) through _stretch; the others left."""
-        f = len(out)
-        t = 0
-        while t < f:
-            if not self.near[t]:  # clear of the body, on its own target: nothing to do
-                t += 1
-                continue
-            b = t
-            while b + 1 < f and self.near[b + 1]:
-                b += 1
-            self._stretch(out, t, b)
-            t = b + 1
-
-    def _stretch(self, out, a, b):
-        """Frames a..b, all near the body: every other one corrected, the others checked."""
-        chain = self.chain
-        solved = list(range(a, b + 1, STRIDE))
-        if solved[-1] != b:
-            solved.append(b)
-        shift = {}
-        done = []  # the corrected frames so far: their changes, extrapolated, are the next one's first guess
-        for t in solved:
-            angles_in = chain.angles(out[t])
-            if not done:
-                start = out[t].copy()
-            else:
-                guess = shift[done[-1]]
-                if len(done) > 1:  # the correction grows or shrinks smoothly over the reach
-                    t0, t1 = done[-2], done[-1]
-                    guess = guess + (shift[t1] - shift[t0]) * ((t - t1) / (t1 - t0))
-                start = chain.apply(angles_in + guess, out[t])
-            shift[t] = self.solve(out, t, start) - angles_in
-            done.append(t)
-        between = np.array([t for t in range(a, b + 1) if t not in shift], int)
-        if not len(between):
+    def together(self, out):
+        """The frames near the body (on the input) corrected in one batch, each from its own pose;
+        the others left."""
+        near = np.flatnonzero(self.near)
+        if not len(near):
             return
-        eul = ik.euler_xyz(out[between][:, chain.joints, :3, :3])
-        guess = np.array([_between(shift, solved, t) for t in between])
-        theta = np.clip(eul[:, chain._k, chain._a] + guess, chain.lower, chain.upper)
-        eul[:, chain._k, chain._a] = theta
-        ok, hand = self._passes(eul, out[between], between)
-        for _ in range(MAIN_STEPS):  # steps of the main task (eq. 2-1, dz = 0) on the others, then the test again
-            bad = np.flatnonzero(~ok)
-            if not len(bad):
-                break
-            eul[bad] = self._main_step(eul[bad], out[between[bad]], between[bad])
-            ok[bad], hand[bad] = self._passes(eul[bad], out[between[bad]], between[bad])
-        for k, t in enumerate(between):
-            start = out[t].copy()
-            start[chain.joints, :3, :3] = ik.matrix_xyz(eul[k])
-            if ok[k]:
-                out[t] = start
-                err = float(np.linalg.norm(hand[k] - self.tp[t])) if self.target_clear[t] else None
-                self.tally.add(self.depth_in[t], 0.0, err, 0)
-            else:
-                self.solve(out, t, start)
-
-    def _passes(self, eul, basis, idx):
-        """Per pose (eul (B, n, 3) of the chain on basis (B, J, 4, 4) at frames idx): the test a
-        corrected frame ends on: every sensor at least half the margin clear (the hand's sensor
-        the whole margin: inside it the hand's goal would be pushed) and the hand on its target.
-        Returns (passes (B,), hand positions (B, 3))."""
-        chain, cor = self.chain, self.cor
-        wf = _chain_frames_many(chain, eul, basis, self.world_in[idx])
-        pts = (wf[:, cor.pos, :3, :3] @ cor.local[:, :, None])[..., 0] + wf[:, cor.pos][..., :3, 3]
-        depth, _ = cor.vols.depths(pts)
-        depth = depth.max(axis=-1, initial=-np.inf)  # (B, S)
-        limit = np.where(cor.ends, -self.margin, -0.5 * self.margin)
-        tip = wf[:, chain._tip_k]
-        hand = tip[:, :3, :3] @ chain.point + tip[:, :3, 3]
-        ok = (depth <= limit).all(axis=1) & (np.linalg.norm(self.tp[idx] - hand, axis=1) < 2e-4)
-        if self.tr is not None:
-            ok &= ik.rot_angle(self.tr[idx] @ np.swapaxes(tip[:, :3, :3], 1, 2)) < 1e-3
-        return ok, hand
-
-    def _main_step(self, eul, basis, idx):
-        """One damped least-squares step (ik.null_space_step without the secondary term) toward
-        the hand's target for B poses at once; returns the new angles (B, n, 3)."""
-        chain = self.chain
-        wf, axes = _chain_frames_many(chain, eul, basis, self.world_in[idx], with_axes=True)
-        tip = wf[:, chain._tip_k]
-        x = tip[:, :3, :3] @ chain.point + tip[:, :3, 3]
-        ep = np.clip(self.tp[idx] - x, -0.05, 0.05)
-        w = axes[:, chain._k, chain._a]  # (B, n, 3)
-        lin = ik.cross(w, x[:, None, :] - wf[:, chain._k][..., :3, 3])
-        if self.tr is not None:
-            er = _rot_log_many(self.tr[idx] @ np.swapaxes(tip[:, :3, :3], 1, 2))
-            jac = np.concatenate((0.15 * w, lin), axis=2).transpose(0, 2, 1)  # (B, 6, n)
-            dx = np.concatenate((0.15 * er, ep), axis=1)
-        else:
-            jac, dx = lin.transpose(0, 2, 1), ep
-        u, sv, vt = np.linalg.svd(jac, full_matrices=False)
-        eps, lam_max = 0.02, 0.05  # ik.damped_pinv's rule
-        smin = sv[:, -1]
-        lam2 = np.where(smin >= eps, 0.0, lam_max ** 2 * (1.0 - (smin / eps) ** 2))
-        y = np.einsum("bji,bj->bi", u, dx) * sv / (sv ** 2 + lam2[:, None])
-        dq = np.einsum("bij,bi->bj", vt, y)
-        out = eul.copy()
-        out[:, chain._k, chain._a] = np.clip(eul[:, chain._k, chain._a] + dq, chain.lower, chain.upper)
-        return out
+        res = self.cor.run_many(out[near], self.world_in[near], self.tp[near], None if self.tr is None else self.tr[near],
+                                self.margin, self.max_steps)
+        out[near] = res[0]
+        for k, t in enumerate(near):
+            err = float(np.linalg.norm(res[5][k] - self.tp[t])) if self.target_clear[t] else None
+            self.tally.add(self.depth_in[t], res[2][k], err, int(res[3][k]))
 
 
 def _rot_log_many(r):
-    """ik.rot_log of (B, 3, 3) rotations away from a half turn."""
+    """ik.rot_log of (B, 3, 3) rotations."""
     v = np.stack((r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]), axis=1)
     s = 0.5 * np.sqrt(np.einsum("bi,bi->b", v, v))
     th = np.arctan2(s, 0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0))
-    return v * np.where(th < 1e-6, 0.5, th / (2.0 * np.maximum(s, 1e-300)))[:, None]
-
-
-def _chain_frames_many(chain, eul, basis, world, with_axes=False):
-    """World frames (B, n, 4, 4) of the chain's bones for B poses: angles eul (B, n, 3) on
-    basis (B, J, 4, 4), the chain's base from the world frames (B, J, 4, 4)."""
-    p = chain.skeleton.parents[chain.joints[0]]
-    b = len(eul)
-    base = np.broadcast_to(np.eye(4), (b, 4, 4)) if p < 0 else world[:, p]
-    local = ik.matrix_xyz(eul)
-    bt = basis[:, chain.joints][..., :3, 3]
-    out = np.zeros((b, len(chain.joints), 4, 4))
-    out[..., 3, 3] = 1.0
-    pr, pp = base[:, :3, :3], base[:, :3, 3]
-    pre = np.empty((b, len(chain.joints), 3, 3))  # each bone's rest orientation in world, before its turn
-    for k in range(len(chain.joints)):
-        r = pr @ chain._rest_r[k]
-        pp = pr @ chain._rest_t[k] + pp + (r @ bt[:, k, :, None])[..., 0]
-        pr = r @ local[:, k]
-        pre[:, k] = r
-        out[:, k, :3, :3] = pr
-        out[:, k, :3, 3] = pp
-    if not with_axes:
-        return out
-    axes = np.empty((b, len(chain.joints), 3, 3))  # as Chain.frames: the X, Y' and Z'' axes in world
-    a = eul[..., 0][..., None]
-    axes[:, :, 0] = pre[..., 0]
-    axes[:, :, 1] = pre[..., 1] * np.cos(a) + pre[..., 2] * np.sin(a)
-    axes[:, :, 2] = out[:, :, :3, 2]
-    return out, axes
+    out = v * np.where(th < 1e-6, 0.5, th / (2.0 * np.maximum(s, 1e-300)))[:, None]
+    for i in np.flatnonzero(th >= np.pi - 1e-3):  # near a half turn the skew part loses the axis
+        out[i] = ik.rot_log(r[i])
+    return out
 
 
 def _leg_depth(skeleton, sensors, world, margin=0.0):
