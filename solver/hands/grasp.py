@@ -415,23 +415,29 @@ class _FingersClose:
         out = [share.copy()]
         step = 1.0 / frames
         m0 = self.SAMPLES
+        k = np.arange(nf)
+        d_share = None  # the depths at `share`, once needed
         for _ in range(frames):
             trial = np.where(moving, np.minimum(1.0, share + step), share)
             d = self.depth(trial[None])[0]  # (F, S)
             hit = d.max(axis=1) > 0
             if hit.any():
-                # the first touch between share and trial, per finger that would sink in
-                lo, hi = np.zeros(nf), np.ones(nf)
+                # the first touch between share and trial, per finger that would sink in; the
+                # depths at the last sample before it (`lo`) are the new pose's
+                if d_share is None:
+                    d_share = self.depth(share[None])[0]
+                lo, hi, d_lo = np.zeros(nf), np.ones(nf), d_share
                 for _ in range(self.REFINE):
                     m = lo[None] + (hi - lo)[None] * m0[:, None]  # (K, F)
-                    dd = self.depth(share[None] + m[..., None] * (trial - share)[None]).max(axis=2) > 0
+                    dm = self.depth(share[None] + m[..., None] * (trial - share)[None])  # (K, F, S)
+                    dd = dm.max(axis=2) > 0
                     first = np.where(dd.any(axis=0), np.argmax(dd, axis=0), len(m0))
-                    k = np.arange(nf)
                     lo = np.where(first > 0, m[np.maximum(first - 1, 0), k], lo)
+                    d_lo = np.where((first > 0)[:, None], dm[np.maximum(first - 1, 0), k], d_lo)
                     hi = np.where(first < len(m0), m[np.minimum(first, len(m0) - 1), k], hi)
                 trial = np.where(hit[:, None], share + lo[:, None] * (trial - share), trial)
-                d = self.depth(trial[None])[0]
-            share = trial
+                d = np.where(hit[:, None], d_lo, d)
+            share, d_share = trial, d
             for fi, si in zip(*np.nonzero(d > -tolerance)):
                 sensor = self.sensors[fi][si]
                 touching[sensor.name] = float(d[fi, si])

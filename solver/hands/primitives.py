@@ -40,17 +40,19 @@ class Frustum:
         return 0.5 * (self.r0 + self.r1)
 
     def distance(self, points):
-        # exact capped-cone distance (Quilez), in the (radial, axial) half plane
+        # exact capped-cone distance (Quilez), in the (radial, axial) half plane, component-wise
         local = (np.asarray(points) - self.frame[:3, 3]) @ self.frame[:3, :3]
-        q = np.stack((length(local[..., :2]), local[..., 2]), -1)
+        radial, axial = length(local[..., :2]), local[..., 2]
         h, r1, r2 = self.half, self.r0, self.r1
-        k1 = np.array([r2, h])
-        k2 = np.array([r2 - r1, 2.0 * h])
-        ca = np.stack((q[..., 0] - np.minimum(q[..., 0], np.where(q[..., 1] < 0, r1, r2)), np.abs(q[..., 1]) - h), -1)
-        t = np.clip(((k1 - q) @ k2) / (k2 @ k2), 0.0, 1.0)
-        cb = q - k1 + t[..., None] * k2
-        s = np.where((cb[..., 0] < 0) & (ca[..., 1] < 0), -1.0, 1.0)
-        return s * np.sqrt(np.minimum(np.einsum("...i,...i", ca, ca), np.einsum("...i,...i", cb, cb)))
+        kx, ky = r2 - r1, 2.0 * h  # k2, the side from the bottom rim to the top one
+        # to the nearer cap's disc, and to the side
+        ca_r = radial - np.minimum(radial, np.where(axial < 0, r1, r2))
+        ca_a = np.abs(axial) - h
+        t = np.clip(((r2 - radial) * kx + (h - axial) * ky) / (kx * kx + ky * ky), 0.0, 1.0)
+        cb_r = radial - r2 + t * kx
+        cb_a = axial - h + t * ky
+        dist = np.sqrt(np.minimum(ca_r * ca_r + ca_a * ca_a, cb_r * cb_r + cb_a * cb_a))
+        return np.where((cb_r < 0) & (ca_a < 0), -dist, dist)
 
     def transformed(self, m):
         return Frustum(m @ self.frame, self.r0, self.r1, self.half)
