@@ -391,6 +391,21 @@ def _below(skeleton, joints):
     return cache[key]
 
 
+def _levels(skeleton, joints):
+    """The joints and every descendant (_below) in levels: each level's parents are in an earlier
+    level or outside the set, so a level is one batched product (cached per skeleton)."""
+    cache = skeleton.__dict__.setdefault("_hands_levels", {})
+    key = tuple(sorted(set(int(j) for j in joints)))
+    if key not in cache:
+        depth = {}
+        for j in _below(skeleton, key):  # parents first
+            p = skeleton.parents[j]
+            depth[j] = depth[p] + 1 if p in depth else 0
+        cache[key] = [(np.array(js), np.array([skeleton.parents[j] for j in js]))
+                      for js in ([j for j in depth if depth[j] == d] for d in range(max(depth.values(), default=-1) + 1))]
+    return cache[key]
+
+
 def update_world(skeleton, basis, world, joints, armature_to_world=None):
     """World frames (..., J, 4, 4) of `basis` (..., J, 4, 4) where only `joints` differ from the
     pose whose world frames are `world`: those joints and their descendants are recomputed, the
@@ -398,16 +413,17 @@ def update_world(skeleton, basis, world, joints, armature_to_world=None):
     root among them (a control rig's spine chain can start at one) needs `armature_to_world`."""
     basis = np.asarray(basis, float)
     out = np.array(np.broadcast_to(world, basis.shape))
-    rest_local, parents = skeleton.rest_local, skeleton.parents
-    for j in _below(skeleton, joints):
-        p = parents[j]
-        if p >= 0:
-            parent = out[..., p, :, :]
-        elif armature_to_world is not None:
-            parent = np.asarray(armature_to_world, float)
-        else:
+    for js, parents in _levels(skeleton, joints):
+        local = skeleton.rest_local[js] @ basis[..., js, :, :]
+        roots = parents < 0
+        if not roots.any():
+            out[..., js, :, :] = out[..., parents, :, :] @ local
+            continue
+        if armature_to_world is None:
             raise ValueError("update_world needs armature_to_world to move a root")
-        out[..., j, :, :] = parent @ (rest_local[j] @ basis[..., j, :, :])
+        parent = out[..., np.maximum(parents, 0), :, :]
+        parent[..., roots, :, :] = np.asarray(armature_to_world, float)[..., None, :, :]
+        out[..., js, :, :] = parent @ local
     return out
 
 

@@ -96,3 +96,40 @@ def test_damped_least_squares_at_a_singularity(rig):
     jac = np.array([[1.0, 0.0], [0.0, 1e-9]])
     step = ik.null_space_step(jac, np.array([0.0, 1.0]))
     assert np.linalg.norm(step) < 50  # the undamped inverse would step 1e9
+
+
+def test_update_world_is_forward_kinematics_of_the_moved_joints(rig):
+    """A pose differing from a known one in a few joints (a root among them, frames batched):
+    their subtrees recomputed level by level equal the whole body's forward kinematics."""
+    sk, basis, a2w = rig
+    rng = np.random.default_rng(0)
+    moved = [0, 5, sk.role_index("hand.R")]
+    poses = np.repeat(basis[None], 3, axis=0)
+    for j in moved:
+        poses[:, j, :3, :3] = ik.matrix_xyz(rng.normal(size=(3, 3)) * 0.3)
+    expected = sk.world_frames(poses, a2w)
+    out = ik.update_world(sk, poses, sk.world_frames(basis, a2w), moved, armature_to_world=a2w)
+    assert np.abs(out - expected).max() < 1e-12
+    with pytest.raises(ValueError):
+        ik.update_world(sk, poses, sk.world_frames(basis, a2w), moved)
+
+
+def test_normal_equation_step_equals_the_svd_step(rig):
+    """null_space_step (normal equations, one Cholesky solve) and its batched form give the damped
+    pseudo-inverse's step: undamped, near a singularity, with fewer DOFs than rows, with limits."""
+    rng = np.random.default_rng(1)
+    cases = [rng.normal(size=(6, 12)), rng.normal(size=(3, 5)), rng.normal(size=(6, 4))]
+    near = np.outer(np.ones(6), np.linspace(0, 1, 12)) + 1e-4 * rng.normal(size=(6, 12))
+    cases.append(near)
+    for jac in cases:
+        n = jac.shape[1]
+        dx, dz = rng.normal(size=jac.shape[0]), rng.normal(size=n)
+        jp = ik.damped_pinv(jac)
+        expected = jp @ dx + dz - jp @ (jac @ dz)
+        assert np.allclose(ik.null_space_step(jac, dx, dz), expected, atol=1e-10)
+        assert np.allclose(ik.null_space_steps(jac[None], dx[None], dz[None])[0], expected, atol=1e-10)
+        mask = np.arange(n) % 3 != 0
+        jm = jac * mask
+        jpm = ik.damped_pinv(jm)
+        masked = (jpm @ dx + (np.eye(n) - jpm @ jm) @ (dz * mask)) * mask
+        assert np.allclose(ik.null_space_step(jac, dx, dz, active=mask), masked, atol=1e-10)
