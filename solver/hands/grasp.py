@@ -796,8 +796,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         n1 = max(1, int(round(reach_frames * 0.7)))
         traj = np.vstack((pd_servo(th0, approach.theta, n1, fps),
                           pd_servo(approach.theta, res.theta, reach_frames - n1, fps)[1:]))
-        for t in range(reach_frames + 1):
-            frames[t] = chain.apply(traj[t], frames[t])
+        frames[:reach_frames + 1] = chain.apply(traj, frames[:reach_frames + 1])
         frames[reach_frames:] = chain.apply(res.theta, frames[reach_frames])[None]
         if pinch_pat is not None:  # fingers pre-shape during the reach (a smooth-step slerp)
             x = np.arange(reach_frames + 1) / reach_frames

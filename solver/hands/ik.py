@@ -38,10 +38,11 @@ def rodrigues(v):
 def euler_xyz(r):
     """Intrinsic X-Y-Z angles (..., 3) of rotations (..., 3, 3): R = Rx(a) Ry(b) Rz(c)."""
     r = np.asarray(r, float)
-    b = np.arcsin(np.clip(r[..., 0, 2], -1.0, 1.0))
-    a = np.arctan2(-r[..., 1, 2], r[..., 2, 2])
-    c = np.arctan2(-r[..., 0, 1], r[..., 0, 0])
-    return np.stack((a, b, c), axis=-1)
+    out = np.empty(r.shape[:-1])
+    out[..., 0] = np.arctan2(-r[..., 1, 2], r[..., 2, 2])
+    out[..., 1] = np.arcsin(np.minimum(np.maximum(r[..., 0, 2], -1.0), 1.0))
+    out[..., 2] = np.arctan2(-r[..., 0, 1], r[..., 0, 0])
+    return out
 
 
 def _xyz_map():
@@ -205,18 +206,19 @@ class Chain:
         return cls(skeleton, joints, joints[-1], np.asarray(point, float))
 
     # --- angles <-> basis -------------------------------------------------------------
+    # (all three take poses (..., J, 4, 4) and angles (..., n): one pose or a motion's frames)
     def angles(self, basis):
-        eul = euler_xyz(basis[self.joints, :3, :3])
-        return eul[self._k, self._a]
+        eul = euler_xyz(np.asarray(basis)[..., self.joints, :3, :3])
+        return eul[..., self._k, self._a]
 
     def euler(self, theta, basis):
-        eul = euler_xyz(basis[self.joints, :3, :3])
-        eul[self._k, self._a] = theta
+        eul = euler_xyz(np.asarray(basis)[..., self.joints, :3, :3])
+        eul[..., self._k, self._a] = theta
         return eul
 
     def apply(self, theta, basis):
         out = np.array(basis, float)
-        out[self.joints, :3, :3] = matrix_xyz(self.euler(theta, basis))
+        out[..., self.joints, :3, :3] = matrix_xyz(self.euler(theta, basis))
         return out
 
     # --- kinematics -------------------------------------------------------------------
