@@ -307,20 +307,28 @@ def close_fingers(skeleton, side, basis, world, pattern, shapes, frames=12, tole
     group) over `frames` steps; a sensor within `tolerance` of the object stops its bone and that
     bone's ancestors in the finger, the others go on. Returns the per-frame finger rotations
     {joint: (frames+1, 3, 3)}, the touching sensors and their depths."""
-    sensors = sensors or default_hand_sensors(skeleton, side)
-    track, touching = {}, {}
-    # fingers whose chains have the same length close together (one batch per length)
-    groups = {}
-    for f, chain in finger_chains(skeleton, side).items():
-        groups.setdefault(len(chain), []).append(chain)
-    for chains in groups.values():
-        hand = _FingersClose(skeleton, chains, basis, world, pattern, sensors, shapes)
-        shares = hand.close(frames, tolerance, touching)  # (frames+1, F, n)
-        rots = hand.rotations(shares)
-        for fi, chain in enumerate(chains):
+    return close_hands(skeleton, {side: (pattern, sensors)}, basis, world, shapes, frames, tolerance)[side]
+
+
+def close_hands(skeleton, hands, basis, world, shapes, frames=12, tolerance=0.0003):
+    """close_fingers for several hands ({side: (pattern, sensors or None)}): the fingers of every
+    hand whose chains have the same length close together, one batch per length. Returns
+    {side: (track, touching, sensors)}."""
+    out, groups = {}, {}
+    for side, (pattern, sensors) in hands.items():
+        out[side] = ({}, {}, sensors or default_hand_sensors(skeleton, side))
+        for chain in finger_chains(skeleton, side).values():
+            groups.setdefault(len(chain), []).append((side, chain))
+    patterns = {j: r for pattern, _ in hands.values() for j, r in pattern.items()}
+    sensors = [x for _, _, hand_sensors in out.values() for x in hand_sensors]
+    for members in groups.values():
+        group = _FingersClose(skeleton, [c for _, c in members], basis, world, patterns, sensors, shapes)
+        shares = group.close(frames, tolerance, [out[side][1] for side, _ in members])  # (frames+1, F, n)
+        rots = group.rotations(shares)
+        for fi, (side, chain) in enumerate(members):
             for k, j in enumerate(chain):
-                track[j] = rots[:, fi, k]
-    return track, touching, sensors
+                out[side][0][j] = rots[:, fi, k]
+    return out
 
 
 class _FingersClose:
@@ -409,6 +417,7 @@ class _FingersClose:
         return d
 
     def close(self, frames, tolerance, touching):
+        """The shares (frames+1, F, n); touching[f] (a dict per finger) gets its touching sensors."""
         nf = len(self.chains)
         share = np.zeros((nf, self.n))
         moving = np.ones((nf, self.n), bool)
@@ -440,7 +449,7 @@ class _FingersClose:
             share, d_share = trial, d
             for fi, si in zip(*np.nonzero(d > -tolerance)):
                 sensor = self.sensors[fi][si]
-                touching[sensor.name] = float(d[fi, si])
+                touching[fi][sensor.name] = float(d[fi, si])
                 # the touching bone and its ancestors in the finger stop
                 j = self.pos[fi, si]
                 while j >= 0:
@@ -821,6 +830,7 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
         frames[reach_frames:] = frames[reach_frames][None]
     final = frames[reach_frames]
     world_f = ik.update_world(skeleton, final, world, moved, armature_to_world=armature_to_world)
+    closing = {}
     for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
         hand = skeleton.role_index(sided("hand", s))
         centre_local = rigid_inv(world_f[hand]) @ shape_frame(shape)
@@ -828,8 +838,11 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
             skeleton, s, world_f, geom, gtype, centre_local[:3, 3], basis=final)
         if pattern is not None and not isinstance(pattern, dict):
             pat = pattern_from_pose(skeleton, s, pattern)
-        track, touching, sensors = close_fingers(skeleton, s, final, world_f, pat, [shape], close_frames,
-                                                 sensors=(hand_sensors or {}).get(s))
+        closing[s] = (pat, (hand_sensors or {}).get(s))
+    closed = close_hands(skeleton, closing, final, world_f, [shape], close_frames)
+    for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
+        hand = skeleton.role_index(sided("hand", s))
+        track, touching, sensors = closed[s]
         for j, rots in track.items():
             frames[reach_frames:, j, :3, :3] = rots
         fingers = tuple(sorted({x.split(".")[0] for x in touching}))
