@@ -257,9 +257,7 @@ def load_job(args, props):
     """The file, mass, source action and frame range of a simulate/control command, set on
     the command's settings group: (armature, scene, BVH unit or None)."""
     import bpy
-    obj, scene, unit = _load(args.file, args.armature, args.scale)
-    if args.mass:
-        obj.data.humananim.total_mass = args.mass
+    obj, scene, unit = load_rig(args)
     props = getattr(scene, props)
     if args.action:
         props.action = bpy.data.actions.get(args.action)
@@ -267,6 +265,15 @@ def load_job(args, props):
             raise UsageError(f"no action named '{args.action}'")
     if args.frames:
         props.frame_start, props.frame_end = args.frames
+    return obj, scene, unit
+
+
+def load_rig(args):
+    """A dynamics command's file (a .blend, or a BVH imported into an empty scene) and armature,
+    with --mass set on the rig: (armature, scene, BVH unit or None)."""
+    obj, scene, unit = _load(args.file, args.armature, args.scale)
+    if args.mass:
+        obj.data.humananim.total_mass = args.mass
     return obj, scene, unit
 
 

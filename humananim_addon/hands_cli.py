@@ -33,14 +33,12 @@ def cmd_grasp(args):
     import bpy
     from ..solver.progress import run_to_end
     from . import hands
-    from .cli import _load
+    from .cli import load_rig
     t0 = time.perf_counter()
-    obj, scene, _ = _load(args.file, args.armature, args.scale)
+    obj, scene, _ = load_rig(args)
     target = bpy.data.objects.get(args.object)
     if target is None or target.type != "MESH":
         raise UsageError(f"--object: no mesh object named '{args.object}'")
-    if args.mass:
-        obj.data.humananim.total_mass = args.mass
     props = scene.humananim_hands
     props.side, props.grasp_type = args.side, args.type
     props.start_frame, props.duration, props.close_duration = args.start, args.reach, args.close

@@ -56,12 +56,10 @@ def cmd_synthesize(args):
     import bpy
     from ..solver.progress import run_to_end
     from . import synthesis
-    from .cli import _load, parse_arrow
+    from .cli import load_rig, parse_arrow
     from .control_cli import add_impulse_from_vector
     t0 = time.perf_counter()
-    obj, scene, unit = _load(args.file, args.armature, args.scale)
-    if args.mass:
-        obj.data.humananim.total_mass = args.mass
+    obj, scene, unit = load_rig(args)
     props = scene.humananim_synthesis
     props.entries.clear()
     if args.queue:

@@ -47,11 +47,9 @@ def cmd_walk(args):
     import bpy
     from ..solver.walking import PRESETS
     from . import walking
-    from .cli import _load
+    from .cli import load_rig
     t0 = time.perf_counter()
-    obj, scene, unit = _load(args.file, args.armature, args.scale)
-    if args.mass:
-        obj.data.humananim.total_mass = args.mass
+    obj, scene, unit = load_rig(args)
     props = scene.humananim_walk
     props.armature = obj
     if args.style not in PRESETS:
