@@ -3,6 +3,7 @@
 import bpy
 
 from ..humananim_addon import capture
+from .common import edited_list
 from .rig import HumanAnimPanel
 
 STATUS_ICONS = {"connected": "CHECKMARK", "resyncing": "FILE_REFRESH", "disconnected": "ERROR",
@@ -29,13 +30,10 @@ class VIEW3D_PT_humananim_capture(HumanAnimPanel, bpy.types.Panel):
         s = context.scene.humananim_capture
         layout = self.layout
         live = capture.LIVE
-        row = layout.row()
-        row.template_list("HUMANANIM_UL_capture_devices", "", s, "devices", s, "device_index", rows=2)
-        col = row.column(align=True)
-        col.operator("humananim.capture_add_device", icon="ADD", text="")
-        col.operator("humananim.capture_remove_device", icon="REMOVE", text="")
-        if 0 <= s.device_index < len(s.devices):
-            draw_device(layout, s.devices[s.device_index], live is None)
+        _, device = edited_list(layout, "HUMANANIM_UL_capture_devices", s, "devices", "device_index",
+                                "humananim.capture_add_device", "humananim.capture_remove_device")
+        if device is not None:
+            draw_device(layout, device, live is None)
         col = layout.column()
         col.use_property_split = True
         col.prop(s, "display_rate")

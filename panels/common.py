@@ -1,4 +1,5 @@
-"""Drawing the panels share: the list of pushes, impulses and forces on bones."""
+"""Drawing the panels share: a list with its add and remove buttons, and the list of pushes,
+impulses and forces on bones."""
 
 import bpy
 
@@ -10,18 +11,24 @@ class HUMANANIM_UL_forces(bpy.types.UIList):
         row.prop(item, "magnitude", text="")
 
 
-def draw_force_list(layout, context, props, items, index, add, remove, label):
-    """The list with its add and remove buttons, and the selected item's settings below."""
-    layout.label(text=label)
+def edited_list(layout, list_type, props, items, index, add, remove, rows=2, list_id=""):
+    """A UIList of props.<items> with its add and remove operators beside it: (the buttons' column,
+    for more buttons, and the active item or None)."""
     row = layout.row()
-    row.template_list("HUMANANIM_UL_forces", items, props, items, props, index, rows=2)
+    row.template_list(list_type, list_id, props, items, props, index, rows=rows)
     buttons = row.column(align=True)
     buttons.operator(add, icon="ADD", text="")
     buttons.operator(remove, icon="REMOVE", text="")
     listed, i = getattr(props, items), getattr(props, index)
-    if not 0 <= i < len(listed):
+    return buttons, (listed[i] if 0 <= i < len(listed) else None)
+
+
+def draw_force_list(layout, context, props, items, index, add, remove, label):
+    """The list with its add and remove buttons, and the selected item's settings below."""
+    layout.label(text=label)
+    _, item = edited_list(layout, "HUMANANIM_UL_forces", props, items, index, add, remove, list_id=items)
+    if item is None:
         return
-    item = listed[i]
     sub = layout.column()
     sub.use_property_split = True
     sub.prop(item, "empty")

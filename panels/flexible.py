@@ -4,6 +4,7 @@ import bpy
 
 from ..humananim_addon.flexible import MAX_ACTIVE
 from ..operators.flexible import flexible_object
+from .common import edited_list
 from .rig import HumanAnimPanel
 
 
@@ -81,13 +82,9 @@ class VIEW3D_PT_humananim_flexible(HumanAnimPanel, bpy.types.Panel):
         box.prop(props, "ground_damping")
         box.prop(props, "friction_damping")
         box.label(text="Springs")
-        row = box.row()
-        row.template_list("HUMANANIM_UL_flexible_springs", "", props, "springs", props, "spring_index", rows=2)
-        buttons = row.column(align=True)
-        buttons.operator("humananim.flexible_spring_add", icon="ADD", text="")
-        buttons.operator("humananim.flexible_spring_remove", icon="REMOVE", text="")
-        if 0 <= props.spring_index < len(props.springs):
-            sp = props.springs[props.spring_index]
+        _, sp = edited_list(box, "HUMANANIM_UL_flexible_springs", props, "springs", "spring_index",
+                            "humananim.flexible_spring_add", "humananim.flexible_spring_remove")
+        if sp is not None:
             for name in ("target", "point", "stiffness", "damping", "rest_length"):
                 box.prop(sp, name)
         box = layout.box()
@@ -110,11 +107,8 @@ class VIEW3D_PT_humananim_flexible(HumanAnimPanel, bpy.types.Panel):
             box.prop(props, "control_frequency")
             box.prop(props, "control_damping")
             box.label(text="Pose Graph (cyclic): duration, active amplitudes")
-            row = box.row()
-            row.template_list("HUMANANIM_UL_flexible_poses", "", props, "poses", props, "pose_index", rows=3)
-            buttons = row.column(align=True)
-            buttons.operator("humananim.flexible_pose_add", icon="ADD", text="")
-            buttons.operator("humananim.flexible_pose_remove", icon="REMOVE", text="")
+            edited_list(box, "HUMANANIM_UL_flexible_poses", props, "poses", "pose_index",
+                        "humananim.flexible_pose_add", "humananim.flexible_pose_remove", rows=3)
         layout.operator("humananim.flexible_simulate", icon="PLAY")
         box = layout.box()
         box.use_property_split = True

@@ -3,6 +3,7 @@ per-limb constraint markers, reactions, and the bake."""
 
 import bpy
 
+from .common import edited_list
 from .rig import HumanAnimPanel
 
 
@@ -22,11 +23,8 @@ class VIEW3D_PT_humananim_synthesis(HumanAnimPanel, bpy.types.Panel):
     def draw(self, context):
         props = context.scene.humananim_synthesis
         layout = self.layout
-        row = layout.row()
-        row.template_list("HUMANANIM_UL_motion_queue", "", props, "entries", props, "entry_index", rows=3)
-        buttons = row.column(align=True)
-        buttons.operator("humananim.queue_add", icon="ADD", text="")
-        buttons.operator("humananim.queue_remove", icon="REMOVE", text="")
+        buttons, _ = edited_list(layout, "HUMANANIM_UL_motion_queue", props, "entries", "entry_index",
+                                 "humananim.queue_add", "humananim.queue_remove", rows=3)
         for icon, step in (("TRIA_UP", -1), ("TRIA_DOWN", 1)):
             op = buttons.operator("humananim.queue_move", icon=icon, text="")
             if op is not None:  # None in a layout that only records the calls
