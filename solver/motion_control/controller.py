@@ -37,10 +37,13 @@ Falling (choice: contact impulses, not a hand-over to closed_loop.iter_simulate)
 control has reported for `fall_time` (0.1 s) that the ZMP cannot be brought inside the support
 polygon (one glitch of a captured motion does not fell the figure) and the capture point lies
 beyond the feet (_can_stop: the figure could not stop without a step), that step's output
-turns the body about the MMP (Falling.base_acceleration, sec. 2.3.3) and the figure is released:
+turns the body about the MMP (Falling.base_acceleration, sec. 2.3.3) and the figure is released;
+an instant impulse whose momentum carries the capture point that far out releases it at once
+(knocked over: the planted feet's projection would otherwise take the momentum back, as an
+unbounded ground, and spin the upper body instead). Released,
 from the next step it is a ragdoll (no joint torques but damping, the joint limits as stiff
-springs, both implicit: (H + dt D + dt^2 K) dv = dt (tau - bias)) at `fall_substeps` steps per
-frame, kept on the ground by inelastic contact impulses on every contact sphere with speculative
+springs, both implicit: (H + dt D + dt^2 K) dv = dt (tau - bias)) at `fall_rate` steps a
+second, kept on the ground by inelastic contact impulses on every contact sphere with speculative
 contacts (a sphere may not pass below the ground within the step, and one below it is pushed
 out at `fall_correction` of its depth per step), with Coulomb friction. Falling is final for the
 rest of the clip. Reasons: the impulse ground holds a lying body within millimetres where the
@@ -132,7 +135,8 @@ class ControlSettings:
     restitution: float = 0.2  # colliders
     friction: float = 0.8  # Coulomb, colliders and the fallen body on the ground
     fall_time: float = 0.1  # s the falling criterion must hold before the figure falls
-    fall_substeps: int = 4  # steps per frame once falling (at least `substeps`)
+    fall_rate: float = 480.0  # Hz: steps per second once falling (at least `substeps` a frame): a
+    # body knocked over hits the ground fast; at 120 Hz (4 a frame at 30 fps) a hand sank 4 cm
     fall_damping: float = 2.0  # 1/s, ragdoll joint damping as a rate on each DOF's H_ii
     fall_correction: float = 0.2  # share of a sphere's depth below the ground removed per step
     limit_stiffness: float = 300.0  # N m/rad, ragdoll joint limits
@@ -352,19 +356,38 @@ class _Loop:
         allowed = (self.allow_capture[fi] if self.allow_tau is not None else 0.0) + _CAPTURE_TOLERANCE
         return self._capture_error(cs) <= allowed
 
-    def _capture_error(self, cs):
+    def _capture_error(self, cs, v=None):
         """How far (m) the capture point (the centre of mass extrapolated by its velocity over
         sqrt(h / g), Hof 2005) lies outside the support polygon: where a standing figure can still
         stop without a step; 0 inside or without support."""
+        return math.hypot(*self._capture_offset(cs, v))
+
+    def _capture_offset(self, cs, v=None):
+        """The capture point's offset (x, y) from the support polygon (from its nearest point; 0
+        inside or without support), with velocities `v` (default the control state's)."""
         polygon = support_polygon(cs)
         if len(polygon) < 3:
-            return 0.0
+            return 0.0, 0.0
         m, d = cs.model, cs.data
         com = kinematics.center_of_mass(m, d, cs.q)
-        vel = kinematics.com_jacobian(m, d, cs.q) @ cs.v
+        vel = kinematics.com_jacobian(m, d, cs.q) @ (cs.v if v is None else v)
         g = max(abs(float(self.st.gravity[2])), 1e-6)
         point = com[:2] + vel[:2] * np.sqrt(max(com[2] - self.ground, 1e-3) / g)
-        return 0.0 if inside(polygon, point) else float(np.linalg.norm(minimum_moment_point(polygon, point) - point))
+        if inside(polygon, point):
+            return 0.0, 0.0
+        near = minimum_moment_point(polygon, point)
+        return float(point[0] - near[0]), float(point[1] - near[1])
+
+    def _knocked_over(self, cs, t, v):
+        """After an instant impulse (velocities `v`): whether its momentum carries the capture point
+        further outside the support polygon than the figure could stop from: _CAPTURE_TOLERANCE,
+        plus the input's own excursion when it stays on the side where the figure's capture point
+        already was (a walk's runs ahead of its feet; a push the other way gets no such allowance)."""
+        ax, ay = self._capture_offset(cs, v)
+        bx, by = self._capture_offset(cs)
+        fi = min(int(math.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+        own = self.allow_capture[fi] if self.allow_tau is not None and ax * bx + ay * by > 0.0 else 0.0
+        return math.hypot(ax, ay) > own + _CAPTURE_TOLERANCE
 
     def _allowance(self, t):
         if self.allow_tau is None:
@@ -390,7 +413,8 @@ class _Loop:
         """Record frame f's state and diagnostics, then step to the next frame (none after the last)."""
         last = f == self.tr.frame_count - 1
         self.out_q[f] = self.q
-        n = max(self.st.substeps, self.st.fall_substeps) if self.fallen else max(1, self.st.substeps)
+        n = max(self.st.substeps, math.ceil(self.st.fall_rate * self.dt_frame - 1e-9)) if self.fallen \
+            else max(1, self.st.substeps)
         for k in range(1 if last else n):
             self.step(f, self.dt_frame / n, record=k == 0, integrate=not last)
 
@@ -453,8 +477,13 @@ class _Loop:
                     v = self._ragdoll_velocity(body, q, v, dt, f_ext)
                 else:
                     v = v + dt * a
-                v = self._apply_impulses(body, q, v, t, dt)
-                v = self._collide(body, q, v, t, dt, ground=self.fallen)
+                v, pushed = self._apply_impulses(body, q, v, t, dt)
+                if pushed and planted and fall is None and not st.tracking_only and self._knocked_over(cs, t, v):
+                    # knocked over: the impulse's momentum carries the capture point beyond where the
+                    # feet could stop it; planted feet would take that momentum back (their
+                    # projection acts as an unbounded ground) and spin the upper body instead
+                    fall = KNOCKED_OVER
+                v = self._collide(body, q, v, t, dt, ground=self.fallen or fall is KNOCKED_OVER)
                 if fall is not None:
                     self.fallen = True
                     self.planted = [None, None]
@@ -555,13 +584,15 @@ class _Loop:
         return out
 
     def _apply_impulses(self, body, q, v, t, dt):
-        """Instant impulses falling in [t, t + dt): dv = H^-1 J' p."""
+        """Instant impulses falling in [t, t + dt): dv = H^-1 J' p. Returns (v, whether any)."""
         m, d = body.model, body.data
+        pushed = False
         for t0, dur, j, point, p in self.impulses:
             if dur == 0.0 and t - 1e-9 <= t0 < t + dt - 1e-9:
                 jac = kinematics.point_jacobian(m, d, q, j, point)
                 v = v + cho_solve(cho_factor(_inertia(m, d, q)), jac.T @ p)
-        return v
+                pushed = True
+        return v, pushed
 
     # ---- planted feet (sec. 2.4.2) ----
 
@@ -1100,6 +1131,7 @@ def _swept_contacts(a, b, rb, move, p0, p1, rc):
 
 
 RETURN_SCALES = (0.5, 0.25, 0.0)
+KNOCKED_OVER = "knocked over"  # a step's fall from an impulse (no base acceleration: released as it is)
 RAGDOLL_JOINT_SPEED = 40.0  # rad/s (_Loop._ragdoll_velocity; strength.py's fastest joints: 40)
 _BALANCED = 1e-3  # m: a ZMP tolerance above this is an input allowance (_Loop._excess)
 # _Loop._slower_return: m beyond the input's own capture-point excursion (arms swung by passive

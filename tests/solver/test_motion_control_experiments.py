@@ -232,3 +232,18 @@ def test_d_a_frontal_push_on_the_cmu_walk_recovers(walk, walk_runs, at):
     assert res.foot_slide.max() < 0.002
     print(f"CMU push at {at} s: moved {worst[hit:hit + second].max():.1f} deg, back within 2 deg after "
           f"{(late.max() + 1) / tr.fps:.2f} s")
+
+
+@pytest.mark.parametrize("direction", [1.0, -1.0])
+def test_d_a_huge_push_on_the_cmu_walk_knocks_the_figure_over(walk, direction):
+    """150 N s on the chest while standing, from the front and from behind: the figure is knocked
+    over (the impulse carries its capture point far beyond the feet) and falls without exploding.
+    Before the knock-over test, the planted feet took the momentum back and the upper body spun
+    175 deg and came back, standing."""
+    sk, tr = walk
+    chest = sk.roles.chain("spine")[-1]
+    hit = int(round(1.0 * tr.fps))
+    res = control(sk, tr, ControlSettings(impulses=(Impulse(1.0, chest, (0.0, 0.1, 0.0), (0.0, direction, 0.0), 150.0),)))
+    assert np.all(np.isfinite(res.trajectories.rotations)) and np.all(np.isfinite(res.trajectories.translations))
+    assert res.falling[hit + 1:].all() and not res.falling[:hit].any()
+    print(f"CMU 150 N s ({direction:+.0f}): falls from frame {np.argmax(res.falling)}")
