@@ -230,7 +230,7 @@ def _required_torques(state, a):
 def ground_reaction(state, wrench):
     """World wrenches (nb, 6) on the feet in contact that sum to `wrench`: the force at the ZMP,
     split between the feet by where the ZMP lies between their sole centres."""
-    ground = _ground_wrenches(state, wrench)
+    ground = _ground_wrenches(state, np.asarray(wrench, float))
     if ground is None:
         return None
     out = np.zeros((state.model.nb, 6))
@@ -240,12 +240,14 @@ def ground_reaction(state, wrench):
 
 def _ground_wrenches(state, wrench):
     """ground_reaction as the foot bodies (k,) and their wrenches (k, 6), on plain floats."""
-    n0, n1, n2, f0, f1, f2 = (float(x) for x in wrench)
-    if not state.feet.any() or f2 <= 1e-9:
+    sides = state.sides()
+    if not len(sides):
+        return None
+    n0, n1, n2, f0, f1, f2 = wrench.tolist()
+    if f2 <= 1e-9:
         return None
     h = float(state.ground_height)
     px, py = (h * f0 - n1) / f2, (n0 + h * f1) / f2
-    sides = state.sides()
     centres = state.cached("sole_centres", lambda: _sole_centres(state, sides, h))
     c = centres.tolist()
     w = [1.0] if len(sides) == 1 else _split(c, px, py)
@@ -264,7 +266,9 @@ def _ground_wrenches(state, wrench):
         g0, g1, g2 = wi * f0, wi * f1, wi * f2
         rows.append((x1 * g2 - x2 * g1 + wi * m0, x2 * g0 - x0 * g2 + wi * m1, x0 * g1 - x1 * g0 + wi * m2,
                      g0, g1, g2))
-    bodies = state.model.joint_body[np.asarray(state.parts.feet)[sides]]
+    bodies = state._cache.get("foot_bodies")
+    if bodies is None:
+        bodies = state._cache["foot_bodies"] = state.model.joint_body[np.asarray(state.parts.feet)[sides]]
     return bodies, np.array(rows)
 
 

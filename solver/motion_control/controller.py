@@ -56,7 +56,7 @@ import math
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
-from scipy.linalg.lapack import dposv
+from scipy.linalg.lapack import dpotrf, dpotrs
 from scipy.ndimage import gaussian_filter1d
 
 from ..body_roles import SIDES
@@ -284,6 +284,7 @@ class _Loop:
         self.fallen = False
         self._targets_cache = None
         self._legs_cache = None
+        self._dls_factors = {}  # id(leg Jacobian): (Jacobian, Cholesky factor), the legs at one q
         self.unbalanced = 0.0  # s the ZMP has stayed outside what balance control can reach
         self.collider_wrench = None  # (nb, 6) contact forces of the last step's collisions
         nf, J = tr.frame_count, sk.joint_count
@@ -698,6 +699,7 @@ class _Loop:
         if self._legs_cache is not None and self._legs_cache[0] == key:
             return self._legs_cache[1]
         m, d = body.model, body.data
+        self._dls_factors.clear()  # the factors of the previous configuration's legs
         kinematics.update_frames(m, d, q)
         sub = kinematics.motion_subspace(m, d, q)  # (nv, 6) world (omega, v at origin)
         out = [None, None]
@@ -738,8 +740,16 @@ class _Loop:
     def _dls(self, jac, r):
         """Damped least squares J' (J J' + lambda^2)^-1 r of a (6, k) leg Jacobian (one right-hand
         side per solve: OpenBLAS wakes its thread pool for a matrix of right-hand sides, whose
-        spinning then costs more CPU than the factorisations it would share)."""
-        _, x, info = dposv(jac @ jac.T + self._eye6, r)
+        spinning then costs more CPU than the factorisations it would share). The Cholesky factor
+        is remembered per Jacobian (the acceleration and velocity projections share the legs at
+        q): dposv's own dpotrf and dpotrs, so the same arithmetic."""
+        known = self._dls_factors.get(id(jac))
+        if known is None or known[0] is not jac:
+            c, info = dpotrf(jac @ jac.T + self._eye6)
+            if info != 0:
+                raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
+            known = self._dls_factors[id(jac)] = (jac, c)
+        x, info = dpotrs(known[1], r)
         if info != 0:
             raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
         return jac.T @ x
@@ -825,15 +835,17 @@ class _Loop:
         is spent until it has left the body (a thrown fist hits once; only a kinematic collider
         keeps pushing while it moves into the body)."""
         m, d = body.model, body.data
+        self.collider_wrench = None
+        swing = None if ground else _swing_spheres(body, self.planted)
+        if not (ground or self.st.colliders or swing is not None):
+            return v  # standing on both planted feet, nothing to collide with: no sphere is asked
         kinematics.update_frames(m, d, q)
         bodies, local = body.spheres
         radii = body.contacts.radii
         fr = d.frames[bodies]
         centres = np.einsum("kij,kj->ki", fr[:, :3, :3], local) + fr[:, :3, 3]
         rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
-        self.collider_wrench = None
-        swing = None if ground else _swing_spheres(body, self.planted)
-        if ground or self.st.colliders or swing.any():
+        if ground or self.st.colliders or swing is not None:
             vel = kinematics.body_velocities(m, d, q, v)[bodies]
             sphere_vel = vel[:, 3:] + _cross(vel[:, :3], centres)
         if ground:
@@ -846,7 +858,7 @@ class _Loop:
                 target = -g / dt if g > 0 else -self.st.fall_correction * g / dt
                 point = centres[k] - np.array([0.0, 0.0, radii[k]])
                 rows.append((k, point, np.array([0.0, 0.0, 1.0]), target, np.zeros(3), None))
-        elif swing.any():  # standing: a foot that is not planted (a swing foot) may not pass below the ground
+        elif swing is not None:  # standing: a foot that is not planted (a swing foot) may not pass below the ground
             gap = centres[:, 2] - radii - self.ground
             near = swing & (gap < np.maximum(-sphere_vel[:, 2], 0.0) * dt)
             if near.any():
@@ -995,14 +1007,19 @@ def _cross(a, b):
 
 
 def _swing_spheres(body, planted):
-    """(k,) bool: the contact spheres on the foot (and toes, heel) of each side not planted."""
-    m, (bodies, _) = body.model, body.spheres
-    out = np.zeros(len(bodies), bool)
-    for s, foot in enumerate(body.parts.feet):
-        if planted[s] is None:
-            fb = m.joint_body[foot]
-            out |= m.ancestors[bodies][:, fb] != 0
-    return out
+    """(k,) bool: the contact spheres on the foot (and toes, heel) of each side not planted, or
+    None when there is none (remembered per body and planted sides)."""
+    key = (planted[0] is None, planted[1] is None)
+    cache = body.__dict__.setdefault("_swing", {})
+    if key not in cache:
+        m, (bodies, _) = body.model, body.spheres
+        out = np.zeros(len(bodies), bool)
+        for s, foot in enumerate(body.parts.feet):
+            if key[s]:
+                fb = m.joint_body[foot]
+                out |= m.ancestors[bodies][:, fb] != 0
+        cache[key] = out if out.any() else None
+    return cache[key]
 
 
 def _capsules(contacts):
