@@ -845,13 +845,15 @@ class _Loop:
         fr = d.frames[bodies]
         centres = np.einsum("kij,kj->ki", fr[:, :3, :3], local) + fr[:, :3, 3]
         rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
-        if ground or self.st.colliders or swing is not None:
-            vel = kinematics.body_velocities(m, d, q, v)[bodies]
+        vel = kinematics.body_velocities(m, d, q, v)[bodies]
+        if ground or self.st.colliders:
             sphere_vel = vel[:, 3:] + _cross(vel[:, :3], centres)
+            vz = sphere_vel[:, 2]
+        else:  # a swing foot alone asks the spheres' vertical speed: v_z + (omega x centre)_z
+            vz = vel[:, 5] + (vel[:, 0] * centres[:, 1] - vel[:, 1] * centres[:, 0])
         if ground:
             gap = centres[:, 2] - radii - self.ground
             # speculative: every sphere that could reach the ground within the step
-            vz = sphere_vel[:, 2]
             near = gap < np.maximum(-vz, 0.0) * dt + 0.01
             for k in np.flatnonzero(near):
                 g = gap[k]
@@ -860,7 +862,7 @@ class _Loop:
                 rows.append((k, point, np.array([0.0, 0.0, 1.0]), target, np.zeros(3), None))
         elif swing is not None:  # standing: a foot that is not planted (a swing foot) may not pass below the ground
             gap = centres[:, 2] - radii - self.ground
-            near = swing & (gap < np.maximum(-sphere_vel[:, 2], 0.0) * dt)
+            near = swing & (gap < np.maximum(-vz, 0.0) * dt)
             if near.any():
                 v = self._swing_ground(body, q, v, dt, np.flatnonzero(near), centres, gap)
         # finite-mass colliders that gave their impulse and are still touching (kept across steps)

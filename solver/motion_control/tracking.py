@@ -142,6 +142,7 @@ class TrackingController:
         self._rel_axis = 1 + np.minimum(axis, 2)  # each DOF's component of its relative quaternion
         self._lin = np.flatnonzero(lin)
         self._lin_axis = slot[lin] - 3
+        self._lin_rows = np.arange(len(self._lin))
         self._has_lin = bool(lin.any())
         # the diagonal entry R[axis, axis] of a quaternion's rotation matrix: w^2 + c_axis^2 - the
         # other two components squared (quat_to_matrix's terms)
@@ -203,20 +204,23 @@ class TrackingController:
         q = np.asarray(q, float)
         cur = q[self._cur_index]  # (nv, 4)
         rel = np.add.reduce(self._frame_right[f] * cur[:, None, :], 2)  # conj(cur) * target
-        # quat_log's arithmetic on the one component each DOF needs: the short way round as the
-        # sign of w on the angle (arctan2 is odd in its first argument), and 2 atan2(s, |w|) / s,
-        # exact for the smallest s > 0, is quat_log's 2 / |w| branch; s == 0 has no component
+        # quat_log's arithmetic on the one component each DOF needs
         w = rel[:, 0]
+        neg = w < 0.0
+        aw = np.abs(w)
         xyz = rel[:, 1:]
         s = np.sqrt(np.add.reduce(xyz * xyz, 1))
-        scale = 2.0 * np.arctan2(np.copysign(s, w), np.abs(w)) / (s + (s == 0.0))
-        error = scale * rel[self._k, self._rel_axis]
+        small = s < 1e-8
+        scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
+        comp = rel[self._k, self._rel_axis]
+        error = scale * np.where(neg, -comp, comp)
         # target angular velocity carried into the current axes: R(rel)[axis, axis] * vel_t
         vel = np.add.reduce(rel * rel * self._diag_sign, 1) * target[2][f]
         if self._has_lin:
             lin = self._lin
-            offset = (target[1][f][lin] - q[:3]) @ _rotation(q[3:7].tolist())  # r0.T @ (p_t - p)
-            error[lin] = offset[np.arange(len(lin)), self._lin_axis]
+            r0 = spatial.quat_to_matrix(q[3:7])
+            offset = (target[1][f][lin] - q[:3]) @ r0  # r0.T @ (p_t - p)
+            error[lin] = offset[self._lin_rows, self._lin_axis]
         return error, vel
 
     def _error(self, q, quat, pos, vel_t):
@@ -244,15 +248,6 @@ class TrackingController:
             offset = np.einsum("...li,...ij->...lj", pos[..., lin, :] - q[..., None, :3], r0)  # r0.T @ (p_t - p)
             error[..., lin] = offset[..., np.arange(lin.sum()), slot[lin] - 3]
         return error, vel
-
-
-def _rotation(quat):
-    """Rotation matrix (3, 3) of a unit quaternion given as 4 floats (spatial.quat_to_matrix's
-    terms on plain floats)."""
-    w, x, y, z = quat
-    return np.array(((w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)),
-                     (2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x)),
-                     (2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z)))
 
 
 # a quaternion product a * b = (b @ _QMUL_RIGHT).reshape(4, 4) @ a: the right-multiplication matrix of b
