@@ -280,7 +280,9 @@ class _Loop:
         self.q = self.tracking.q_d[0].copy()
         self.v = self.tracking.v_d[0].copy()
         self.t = 0.0
-        self.planted = [None, None]  # per side: (world offset (3,), rolling-anchor offset at landing (3,))
+        # per side: (world offset (3,), rolling-anchor offset at landing (3,), their difference: what
+        # moves the input foot onto the planted one while it stays planted)
+        self.planted = [None, None]
         self.fallen = False
         self._targets_cache = None
         self._legs_cache = None
@@ -402,8 +404,9 @@ class _Loop:
         m, d = body.model, body.data
         q, v, t = self.q, self.v, self.t
         f_ext = self._forces(body, t)
-        feet = np.zeros(2, bool)
-        if not self.fallen:
+        if self.fallen:
+            feet = np.zeros(2, bool)
+        else:
             fi = min(int(math.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
             feet = self.support_in[fi].copy()
             self._update_plants(body, feet, t)
@@ -576,7 +579,8 @@ class _Loop:
                 now = kinematics.point_positions(m, body.data, self.q, [foot], [np.zeros(3)])[0]
                 qd = self.tracking.desired_state(t)[0]
                 want = kinematics.point_positions(m, self.desired_data, qd, [foot], [np.zeros(3)])[0]
-                self.planted[s] = (now - want, self._roll_offset(s, t)[0])
+                offset, roll = now - want, self._roll_offset(s, t)[0]
+                self.planted[s] = (offset, roll, offset - roll)
                 self._drift[s] = None
 
     def _foot_skate(self, tr):
@@ -665,7 +669,7 @@ class _Loop:
             if not feet[s]:
                 continue
             rot, pos, vel, acc = feet_in[s]
-            out[s] = (rot, pos + (self.planted[s][0] - self.planted[s][1]), vel, acc)
+            out[s] = (rot, pos + self.planted[s][2], vel, acc)
         return out
 
     def _input_feet(self, body, t):
