@@ -51,6 +51,52 @@ comfort and balance, several inverse-dynamics passes and pseudo-inverses) on a t
 and stays near 1 ms. Reaching 0.5 ms there needs the required torques as one linear map per
 step (tau = tau0 + T a, built once per state) instead of an inverse-dynamics pass per candidate,
 or compiled code.
+
+Second round (branch controlspeed). Measured against main (commit 2dd7b0c's solver) in the same
+minutes, OPENBLAS_NUM_THREADS=1, as the CPU ms of one fresh process per sample, main and this
+branch alternated 8 times (load average 3-4 on 2 CPUs: single bakes scatter by +-40 %, so the best
+and the median of the 8 samples and the median of the paired ratios), and as instructions inside
+the steps (valgrind callgrind, collection toggled on the bake's loop: immune to the load):
+
+                                   main             now              issue's aim
+  figure standing, median (best / median of 8)
+                                   0.51 / 0.54 ms   0.42 / 0.46 ms   < 0.5 ms   (paired x0.83)
+  figure 15 kg, median             0.49 / 0.52 ms   0.44 / 0.47 ms              (paired x0.92)
+  CMU 131_01, median               0.84 / 0.92 ms   0.81 / 0.89 ms   < 0.5 ms   (paired x0.97)
+  real-time factor at 30 Hz (best mean step)
+    figure / 15 kg / CMU           63 / 62 / 34     75 / 69 / 35     > 50
+  instructions per step (callgrind)
+    figure standing                2.55 M           2.30 M (-9.7 %)
+    CMU 131_01                     4.72 M           4.53 M (-4.1 %)
+
+Every output is bit for bit main's (rotations, translations, stress, ZMP, balance error, foot
+slide, control codes, falling) on the reference cases, the metarig squat with 8 and 15 kg, the
+figure with 15 kg and the CMU clip, on numpy 2.4 and 1.26. That is a requirement, not a nicety:
+the control decisions are chaotic in the last bit (a limit changed by 2e-14 N m turned the
+metarig squat's 28 frames over strength with 15 kg into 64, and the thesis experiment's test
+fails), so each change keeps the previous arithmetic and only removes calls: the integration's
+quaternion exponential inlined (quat_exp's terms without its call and keepdims broadcasting:
+-10 % of an integration), the DOF strength limits from each DOF's body quaternion directly
+(quat_log of every body and StrengthModel.limits fused: -15 to -25 %), the
+collision pass skipped when no sphere can touch anything (both feet planted, no collider, not
+fallen) and reduced to the spheres' vertical speed for a swing foot, the legs' damped
+least-squares Cholesky factor shared by the acceleration and velocity projections (dposv's own
+dpotrf + dpotrs), the ground split on plain floats without per-element conversions.
+
+The figure now meets the median and the real-time aims; the CMU rig does not (0.8-0.9 ms). Where
+its median step goes (CPU us near the median step, this machine): dynamic control 260 (one
+inverse dynamics 100, support polygon 47: the rolling feet move the sole points past the hull's
+reuse tolerance every step, ZMP/MMP 31), the position re-solve 150 and the acceleration
+projection 140 (each a full forward kinematics: the rolling planted feet make the re-solve's step
+non-zero, so the standing figure's free second pass is a real one here), two integrations 88,
+tracking 72, the swing foot's ground test 45. The documented next idea, the required torques as
+one linear map tau = tau0 + T a per state, was measured first and not done: on CMU 153 of 200
+steps make exactly one inverse-dynamics pass, 31 make two, 7 three and 9 five to twenty, while
+building T (a CRBA and the root wrench's map) costs about two passes, so the median step would
+get slower and the mean barely changes; the acting steps' extra time is in the pseudo-inverses
+and the balance candidates. Reaching 0.5 ms on CMU needs the two forward kinematics per step
+merged (the re-solve's configuration is the next step's, but sharing it changes the arithmetic,
+which the decisions cannot absorb, see above) or compiled code.
 """
 
 import argparse

@@ -59,7 +59,7 @@ import math
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
-from scipy.linalg.lapack import dposv
+from scipy.linalg.lapack import dpotrf, dpotrs
 from scipy.ndimage import gaussian_filter1d
 
 from ..body_roles import SIDES
@@ -284,10 +284,13 @@ class _Loop:
         self.q = self.tracking.q_d[0].copy()
         self.v = self.tracking.v_d[0].copy()
         self.t = 0.0
-        self.planted = [None, None]  # per side: (world offset (3,), rolling-anchor offset at landing (3,))
+        # per side: (world offset (3,), rolling-anchor offset at landing (3,), their difference: what
+        # moves the input foot onto the planted one while it stays planted)
+        self.planted = [None, None]
         self.fallen = False
         self._targets_cache = None
         self._legs_cache = None
+        self._dls_factors = {}  # id(leg Jacobian): (Jacobian, Cholesky factor), the legs at one q
         self.unbalanced = 0.0  # s the ZMP has stayed outside what balance control can reach
         self.collider_wrench = None  # (nb, 6) contact forces of the last step's collisions
         nf, J = tr.frame_count, sk.joint_count
@@ -425,8 +428,9 @@ class _Loop:
         m, d = body.model, body.data
         q, v, t = self.q, self.v, self.t
         f_ext = self._forces(body, t)
-        feet = np.zeros(2, bool)
-        if not self.fallen:
+        if self.fallen:
+            feet = np.zeros(2, bool)
+        else:
             fi = min(int(math.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
             feet = self.support_in[fi].copy()
             self._update_plants(body, feet, t)
@@ -606,7 +610,8 @@ class _Loop:
                 now = kinematics.point_positions(m, body.data, self.q, [foot], [np.zeros(3)])[0]
                 qd = self.tracking.desired_state(t)[0]
                 want = kinematics.point_positions(m, self.desired_data, qd, [foot], [np.zeros(3)])[0]
-                self.planted[s] = (now - want, self._roll_offset(s, t)[0])
+                offset, roll = now - want, self._roll_offset(s, t)[0]
+                self.planted[s] = (offset, roll, offset - roll)
                 self._drift[s] = None
 
     def _foot_skate(self, tr):
@@ -695,7 +700,7 @@ class _Loop:
             if not feet[s]:
                 continue
             rot, pos, vel, acc = feet_in[s]
-            out[s] = (rot, pos + (self.planted[s][0] - self.planted[s][1]), vel, acc)
+            out[s] = (rot, pos + self.planted[s][2], vel, acc)
         return out
 
     def _input_feet(self, body, t):
@@ -729,6 +734,7 @@ class _Loop:
         if self._legs_cache is not None and self._legs_cache[0] == key:
             return self._legs_cache[1]
         m, d = body.model, body.data
+        self._dls_factors.clear()  # the factors of the previous configuration's legs
         kinematics.update_frames(m, d, q)
         sub = kinematics.motion_subspace(m, d, q)  # (nv, 6) world (omega, v at origin)
         out = [None, None]
@@ -769,8 +775,16 @@ class _Loop:
     def _dls(self, jac, r):
         """Damped least squares J' (J J' + lambda^2)^-1 r of a (6, k) leg Jacobian (one right-hand
         side per solve: OpenBLAS wakes its thread pool for a matrix of right-hand sides, whose
-        spinning then costs more CPU than the factorisations it would share)."""
-        _, x, info = dposv(jac @ jac.T + self._eye6, r)
+        spinning then costs more CPU than the factorisations it would share). The Cholesky factor
+        is remembered per Jacobian (the acceleration and velocity projections share the legs at
+        q): dposv's own dpotrf and dpotrs, so the same arithmetic."""
+        known = self._dls_factors.get(id(jac))
+        if known is None or known[0] is not jac:
+            c, info = dpotrf(jac @ jac.T + self._eye6)
+            if info != 0:
+                raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
+            known = self._dls_factors[id(jac)] = (jac, c)
+        x, info = dpotrs(known[1], r)
         if info != 0:
             raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
         return jac.T @ x
@@ -856,30 +870,34 @@ class _Loop:
         is spent until it has left the body (a thrown fist hits once; only a kinematic collider
         keeps pushing while it moves into the body)."""
         m, d = body.model, body.data
+        self.collider_wrench = None
+        swing = None if ground else _swing_spheres(body, self.planted)
+        if not (ground or self.st.colliders or swing is not None):
+            return v  # standing on both planted feet, nothing to collide with: no sphere is asked
         kinematics.update_frames(m, d, q)
         bodies, local = body.spheres
         radii = body.contacts.radii
         fr = d.frames[bodies]
         centres = np.einsum("kij,kj->ki", fr[:, :3, :3], local) + fr[:, :3, 3]
         rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
-        self.collider_wrench = None
-        swing = None if ground else _swing_spheres(body, self.planted)
-        if ground or self.st.colliders or swing.any():
-            vel = kinematics.body_velocities(m, d, q, v)[bodies]
+        vel = kinematics.body_velocities(m, d, q, v)[bodies]
+        if ground or self.st.colliders:
             sphere_vel = vel[:, 3:] + _cross(vel[:, :3], centres)
+            vz = sphere_vel[:, 2]
+        else:  # a swing foot alone asks the spheres' vertical speed: v_z + (omega x centre)_z
+            vz = vel[:, 5] + (vel[:, 0] * centres[:, 1] - vel[:, 1] * centres[:, 0])
         if ground:
             gap = centres[:, 2] - radii - self.ground
             # speculative: every sphere that could reach the ground within the step
-            vz = sphere_vel[:, 2]
             near = gap < np.maximum(-vz, 0.0) * dt + 0.01
             for k in np.flatnonzero(near):
                 g = gap[k]
                 target = -g / dt if g > 0 else -self.st.fall_correction * g / dt
                 point = centres[k] - np.array([0.0, 0.0, radii[k]])
                 rows.append((k, point, np.array([0.0, 0.0, 1.0]), target, np.zeros(3), None))
-        elif swing.any():  # standing: a foot that is not planted (a swing foot) may not pass below the ground
+        elif swing is not None:  # standing: a foot that is not planted (a swing foot) may not pass below the ground
             gap = centres[:, 2] - radii - self.ground
-            near = swing & (gap < np.maximum(-sphere_vel[:, 2], 0.0) * dt)
+            near = swing & (gap < np.maximum(-vz, 0.0) * dt)
             if near.any():
                 v = self._swing_ground(body, q, v, dt, np.flatnonzero(near), centres, gap)
         # finite-mass colliders that gave their impulse and are still touching (kept across steps)
@@ -1026,14 +1044,19 @@ def _cross(a, b):
 
 
 def _swing_spheres(body, planted):
-    """(k,) bool: the contact spheres on the foot (and toes, heel) of each side not planted."""
-    m, (bodies, _) = body.model, body.spheres
-    out = np.zeros(len(bodies), bool)
-    for s, foot in enumerate(body.parts.feet):
-        if planted[s] is None:
-            fb = m.joint_body[foot]
-            out |= m.ancestors[bodies][:, fb] != 0
-    return out
+    """(k,) bool: the contact spheres on the foot (and toes, heel) of each side not planted, or
+    None when there is none (remembered per body and planted sides)."""
+    key = (planted[0] is None, planted[1] is None)
+    cache = body.__dict__.setdefault("_swing", {})
+    if key not in cache:
+        m, (bodies, _) = body.model, body.spheres
+        out = np.zeros(len(bodies), bool)
+        for s, foot in enumerate(body.parts.feet):
+            if key[s]:
+                fb = m.joint_body[foot]
+                out |= m.ancestors[bodies][:, fb] != 0
+        cache[key] = out if out.any() else None
+    return cache[key]
 
 
 def _capsules(contacts):

@@ -139,8 +139,10 @@ class TrackingController:
         self._cur_index = 3 + 4 * m.dof_body[:, None] + np.arange(4)[None, :]
         self._k = np.arange(m.nv)
         self._axis = axis
+        self._rel_axis = 1 + np.minimum(axis, 2)  # each DOF's component of its relative quaternion
         self._lin = np.flatnonzero(lin)
         self._lin_axis = slot[lin] - 3
+        self._lin_rows = np.arange(len(self._lin))
         self._has_lin = bool(lin.any())
         # the diagonal entry R[axis, axis] of a quaternion's rotation matrix: w^2 + c_axis^2 - the
         # other two components squared (quat_to_matrix's terms)
@@ -210,7 +212,7 @@ class TrackingController:
         s = np.sqrt(np.add.reduce(xyz * xyz, 1))
         small = s < 1e-8
         scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
-        comp = xyz[self._k, np.minimum(self._axis, 2)]
+        comp = rel[self._k, self._rel_axis]
         error = scale * np.where(neg, -comp, comp)
         # target angular velocity carried into the current axes: R(rel)[axis, axis] * vel_t
         vel = np.add.reduce(rel * rel * self._diag_sign, 1) * target[2][f]
@@ -218,7 +220,7 @@ class TrackingController:
             lin = self._lin
             r0 = spatial.quat_to_matrix(q[3:7])
             offset = (target[1][f][lin] - q[:3]) @ r0  # r0.T @ (p_t - p)
-            error[lin] = offset[np.arange(len(lin)), self._lin_axis]
+            error[lin] = offset[self._lin_rows, self._lin_axis]
         return error, vel
 
     def _error(self, q, quat, pos, vel_t):

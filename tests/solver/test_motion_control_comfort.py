@@ -71,6 +71,30 @@ def test_required_torques_carry_the_ground_reaction_on_the_feet(figure):
     np.testing.assert_allclose(tau[upper], plain[upper], atol=1e-9)  # the upper body does not feel it
 
 
+def test_limits_are_the_strength_models_at_each_dofs_rotation(figure):
+    """ControlState.limits' fused arithmetic (fewer numpy calls) against its definition: the
+    strength model's limits at the rotation-vector component of each DOF's body (quat_log, the
+    short way round: quaternions with w < 0, tiny and half-turn rotations) and its velocity."""
+    from humananim.solver.dynamics import spatial
+    from humananim.solver.motion_control.comfort_control import _dof_strength
+    m = build_model(figure)
+    rng = np.random.default_rng(3)
+    for scale in (1e-12, 1e-5, 0.5, 3.1):
+        q = m.neutral()
+        quats = rng.normal(size=(m.nb, 4))
+        quats[:, 1:] *= scale
+        q[3:] = (quats / np.linalg.norm(quats, axis=1)[:, None]).ravel()  # w of either sign
+        v = rng.normal(scale=30.0, size=m.nv)
+        strength = default_strength(m)
+        st = ControlState(m, m.create_data(), q, v, (True, True), body_parts(m), strength)
+        angles = spatial.quat_log(q[7:].reshape(-1, 4))[m.dof_body[6:] - 1, m.dof_slot[6:]]
+        low, high = _dof_strength(m, strength).limits(angles, v[6:])
+        got_low, got_high = st.limits
+        assert np.all(np.isinf(got_low[:6])) and np.all(np.isinf(got_high[:6]))
+        np.testing.assert_allclose(got_low[6:], low, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(got_high[6:], high, rtol=1e-12, atol=1e-12)
+
+
 @pytest.mark.parametrize("pose", [{}, squat(), squat(arms=ARMS_FORWARD)])
 def test_no_load_comfortable_motion_changes_nothing(figure, pose):
     m = build_model(figure)
