@@ -36,6 +36,11 @@ def closest_on_segments(p, a, b):
 class CapsuleBody:
     """Capsules: segments a-b with radii, moving linearly within a frame."""
 
+    # without max_distance, queries report exact distances up to this far (the collision's
+    # 1-Lipschitz bounds cull faces and fine vertices farther out than an edge: capsule
+    # distances are as cheap far as near)
+    REACH = 0.15
+
     def __init__(self, radius, names=None):
         self.radius = np.asarray(radius, float)
         self.names = list(names) if names is not None else [str(i) for i in range(len(self.radius))]
@@ -53,60 +58,76 @@ class CapsuleBody:
         self._at = {}
 
     def _pose(self, s):
-        """What the queries at time s share (a frame's queries come at a few times only):
-        ends, axes and their products, the capsules' boxes."""
+        """What the queries at time s share (a frame's queries come at a few times only), packed
+        in one array per capsule so a query takes the capsules near it in one call: columns
+        a (3), ab (3), 1/|ab|^2, a.ab, a.a, radius, velocity of a (3), of b minus a's (3); and
+        the capsules' boxes (lo | hi, (C, 6)) and [ab | a] (3, 2C) for one product."""
         pose = self._at.get(s)
         if pose is None:
             a = self.a0 + s * (self.a1 - self.a0)
             b = self.b0 + s * (self.b1 - self.b0)
             ab = b - a
             r = self.radius[:, None]
-            pose = (a, ab, np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18), np.einsum("ij,ij->i", a, ab),
-                    np.einsum("ij,ij->i", a, a), np.minimum(a, b) - r, np.maximum(a, b) + r, self.radius)
+            va, dv = self._velocity
+            packed = np.column_stack([a, ab, 1.0 / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18),
+                                      np.einsum("ij,ij->i", a, ab), np.einsum("ij,ij->i", a, a), self.radius,
+                                      va, dv])
+            pose = (packed, np.minimum(a, b) - r, np.maximum(a, b) + r, np.concatenate((ab, a)).T.copy())
             if len(self._at) > 8:
                 self._at.clear()
             self._at[s] = pose
         return pose
 
-    def query(self, points, s=1.0, max_distance=0.05):
+    def query(self, points, s=1.0, max_distance=None):
         """(phi (N,), outward unit normal (N, 3), surface velocity (N, 3)). Only capsules whose
-        box comes within max_distance of the points' box are tested; points beyond them all
-        report phi = max_distance (a lower bound). All points against all capsules in one
-        broadcast."""
-        a, ab, ab2, a_ab, a_a, box_lo, box_hi, radius = self._pose(s)
-        lo, hi = points.min(axis=0) - max_distance, points.max(axis=0) + max_distance
-        near = np.all((box_lo <= hi) & (box_hi >= lo), axis=1)
+        box comes within max_distance (default REACH) of the points' box are tested; points
+        beyond them all report phi = max_distance (a lower bound). All points against all
+        capsules in one broadcast."""
+        md = self.REACH if max_distance is None else max_distance
+        packed, box_lo, box_hi, axes = self._pose(s)
         n = len(points)
-        if not near.all():
-            if not near.any():
-                normal = np.zeros((n, 3))
-                normal[:, 2] = 1.0
-                return np.full(n, float(max_distance)), normal, np.zeros((n, 3))
-            idx = np.flatnonzero(near)
-            a, ab, ab2, a_ab, a_a, radius = a[idx], ab[idx], ab2[idx], a_ab[idx], a_a[idx], radius[idx]
-        else:
-            idx = None
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        lo -= md
+        hi += md
+        near = np.flatnonzero(np.logical_and.reduce((box_lo <= hi) & (box_hi >= lo), axis=1))
+        c = len(near)
+        if c == 0:
+            normal = np.zeros((n, 3))
+            normal[:, 2] = 1.0
+            return np.full(n, float(md)), normal, np.zeros((n, 3))
+        if c < len(packed):
+            packed = packed.take(near, axis=0)
+            axes = axes.take(np.concatenate((near, near + len(box_lo))), axis=1)
         # distances to all segments from (N, C) products: |p - a - t ab|^2 expanded
-        pa = points @ ab.T - a_ab[None]  # (p - a) . ab
-        t = np.minimum(np.maximum(pa / ab2[None], 0.0), 1.0)
-        pp = np.einsum("ij,ij->i", points, points)[:, None] - 2.0 * points @ a.T + a_a[None]
-        dist2 = np.maximum(pp - 2.0 * t * pa + t * t * ab2[None], 0.0)
-        phi = np.sqrt(dist2) - radius[None]
-        k = np.argmin(phi, axis=1)
-        tk = t[np.arange(n), k]
-        dk = points - (a[k] + tk[:, None] * ab[k])
+        prod = points @ axes  # [p . ab | p . a]
+        pa = prod[:, :c] - packed[:, 7]  # (p - a) . ab
+        t = np.minimum(np.maximum(pa * packed[:, 6], 0.0), 1.0)
+        dist2 = prod[:, c:]
+        dist2 *= -2.0
+        dist2 += packed[:, 8]
+        dist2 += np.einsum("ij,ij->i", points, points)[:, None]
+        pa += pa
+        pa -= t / packed[:, 6]
+        pa *= t
+        dist2 -= pa  # |p - a|^2 - t (2 (p - a).ab - t |ab|^2)
+        np.maximum(dist2, 0.0, out=dist2)
+        np.sqrt(dist2, out=dist2)
+        dist2 -= packed[:, 9]
+        k = dist2.argmin(axis=1)
+        tk = t.take(k + c * np.arange(n))
+        pk = packed.take(k, axis=0)
+        dk = points - pk[:, 0:3]
+        dk -= tk[:, None] * pk[:, 3:6]
         distk = np.sqrt(np.einsum("ij,ij->i", dk, dk))
         normal = dk / np.maximum(distk, 1e-12)[:, None]
-        on_axis = distk <= 1e-9
-        if on_axis.any():  # a point on the axis: any direction across it
-            across = np.cross(ab[k[on_axis]], [0.0, 0.0, 1.0])
+        if distk.min() <= 1e-9:  # a point on the axis: any direction across it
+            on_axis = distk <= 1e-9
+            across = np.cross(pk[on_axis, 3:6], [0.0, 0.0, 1.0])
             across[np.linalg.norm(across, axis=1) < 1e-9] = (1.0, 0.0, 0.0)
             normal[on_axis] = across / np.linalg.norm(across, axis=1)[:, None]
-        ck = k if idx is None else idx[k]
-        va, dv = self._velocity
-        velocity = va[ck] + tk[:, None] * dv[ck]
-        phi_k = distk - self.radius[ck]
-        return np.minimum(phi_k, max_distance), normal, velocity
+        velocity = pk[:, 10:13] + tk[:, None] * pk[:, 13:16]
+        distk -= pk[:, 9]
+        return np.minimum(distk, md, out=distk), normal, velocity
 
 
 def _cross(u, v):
@@ -356,36 +377,50 @@ def _keep_tangential(v, hit, normal, surface_velocity, friction):
     v[hit] = surface_velocity + (1.0 - friction) * (rel - rel_n)
 
 
-def resolve_particles(x, v, bodies, s, thickness, movable, friction=0.0, passes=4):
+def resolve_particles(x, v, bodies, s, thickness, movable, friction=0.0, passes=4, rows=None, phi=None):
     """Vertex case (Fig. 4.6 a, c): particles inside the body (or within the thickness) move to
-    the surface; the number moved and every particle's phi before. A particle pushed out of one
-    part of the body into an overlapping part is pushed again (up to `passes` times)."""
-    phi, normal, vs = query_bodies(bodies, x, s)
-    hit = (phi < thickness) & movable
-    moved = hit.copy()
-    rows = np.flatnonzero(hit)
-    ph, n, vel = phi[rows], normal[rows], vs[rows]
+    the surface; returns the number moved and every particle's phi at its final position. A
+    particle pushed out of one part of the body into an overlapping part is pushed again (up to
+    `passes` times). With `rows` (and `phi`, known for the others), only those particles are
+    queried: the others have not moved since their phi was found."""
+    if rows is None:
+        phi, normal, vs = query_bodies(bodies, x, s)
+        rows = np.flatnonzero((phi < thickness) & movable)
+        ph, n, vel = phi[rows], normal[rows], vs[rows]
+    else:
+        ph, n, vel = query_bodies(bodies, x[rows], s)
+        phi[rows] = ph
+        hit = (ph < thickness) & movable[rows]
+        rows, ph, n, vel = rows[hit], ph[hit], n[hit], vel[hit]
+    moved = len(rows)
     for _ in range(passes):
         if len(rows) == 0:
             break
         x[rows] += (thickness - ph)[:, None] * n
         _keep_tangential(v, rows, n, vel, friction)
         ph, n, vel = query_bodies(bodies, x[rows], s)
+        phi[rows] = ph
         again = ph < thickness - 1e-9
-        rows, ph, n, vel = rows[again], ph[again], n[again], vel[again]
-    return int(moved.sum()), phi
+        if again.any():
+            rows, ph, n, vel = rows[again], ph[again], n[again], vel[again]
+        else:
+            rows = rows[:0]
+    return moved, phi
+
+
+_NONE = np.zeros(0, dtype=np.int64)
 
 
 def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, friction=0.0):
     """Face case (Fig. 4.6 b, d): a face whose interior cuts the body while its corners are out
-    is moved out whole by its deepest point. The number of faces moved."""
+    is moved out whole by its deepest point. (The number of faces moved, the particles moved.)"""
     tri = x[faces]  # (F, 3, 3)
     side = tri - tri[:, (2, 0, 1)]
     edge = np.sqrt(np.einsum("fkj,fkj->fk", side, side).max(axis=1))
     # phi is 1-Lipschitz: a face whose farthest-out corner is beyond its longest edge can't touch
     near = corner_phi[faces].max(axis=1) - edge < thickness
     if not near.any():
-        return 0
+        return 0, _NONE
     f_idx = np.flatnonzero(near)
     samples = np.einsum("sk,fkj->fsj", FACE_SAMPLES, tri[f_idx])  # (F', S, 3)
     # ... and a sample farther out than that from any corner can't be inside either
@@ -393,7 +428,7 @@ def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, fricti
     bound = (corner_phi[faces[f_idx]][:, None, :] - gap).max(axis=2)
     test = bound < thickness
     if not test.any():
-        return 0
+        return 0, _NONE
     pts = samples[test]
     ph, nrm, vel = query_bodies(bodies, pts, s)
     ns = len(FACE_SAMPLES)
@@ -410,7 +445,7 @@ def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, fricti
     d = depth[rows, deepest]
     cut = d > 1e-9
     if not cut.any():
-        return 0
+        return 0, _NONE
     f_idx, deepest, d = f_idx[cut], deepest[cut], d[cut]
     k = np.flatnonzero(cut) * ns + deepest
     push, n_k, v_k = d[:, None] * normal[k], normal[k], vs[k]
@@ -419,7 +454,7 @@ def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, fricti
     ok = movable[corners]
     corners, push3, n3, v3 = corners[ok], push3[ok], n3[ok], v3[ok]
     if len(corners) == 0:
-        return 0
+        return 0, _NONE
     # a particle in several cut faces takes the largest push
     order = np.lexsort((np.linalg.norm(push3, axis=1), corners))
     last = np.r_[corners[order][1:] != corners[order][:-1], True]
@@ -432,7 +467,7 @@ def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, fricti
     vel_at = np.zeros_like(x)
     normal_at[moved], vel_at[moved] = n3[pick], v3[pick]
     _keep_tangential(v, hit, normal_at[hit], vel_at[hit], friction)
-    return len(f_idx)
+    return len(f_idx), moved
 
 
 def resolve_contacts(x, v, faces, bodies, s, thickness, movable, friction=0.0, pushable=None):
@@ -444,9 +479,9 @@ def resolve_contacts(x, v, faces, bodies, s, thickness, movable, friction=0.0, p
         return 0, 0
     pushable = movable if pushable is None else pushable
     n_p, phi = resolve_particles(x, v, bodies, s, thickness, pushable, friction)
-    n_f = resolve_faces(x, v, faces, bodies, s, thickness, movable, phi, friction)
-    if n_f:
-        n_p += resolve_particles(x, v, bodies, s, thickness, pushable, friction)[0]
+    n_f, moved = resolve_faces(x, v, faces, bodies, s, thickness, movable, phi, friction)
+    if n_f:  # only the corners the faces moved can be inside again
+        n_p += resolve_particles(x, v, bodies, s, thickness, pushable, friction, rows=moved, phi=phi)[0]
     return n_p, n_f
 
 
