@@ -55,6 +55,9 @@ class ClothDynamics:
         self._floor = mesh.rest_length * (1.0 - params.compress_limit) if params.compress_limit > 0 else \
             np.zeros(len(e0))
         self._movable_edge = (self.inv_mass[e0] + self.inv_mass[e1]) > 0.0
+        # the sweeps' limits, open ([0, inf)) on edges no correction can move: never off
+        self._floor_m = np.where(self._movable_edge, self._floor, 0.0)
+        self._limit_m = np.where(self._movable_edge, self._limit, np.inf)
         wsum = np.where(self._movable_edge, self.inv_mass[e0] + self.inv_mass[e1], 1.0)
         self._share0, self._share1 = self.inv_mass[e0] / wsum, self.inv_mass[e1] / wsum
         # a correction along each edge, shared by the inverse masses: +share0 at the first
@@ -150,28 +153,37 @@ class ClothDynamics:
     def accelerations(self, x, v, normals=None):
         """Accelerations of all particles (zero for pinned ones). `normals` (for the air drag) may
         be given: they change little within a step."""
+        return self.derivative(np.concatenate((x, v), axis=1), normals)[:, 3:]
+
+    def derivative(self, y, normals=None):
+        """d/dt of the state y = [x | v] (P, 6): [v | accelerations]. Positions and velocities
+        side by side, so one difference over the springs gives both their vectors and their
+        relative velocities."""
         p = self.params
-        d = x.take(self._s1, axis=0)
-        d -= x.take(self._s0, axis=0)
+        both = y.take(self._s1, axis=0)
+        both -= y.take(self._s0, axis=0)
+        d = both[:, :3]
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         coef = self._sk * (length - self._srest)  # eq. 4.1 (bending springs alike)
         e = self._edges
         if self.damping > 0.0:
-            dv = v.take(self._e1, axis=0)
-            dv -= v.take(self._e0, axis=0)
             le = length[:e]
-            coef[:e] += self.damping * np.einsum("ij,ij->i", dv, d[:e]) / (le * le + 1e-18)
+            coef[:e] += self.damping * np.einsum("ij,ij->i", both[:e, 3:], d[:e]) / (le * le + 1e-18)
         d *= coef[:, None]
         idx, item, w = self._acc_plan
-        acc = np.bincount(idx, (d.take(item, axis=0) * w).ravel(), minlength=self._p3).reshape(-1, 3)
+        out = np.empty_like(y)
+        v = y[:, 3:]
+        out[:, :3] = v
+        acc = out[:, 3:]
+        acc[...] = np.bincount(idx, (d.take(item, axis=0) * w).ravel(), minlength=self._p3).reshape(-1, 3)
         acc += self._free_f * (self.gravity - p.air_damping * v)
         if p.drag > 0.0:  # air pushes against the motion across the cloth: 1/2 rho Cd A |vn| vn
-            n = self.particle_normals(x) if normals is None else normals
+            n = self.particle_normals(y[:, :3]) if normals is None else normals
             vn = np.einsum("ij,ij->i", v - self.wind, n)
             w = self._drag_of * np.abs(vn)
             w *= vn
             acc -= w[:, None] * n
-        return acc
+        return out
 
     def particle_normals(self, x):
         f = self.mesh.faces
@@ -184,28 +196,34 @@ class ClothDynamics:
 
     # ---- integration ----------------------------------------------------------------------
     def rk4_step(self, x, v, dt, pin_x0, pin_x1):
-        """One RK4 step of length dt; pinned particles move linearly from pin_x0 to pin_x1."""
+        """One RK4 step of length dt; pinned particles move linearly from pin_x0 to pin_x1.
+        Positions and velocities advance together as one state [x | v]."""
         pins = self.pinned
         pin_v = (pin_x1 - pin_x0) / dt
-        pin_mid = 0.5 * (pin_x0 + pin_x1)
-        x0, v0 = x.copy(), v.copy()
-        x0[pins], v0[pins] = pin_x0, pin_v
-        n = self.particle_normals(x0) if self.params.drag > 0.0 else None
+        y0 = np.concatenate((x, v), axis=1)
+        y0[pins] = np.concatenate((pin_x0, pin_v), axis=1)
+        n = self.particle_normals(y0[:, :3]) if self.params.drag > 0.0 else None
         h = 0.5 * dt
-        a1 = self.accelerations(x0, v0, n)
-        x2, v2 = x0 + h * v0, v0 + h * a1
-        x2[pins] = pin_mid
-        a2 = self.accelerations(x2, v2, n)
-        x3, v3 = x0 + h * v2, v0 + h * a2
-        x3[pins] = pin_mid
-        a3 = self.accelerations(x3, v3, n)
-        x4, v4 = x0 + dt * v3, v0 + dt * a3
-        x4[pins] = pin_x1
-        a4 = self.accelerations(x4, v4, n)
-        x_new = x0 + dt / 6.0 * (v0 + 2.0 * v2 + 2.0 * v3 + v4)
-        v_new = v0 + dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-        x_new[pins], v_new[pins] = pin_x1, pin_v
-        return x_new, v_new
+        k1 = self.derivative(y0, n)
+        y = y0 + h * k1
+        pin_mid = 0.5 * (pin_x0 + pin_x1)
+        y[pins, :3] = pin_mid
+        k2 = self.derivative(y, n)
+        y = y0 + h * k2
+        y[pins, :3] = pin_mid
+        k3 = self.derivative(y, n)
+        y = y0 + dt * k3
+        y[pins, :3] = pin_x1
+        k4 = self.derivative(y, n)
+        k2 *= 2.0
+        k2 += k1
+        k3 *= 2.0
+        k2 += k3
+        k2 += k4
+        k2 *= dt / 6.0
+        k2 += y0
+        k2[pins] = np.concatenate((pin_x1, pin_v), axis=1)
+        return k2[:, :3].copy(), k2[:, 3:].copy()
 
     def _spread(self, dx):
         """Edge corrections (E, 3) to particle moves (P, 3): +share0 dx at the first particle,
@@ -231,40 +249,51 @@ class ClothDynamics:
         p = self.params
         x, v = x.copy(), v.copy()
         e0, e1 = self._e0, self._e1
-        limit, floor = self._limit, self._floor
-        movable = self._movable_edge
-        corrected = np.zeros(len(e0), dtype=bool)
+        floor, limit = self._floor_m, self._limit_m
+        corrected = None
         self._tether(x, v)
+        idx, item, w = self._sweep_plan
+        rows = self._sweep_rows
+        size = 4 * len(x)
         for _ in range(max(1, iterations or p.constraint_iterations)):
             d = x.take(e1, axis=0)
             d -= x.take(e0, axis=0)
             length = np.sqrt(np.einsum("ij,ij->i", d, d))
             target = np.minimum(np.maximum(length, floor), limit)
-            off = (np.abs(target - length) > SLACK * target) & movable
+            over = length - target
+            target *= SLACK
+            off = np.abs(over) > target
             if not off.any():
                 break
-            corrected |= off
-            rows = self._sweep_rows
-            np.multiply(d, np.where(off, (length - target) / length, 0.0)[:, None], out=rows[:, :3])
+            corrected = off if corrected is None else corrected | off
+            over /= length
+            over *= off
+            np.multiply(d, over[:, None], out=rows[:, :3])
             rows[:, 3] = off
-            idx, item, w = self._sweep_plan
-            moves = np.bincount(idx, (rows.take(item, axis=0) * w).ravel(), minlength=4 * len(x)).reshape(-1, 4)
+            moves = np.bincount(idx, (rows.take(item, axis=0) * w).ravel(), minlength=size).reshape(-1, 4)
             x += (RELAX / np.maximum(moves[:, 3], 1.0))[:, None] * moves[:, :3]
-        if corrected.any():  # corrected edges stop stretching (squeezed ones stop shortening)
-            d = x.take(e1, axis=0)
-            d -= x.take(e0, axis=0)
-            length = np.sqrt(np.einsum("ij,ij->i", d, d))
-            u = d / np.maximum(length, 1e-12)[:, None]
-            longer = length > self.mesh.rest_length
-            scale = (RELAX / np.maximum(self._reach(corrected), 1.0))[:, None]
-            stretching = corrected & longer  # may only shorten from here (rate <= 0 kept)
-            squeezing = corrected & ~longer
-            for _ in range(VELOCITY_SWEEPS):
-                dv = v.take(e1, axis=0)
-                dv -= v.take(e0, axis=0)
-                rate = np.einsum("ij,ij->i", dv, u)
-                rate = np.where(stretching, np.maximum(rate, 0.0), np.where(squeezing, np.minimum(rate, 0.0), 0.0))
-                v += scale * self._spread(rate[:, None] * u)
+        if corrected is None:
+            return x, v, 0
+        # corrected edges stop stretching (squeezed ones stop shortening)
+        d = x.take(e1, axis=0)
+        d -= x.take(e0, axis=0)
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        u = d / np.maximum(length, 1e-12)[:, None]
+        longer = length > self.mesh.rest_length
+        scale = (RELAX / np.maximum(self._reach(corrected), 1.0))[:, None]
+        # a stretching edge's rate may only go down to 0, a squeezed one's up to 0: clip bounds
+        low = np.where(corrected & longer, 0.0, -np.inf)
+        low[~corrected] = 0.0
+        high = np.where(corrected & ~longer, 0.0, np.inf)
+        high[~corrected] = 0.0
+        idx, item, w = self._spread_plan
+        u_items = u.take(item, axis=0)
+        for _ in range(VELOCITY_SWEEPS):
+            dv = v.take(e1, axis=0)
+            dv -= v.take(e0, axis=0)
+            rate = np.minimum(np.maximum(np.einsum("ij,ij->i", dv, u), low), high)
+            spread = np.bincount(idx, (rate.take(item)[:, None] * u_items * w).ravel(), minlength=self._p3)
+            v += scale * spread.reshape(-1, 3)
         return x, v, int(corrected.sum())
 
     def _tethers(self):
