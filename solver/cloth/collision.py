@@ -78,11 +78,12 @@ class CapsuleBody:
             self._at[s] = pose
         return pose
 
-    def query(self, points, s=1.0, max_distance=None):
+    def query(self, points, s=1.0, max_distance=None, second=False):
         """(phi (N,), outward unit normal (N, 3), surface velocity (N, 3)). Only capsules whose
         box comes within max_distance (default REACH) of the points' box are tested; points
         beyond them all report phi = max_distance (a lower bound). All points against all
-        capsules in one broadcast."""
+        capsules in one broadcast. With `second`, also a lower bound of each point's distance
+        to the other capsules (the second smallest phi)."""
         md = self.REACH if max_distance is None else max_distance
         packed, box_lo, box_hi, axes = self._pose(s)
         n = len(points)
@@ -94,7 +95,8 @@ class CapsuleBody:
         if c == 0:
             normal = np.zeros((n, 3))
             normal[:, 2] = 1.0
-            return np.full(n, float(md)), normal, np.zeros((n, 3))
+            out = np.full(n, float(md)), normal, np.zeros((n, 3))
+            return out + (np.full(n, float(md)),) if second else out
         if c < len(packed):
             packed = packed.take(near, axis=0)
             axes = axes.take(np.concatenate((near, near + len(box_lo))), axis=1)
@@ -114,6 +116,8 @@ class CapsuleBody:
         np.sqrt(dist2, out=dist2)
         dist2 -= packed[:, 9]
         k = dist2.argmin(axis=1)
+        if second:  # (the expanded form's rounding is far below a micrometre)
+            other = np.partition(dist2, 1, axis=1)[:, 1] - 1e-6 if c > 1 else np.full(n, float(md))
         tk = t.take(k + c * np.arange(n))
         pk = packed.take(k, axis=0)
         dk = points - pk[:, 0:3]
@@ -127,7 +131,8 @@ class CapsuleBody:
             normal[on_axis] = across / np.linalg.norm(across, axis=1)[:, None]
         velocity = pk[:, 10:13] + tk[:, None] * pk[:, 13:16]
         distk -= pk[:, 9]
-        return np.minimum(distk, md, out=distk), normal, velocity
+        np.minimum(distk, md, out=distk)
+        return (distk, normal, velocity, np.minimum(other, md)) if second else (distk, normal, velocity)
 
 
 def _cross(u, v):
@@ -382,29 +387,51 @@ def resolve_particles(x, v, bodies, s, thickness, movable, friction=0.0, passes=
     the surface; returns the number moved and every particle's phi at its final position. A
     particle pushed out of one part of the body into an overlapping part is pushed again (up to
     `passes` times). With `rows` (and `phi`, known for the others), only those particles are
-    queried: the others have not moved since their phi was found."""
+    queried: the others have not moved since their phi was found.
+
+    Against capsules alone, a point pushed along its nearest capsule's normal stays at the
+    thickness from it, and the other capsules can come no closer than their distance before
+    minus the push (phi is 1-Lipschitz): only points that can land in another capsule are
+    queried again."""
+    capsules = len(bodies) == 1 and isinstance(bodies[0], CapsuleBody)
+
+    def ask(points):
+        if capsules:
+            return bodies[0].query(points, s, second=True)
+        return query_bodies(bodies, points, s) + (None,)
+
     if rows is None:
-        phi, normal, vs = query_bodies(bodies, x, s)
+        phi, normal, vs, other = ask(x)
         rows = np.flatnonzero((phi < thickness) & movable)
         ph, n, vel = phi[rows], normal[rows], vs[rows]
+        other = None if other is None else other[rows]
     else:
-        ph, n, vel = query_bodies(bodies, x[rows], s)
+        ph, n, vel, other = ask(x[rows])
         phi[rows] = ph
         hit = (ph < thickness) & movable[rows]
         rows, ph, n, vel = rows[hit], ph[hit], n[hit], vel[hit]
+        other = None if other is None else other[hit]
     moved = len(rows)
     for _ in range(passes):
         if len(rows) == 0:
             break
-        x[rows] += (thickness - ph)[:, None] * n
+        push = thickness - ph
+        x[rows] += push[:, None] * n
         _keep_tangential(v, rows, n, vel, friction)
-        ph, n, vel = query_bodies(bodies, x[rows], s)
+        if other is not None:
+            clear = other - push >= thickness
+            phi[rows[clear]] = thickness
+            if clear.all():
+                break
+            rows = rows[~clear]
+        ph, n, vel, other = ask(x[rows])
         phi[rows] = ph
         again = ph < thickness - 1e-9
         if again.any():
             rows, ph, n, vel = rows[again], ph[again], n[again], vel[again]
+            other = None if other is None else other[again]
         else:
-            rows = rows[:0]
+            break
     return moved, phi
 
 
