@@ -33,6 +33,9 @@ def closest_on_segments(p, a, b):
     return a + t[..., None] * ab, t
 
 
+BROAD_PHASE_FROM = 256  # points in a capsule query from which far capsules are skipped first
+
+
 class CapsuleBody:
     """Capsules: segments a-b with radii, moving linearly within a frame."""
 
@@ -72,7 +75,8 @@ class CapsuleBody:
             packed = np.column_stack([a, ab, 1.0 / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18),
                                       np.einsum("ij,ij->i", a, ab), np.einsum("ij,ij->i", a, a), self.radius,
                                       va, dv])
-            pose = (packed, np.minimum(a, b) - r, np.maximum(a, b) + r, np.concatenate((ab, a)).T.copy())
+            pose = (packed, np.minimum(a, b) - r, np.maximum(a, b) + r, np.concatenate((ab, a)).T.copy(),
+                    packed.T.copy())
             if len(self._at) > 8:
                 self._at.clear()
             self._at[s] = pose
@@ -85,36 +89,40 @@ class CapsuleBody:
         capsules in one broadcast. With `second`, also a lower bound of each point's distance
         to the other capsules (the second smallest phi)."""
         md = self.REACH if max_distance is None else max_distance
-        packed, box_lo, box_hi, axes = self._pose(s)
+        packed, box_lo, box_hi, axes, columns = self._pose(s)
         n = len(points)
-        lo, hi = points.min(axis=0), points.max(axis=0)
-        lo -= md
-        hi += md
-        near = np.flatnonzero(np.logical_and.reduce((box_lo <= hi) & (box_hi >= lo), axis=1))
-        c = len(near)
+        c = len(packed)
+        if n > BROAD_PHASE_FROM:  # a few points: testing every capsule costs less than choosing
+            lo, hi = points.min(axis=0), points.max(axis=0)
+            lo -= md
+            hi += md
+            near = np.flatnonzero(np.logical_and.reduce((box_lo <= hi) & (box_hi >= lo), axis=1))
+            c = len(near)
         if c == 0:
             normal = np.zeros((n, 3))
             normal[:, 2] = 1.0
             out = np.full(n, float(md)), normal, np.zeros((n, 3))
             return out + (np.full(n, float(md)),) if second else out
         if c < len(packed):
-            packed = packed.take(near, axis=0)
+            packed, columns = packed.take(near, axis=0), columns.take(near, axis=1)
             axes = axes.take(np.concatenate((near, near + len(box_lo))), axis=1)
         # distances to all segments from (N, C) products: |p - a - t ab|^2 expanded
         prod = points @ axes  # [p . ab | p . a]
-        pa = prod[:, :c] - packed[:, 7]  # (p - a) . ab
-        t = np.minimum(np.maximum(pa * packed[:, 6], 0.0), 1.0)
+        pa = prod[:, :c] - columns[7]  # (p - a) . ab
+        t = pa * columns[6]
+        np.maximum(t, 0.0, out=t)
+        np.minimum(t, 1.0, out=t)
         dist2 = prod[:, c:]
         dist2 *= -2.0
-        dist2 += packed[:, 8]
+        dist2 += columns[8]
         dist2 += np.einsum("ij,ij->i", points, points)[:, None]
         pa += pa
-        pa -= t / packed[:, 6]
+        pa -= t / columns[6]
         pa *= t
         dist2 -= pa  # |p - a|^2 - t (2 (p - a).ab - t |ab|^2)
         np.maximum(dist2, 0.0, out=dist2)
         np.sqrt(dist2, out=dist2)
-        dist2 -= packed[:, 9]
+        dist2 -= columns[9]
         k = dist2.argmin(axis=1)
         if second:  # (the expanded form's rounding is far below a micrometre)
             other = np.partition(dist2, 1, axis=1)[:, 1] - 1e-6 if c > 1 else np.full(n, float(md))
