@@ -444,6 +444,7 @@ def resolve_particles(x, v, bodies, s, thickness, movable, friction=0.0, passes=
 
 
 _NONE = np.zeros(0, dtype=np.int64)
+_SAMPLE_REACH = 1.0 - FACE_SAMPLES  # (S, 3)
 
 
 def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, friction=0.0):
@@ -452,56 +453,46 @@ def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, fricti
     tri = x[faces]  # (F, 3, 3)
     side = tri - tri[:, (2, 0, 1)]
     edge = np.sqrt(np.einsum("fkj,fkj->fk", side, side).max(axis=1))
+    phi_c = corner_phi[faces]
     # phi is 1-Lipschitz: a face whose farthest-out corner is beyond its longest edge can't touch
-    near = corner_phi[faces].max(axis=1) - edge < thickness
+    near = phi_c.max(axis=1) - edge < thickness
     if not near.any():
         return 0, _NONE
     f_idx = np.flatnonzero(near)
     samples = np.einsum("sk,fkj->fsj", FACE_SAMPLES, tri[f_idx])  # (F', S, 3)
-    # ... and a sample farther out than that from any corner can't be inside either
-    gap = np.linalg.norm(samples[:, :, None, :] - tri[f_idx][:, None, :, :], axis=3)  # (F', S, 3)
-    bound = (corner_phi[faces[f_idx]][:, None, :] - gap).max(axis=2)
+    # ... and a sample farther out than that from any corner can't be inside either: the
+    # sample w.c is within (1 - w_k) times the longest edge of corner k
+    bound = (phi_c[f_idx][:, None, :] - _SAMPLE_REACH * edge[f_idx, None, None]).max(axis=2)
     test = bound < thickness
     if not test.any():
         return 0, _NONE
-    pts = samples[test]
-    ph, nrm, vel = query_bodies(bodies, pts, s)
-    ns = len(FACE_SAMPLES)
-    phi = np.full(test.shape, np.inf)
-    phi[test] = ph
-    normal = np.zeros(test.shape + (3,))
-    normal[test] = nrm
-    vs = np.zeros(test.shape + (3,))
-    vs[test] = vel
-    phi, normal, vs = phi.reshape(-1), normal.reshape(-1, 3), vs.reshape(-1, 3)
-    depth = (thickness - phi).reshape(-1, ns)
-    deepest = np.argmax(depth, axis=1)
-    rows = np.arange(len(f_idx))
-    d = depth[rows, deepest]
+    ph, nrm, vel = query_bodies(bodies, samples[test], s)
+    depth = np.full(test.shape, -np.inf)
+    depth[test] = thickness - ph
+    deepest = depth.argmax(axis=1)
+    d = depth[np.arange(len(f_idx)), deepest]
     cut = d > 1e-9
     if not cut.any():
         return 0, _NONE
     f_idx, deepest, d = f_idx[cut], deepest[cut], d[cut]
-    k = np.flatnonzero(cut) * ns + deepest
-    push, n_k, v_k = d[:, None] * normal[k], normal[k], vs[k]
+    slot = np.cumsum(test.ravel()) - 1  # each sample's row among the tested ones
+    k = slot[np.flatnonzero(cut) * len(FACE_SAMPLES) + deepest]
+    n_k, v_k = nrm[k], vel[k]
     corners = faces[f_idx].ravel()
-    push3, n3, v3 = np.repeat(push, 3, axis=0), np.repeat(n_k, 3, axis=0), np.repeat(v_k, 3, axis=0)
     ok = movable[corners]
-    corners, push3, n3, v3 = corners[ok], push3[ok], n3[ok], v3[ok]
+    face_of = np.repeat(np.arange(len(f_idx)), 3)[ok]
+    corners = corners[ok]
     if len(corners) == 0:
         return 0, _NONE
-    # a particle in several cut faces takes the largest push
-    order = np.lexsort((np.linalg.norm(push3, axis=1), corners))
-    last = np.r_[corners[order][1:] != corners[order][:-1], True]
+    # a particle in several cut faces takes the largest push (the push is d along a unit normal)
+    order = np.lexsort((d[face_of], corners))
+    ranked = corners[order]
+    last = np.ones(len(ranked), dtype=bool)
+    np.not_equal(ranked[1:], ranked[:-1], out=last[:-1])
     pick = order[last]
-    moved = corners[pick]
-    x[moved] += push3[pick]
-    hit = np.zeros(len(x), dtype=bool)
-    hit[moved] = True
-    normal_at = np.zeros_like(x)
-    vel_at = np.zeros_like(x)
-    normal_at[moved], vel_at[moved] = n3[pick], v3[pick]
-    _keep_tangential(v, hit, normal_at[hit], vel_at[hit], friction)
+    moved, f = corners[pick], face_of[pick]
+    x[moved] += d[f, None] * n_k[f]
+    _keep_tangential(v, moved, n_k[f], v_k[f], friction)
     return len(f_idx), moved
 
 
