@@ -177,6 +177,7 @@ def _split_speed(p0, n0, m, nm, p1, n1):
 # ---- edge length control ------------------------------------------------------------------
 
 GROW = 8  # bracket doublings evaluated together
+HALVING_BITS = 3  # bisection halvings done in one pass (2^bits - 1 lengths per edge)
 _DOUBLINGS = 2.0 ** np.arange(GROW)
 
 def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
@@ -226,12 +227,12 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
             break
         lo = np.where(low, hi, lo)
         hi = np.where(low, 2.0 * hi, hi)
-    # the halvings, up to five at a time: the length grows with h, so `bits` halvings of [lo, hi]
+    # the halvings, HALVING_BITS at a time: the length grows with h, so `bits` halvings of [lo, hi]
     # end in the one of its 2^bits equal parts where the length crosses the target, found by
     # evaluating all their inner ends at once (one pass instead of `bits` passes)
     done = 0
     while done < iterations:
-        bits = min(5, iterations - done)
+        bits = min(HALVING_BITS, iterations - done)
         parts = 1 << bits
         width = hi - lo
         hh = (lo[:, None] + width[:, None] * (np.arange(1, parts) / parts))[..., None, None]  # (M, parts-1, 1, 1)
