@@ -316,7 +316,8 @@ class ClothDynamics:
         if self._tether_data is None:
             return
         i, anchor, reach = self._tether_data
-        d = x[i] - x[anchor]
+        d = x.take(i, axis=0)
+        d -= x.take(anchor, axis=0)
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         over = length > reach
         if not over.any():
