@@ -56,6 +56,7 @@ class CapsuleBody:
         self.a1 = self.a0 if a1 is None else np.asarray(a1, float)
         self.b1 = self.b0 if b1 is None else np.asarray(b1, float)
         self.dt = dt
+        self.motions = getattr(self, "motions", 0) + 1  # tells cached queries from a past frame
         va, vb = (self.a1 - self.a0) / self.dt, (self.b1 - self.b0) / self.dt
         self._velocity = va, vb - va
         self._at = {}
@@ -218,6 +219,7 @@ class MeshBody:
         self.v0 = np.asarray(v0, float)
         self.v1 = self.v0 if v1 is None else np.asarray(v1, float)
         self.dt = dt
+        self.motions = getattr(self, "motions", 0) + 1  # tells cached queries from a past frame
         self._pose = None
 
     def pose_at(self, s):

@@ -77,7 +77,7 @@ class ClothSimulation:
         if self.bodies:
             phi = resolve_particles(x, v, self.bodies, 1.0, self.params.thickness, self._everyone,
                                     self.params.friction)[1]
-            self._phi_end = (x.copy(), phi)
+            self._phi_end = (x.copy(), self._motions(), phi)
         self.timing["integration"] += t1 - t0
         self.timing["collision"] += _clock() - t1
         if not (np.isfinite(x).all() and np.isfinite(v).all()):
@@ -103,9 +103,13 @@ class ClothSimulation:
         """phi of the current particles at the frame's end (from its last collision pass when
         they have not moved since)."""
         known = self._phi_end
-        if known is not None and known[0].shape == self.x.shape and np.array_equal(known[0], self.x):
-            return known[1]
+        if (known is not None and known[0].shape == self.x.shape and known[1] == self._motions()
+                and np.array_equal(known[0], self.x)):
+            return known[2]
         return query_bodies(self.bodies, self.x, 1.0)[0]
+
+    def _motions(self):
+        return [getattr(b, "motions", None) for b in self.bodies]
 
     def _push_surface_out(self, fine):
         """Fine vertices inside the body go back out to the thickness; only those that can reach
