@@ -24,6 +24,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from .fast import rowdot
+
 
 def closest_on_segments(p, a, b):
     """Closest points on segments ab to points p (broadcasting): (q, t)."""
@@ -73,8 +75,8 @@ class CapsuleBody:
             ab = b - a
             r = self.radius[:, None]
             va, dv = self._velocity
-            packed = np.column_stack([a, ab, 1.0 / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18),
-                                      np.einsum("ij,ij->i", a, ab), np.einsum("ij,ij->i", a, a), self.radius,
+            packed = np.column_stack([a, ab, 1.0 / np.maximum(rowdot(ab, ab), 1e-18),
+                                      rowdot(a, ab), rowdot(a, a), self.radius,
                                       va, dv])
             pose = (packed, np.minimum(a, b) - r, np.maximum(a, b) + r, np.concatenate((ab, a)).T.copy(),
                     packed.T.copy())
@@ -116,7 +118,7 @@ class CapsuleBody:
         dist2 = prod[:, c:]
         dist2 *= -2.0
         dist2 += columns[8]
-        dist2 += np.einsum("ij,ij->i", points, points)[:, None]
+        dist2 += rowdot(points, points)[:, None]
         pa += pa
         pa -= t / columns[6]
         pa *= t
@@ -131,7 +133,7 @@ class CapsuleBody:
         pk = packed.take(k, axis=0)
         dk = points - pk[:, 0:3]
         dk -= tk[:, None] * pk[:, 3:6]
-        distk = np.sqrt(np.einsum("ij,ij->i", dk, dk))
+        distk = np.sqrt(rowdot(dk, dk))
         normal = dk / np.maximum(distk, 1e-12)[:, None]
         if distk.min() <= 1e-9:  # a point on the axis: any direction across it
             on_axis = distk <= 1e-9
@@ -388,7 +390,7 @@ FACE_SAMPLES = np.array([
 
 def _keep_tangential(v, hit, normal, surface_velocity, friction):
     rel = v[hit] - surface_velocity
-    rel_n = np.einsum("ij,ij->i", rel, normal)[:, None] * normal
+    rel_n = rowdot(rel, normal)[:, None] * normal
     v[hit] = surface_velocity + (1.0 - friction) * (rel - rel_n)
 
 

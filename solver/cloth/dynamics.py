@@ -5,6 +5,7 @@ substeps; Provot-style correction of elongated edges (§4.4.3); particles pinned
 import numpy as np
 from scipy import sparse
 
+from .fast import rowdot
 from .materials import AIR_DENSITY, as_vector
 
 # explicit RK4 is stable for |lambda dt| up to about 2.8 on the imaginary axis: keep a margin
@@ -144,10 +145,10 @@ class ClothDynamics:
         """Per-edge forces on the first particle, eq. 4.1 with a dashpot: (E, 3)."""
         mesh = self.mesh
         d = x[self._e1] - x[self._e0]
-        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        length = np.sqrt(rowdot(d, d))
         stretch = (length - mesh.rest_length) / mesh.rest_length  # |f| = k |d|/L (|d| - L), along d
         dv = v[self._e1] - v[self._e0]
-        along = np.einsum("ij,ij->i", dv, d) / np.maximum(length * length, 1e-18)
+        along = rowdot(dv, d) / np.maximum(length * length, 1e-18)
         return (self.stretch * stretch + self.damping * along)[:, None] * d
 
     def accelerations(self, x, v, normals=None):
@@ -163,12 +164,12 @@ class ClothDynamics:
         both = y.take(self._s1, axis=0)
         both -= y.take(self._s0, axis=0)
         d = both[:, :3]
-        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        length = np.sqrt(rowdot(d, d))
         coef = self._sk * (length - self._srest)  # eq. 4.1 (bending springs alike)
         e = self._edges
         if self.damping > 0.0:
             le = length[:e]
-            coef[:e] += self.damping * np.einsum("ij,ij->i", both[:e, 3:], d[:e]) / (le * le + 1e-18)
+            coef[:e] += self.damping * rowdot(both[:e, 3:], d[:e]) / (le * le + 1e-18)
         d *= coef[:, None]
         idx, item, w = self._acc_plan
         out = np.empty_like(y)
@@ -179,7 +180,7 @@ class ClothDynamics:
         acc += self._free_f * (self.gravity - p.air_damping * v)
         if p.drag > 0.0:  # air pushes against the motion across the cloth: 1/2 rho Cd A |vn| vn
             n = self.particle_normals(y[:, :3]) if normals is None else normals
-            vn = np.einsum("ij,ij->i", v - self.wind, n)
+            vn = rowdot(v - self.wind, n)
             w = self._drag_of * np.abs(vn)
             w *= vn
             acc -= w[:, None] * n
@@ -192,7 +193,7 @@ class ClothDynamics:
         n = np.column_stack([u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1], u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2],
                              u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]])  # area-weighted face normals
         out = np.bincount(self._face_idx, np.repeat(n, 3, axis=0).ravel(), minlength=self._p3).reshape(-1, 3)
-        return out / np.maximum(np.sqrt(np.einsum("ij,ij->i", out, out)), 1e-12)[:, None]
+        return out / np.maximum(np.sqrt(rowdot(out, out)), 1e-12)[:, None]
 
     # ---- integration ----------------------------------------------------------------------
     def rk4_step(self, x, v, dt, pin_x0, pin_x1):
@@ -258,7 +259,7 @@ class ClothDynamics:
         for _ in range(max(1, iterations or p.constraint_iterations)):
             d = x.take(e1, axis=0)
             d -= x.take(e0, axis=0)
-            length = np.sqrt(np.einsum("ij,ij->i", d, d))
+            length = np.sqrt(rowdot(d, d))
             target = np.minimum(np.maximum(length, floor), limit)
             over = length - target
             target *= SLACK
@@ -277,7 +278,7 @@ class ClothDynamics:
         # corrected edges stop stretching (squeezed ones stop shortening)
         d = x.take(e1, axis=0)
         d -= x.take(e0, axis=0)
-        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        length = np.sqrt(rowdot(d, d))
         u = d / np.maximum(length, 1e-12)[:, None]
         longer = length > self.mesh.rest_length
         scale = (RELAX / np.maximum(self._reach(corrected), 1.0))[:, None]
@@ -291,7 +292,7 @@ class ClothDynamics:
         for _ in range(VELOCITY_SWEEPS):
             dv = v.take(e1, axis=0)
             dv -= v.take(e0, axis=0)
-            rate = np.minimum(np.maximum(np.einsum("ij,ij->i", dv, u), low), high)
+            rate = np.minimum(np.maximum(rowdot(dv, u), low), high)
             spread = np.bincount(idx, (rate.take(item)[:, None] * u_items * w).ravel(), minlength=self._p3)
             v += scale * spread.reshape(-1, 3)
         return x, v, int(corrected.sum())
@@ -318,14 +319,14 @@ class ClothDynamics:
         i, anchor, reach = self._tether_data
         d = x.take(i, axis=0)
         d -= x.take(anchor, axis=0)
-        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        length = np.sqrt(rowdot(d, d))
         over = length > reach
         if not over.any():
             return
         i, d, length, reach = i[over], d[over], length[over], reach[over]
         u = d / length[:, None]
         x[i] -= ((length - reach)[:, None]) * u
-        out = np.maximum(np.einsum("ij,ij->i", v[i] - v[anchor[over]], u), 0.0)
+        out = np.maximum(rowdot(v[i] - v[anchor[over]], u), 0.0)
         v[i] -= out[:, None] * u
 
     # ---- energy (for tests and diagnostics) -------------------------------------------------
@@ -340,6 +341,6 @@ class ClothDynamics:
         lb = np.linalg.norm(x[self._b1] - x[self._b0], axis=1)
         # the bending springs are linear in (l - L)/L times d: the same integral shape
         u = spring(self.stretch, le, mesh.rest_length).sum() + spring(self.bend, lb, mesh.bend_rest).sum()
-        kinetic = 0.5 * np.sum(self.mass[self.free] * np.einsum("ij,ij->i", v[self.free], v[self.free]))
+        kinetic = 0.5 * np.sum(self.mass[self.free] * rowdot(v[self.free], v[self.free]))
         grav = -np.sum(self.mass[self.free] * (x[self.free] @ self.gravity))
         return kinetic + u + grav

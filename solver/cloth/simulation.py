@@ -6,6 +6,7 @@ import numpy as np
 
 from .collision import penetration, query_bodies, resolve_contacts, resolve_particles
 from .dynamics import ClothDynamics
+from .fast import rowdot
 from .mesh import ClothError, edge_lengths
 from .smoothing import Smoother
 
@@ -119,7 +120,7 @@ class ClothSimulation:
         phi = self._phi_now()
         ref = self._fine_ref
         d = fine[p:] - self.x.take(ref, axis=0)
-        bound = phi.take(ref) - np.sqrt(np.einsum("ij,ij->i", d, d))
+        bound = phi.take(ref) - np.sqrt(rowdot(d, d))
         idx = np.flatnonzero(bound < self.params.thickness)
         if len(idx) == 0:
             return
