@@ -5,7 +5,7 @@ substeps; Provot-style correction of elongated edges (§4.4.3); particles pinned
 import numpy as np
 from scipy import sparse
 
-from .fast import rowdot
+from .fast import rowdot, sparse_product as _sparse_product
 from .materials import AIR_DENSITY, as_vector
 
 # explicit RK4 is stable for |lambda dt| up to about 2.8 on the imaginary axis: keep a margin
@@ -31,6 +31,16 @@ def _scatter_plan(first, second, w_first, w_second, descending=False):
     particle = np.r_[first, second]
     order = np.lexsort((-item if descending else item, particle))
     return _flat3(particle[order]), item[order], np.r_[w_first, w_second][order][:, None]
+
+
+def _plan_matrix(plan, particles):
+    """The sum of a scatter plan as a CSR matrix (particles x items) whose entries per row are
+    in the plan's order: a compiled sparse product adds them as the np.bincount did."""
+    idx, item, w = plan
+    particle = idx[::3] // 3
+    indptr = np.r_[0, np.cumsum(np.bincount(particle, minlength=particles))]
+    return sparse.csr_matrix((w[:, 0].astype(float), item.astype(np.int32), indptr.astype(np.int32)),
+                             shape=(particles, int(item.max()) + 1 if len(item) else 0))
 
 
 class ClothDynamics:
@@ -64,17 +74,24 @@ class ClothDynamics:
         # a correction along each edge, shared by the inverse masses: +share0 at the first
         # particle, -share1 at the second; `reach` counts the edges that move a particle
         # (numpy's per-call cost dominates at tens of particles, so sums over edges into particles
-        # are single np.bincount calls over precomputed flat indices, not sparse products)
+        # are single calls: np.bincount over precomputed flat indices, or scipy's compiled sparse
+        # product on a matrix whose entries are in the same order)
         self._spread_plan = _scatter_plan(e0, e1, self._share0, -self._share1)
         self._reach_idx = np.r_[e0, e1]
         self._reach_w = (np.r_[self._share0, self._share1] > 0).astype(float)
-        # a sweep's moves and counts in one bincount: columns x y z of the correction (weighted
-        # by the shares) and a 4th of the edge being off (weighted by whether it moves the particle)
-        idx, item, w = _scatter_plan(e0, e1, self._share0, -self._share1)
-        particle = idx[::3] // 3
-        self._sweep_plan = ((4 * particle[:, None] + np.arange(4)).ravel(), item,
-                            np.column_stack([np.repeat(w, 3, axis=1), w[:, 0] != 0.0]).astype(float))
+        # a sweep's moves and counts in one sparse product of the (E, 4) rows [correction x y z,
+        # edge off]: rows 0..P-1 of the matrix spread the corrections by the shares, rows
+        # P..2P-1 count the off edges that move each particle (entries per row in edge order)
+        idx, item, w = self._spread_plan
+        particle, share = idx[::3] // 3, w[:, 0]
+        keep = share != 0.0
         self._sweep_rows = np.empty((len(e0), 4))
+        self._sweep_matrix = sparse.csr_matrix(
+            (np.r_[share[keep], np.ones(keep.sum())],
+             (np.r_[particle[keep], p_count + particle[keep]], np.r_[item[keep], item[keep]])),
+            shape=(2 * p_count, len(e0)))
+        self._sweep_matrix.sort_indices()
+        self._spread_matrix = _plan_matrix(self._spread_plan, p_count)
         self._tether_data = self._tethers()
         self._face_idx = _flat3(mesh.faces.ravel())  # coordinates of every face corner
         self._p3 = 3 * p_count
@@ -137,6 +154,7 @@ class ClothDynamics:
         # divided by its mass (pinned ones: 0); one bincount over the flat coordinates
         self._acc_plan = _scatter_plan(self._s0, self._s1, self.inv_mass[self._s0], -self.inv_mass[self._s1],
                                        descending=True)
+        self._acc_matrix = _plan_matrix(self._acc_plan, len(self.mass))
         self._free_f = self.free.astype(float)[:, None]
         self._drag_of = 0.5 * AIR_DENSITY * p.drag * mesh.area * self.inv_mass
         self._edges = e
@@ -171,12 +189,11 @@ class ClothDynamics:
             le = length[:e]
             coef[:e] += self.damping * rowdot(both[:e, 3:], d[:e]) / (le * le + 1e-18)
         d *= coef[:, None]
-        idx, item, w = self._acc_plan
         out = np.empty_like(y)
         v = y[:, 3:]
         out[:, :3] = v
         acc = out[:, 3:]
-        acc[...] = np.bincount(idx, (d.take(item, axis=0) * w).ravel(), minlength=self._p3).reshape(-1, 3)
+        acc[...] = _sparse_product(self._acc_matrix, d)
         acc += self._free_f * (self.gravity - p.air_damping * v)
         if p.drag > 0.0:  # air pushes against the motion across the cloth: 1/2 rho Cd A |vn| vn
             n = self.particle_normals(y[:, :3]) if normals is None else normals
@@ -253,9 +270,7 @@ class ClothDynamics:
         floor, limit = self._floor_m, self._limit_m
         corrected = None
         self._tether(x, v)
-        idx, item, w = self._sweep_plan
-        rows = self._sweep_rows
-        size = 4 * len(x)
+        rows, matrix, n = self._sweep_rows, self._sweep_matrix, len(x)
         for _ in range(max(1, iterations or p.constraint_iterations)):
             d = x.take(e1, axis=0)
             d -= x.take(e0, axis=0)
@@ -271,8 +286,8 @@ class ClothDynamics:
             over *= off
             np.multiply(d, over[:, None], out=rows[:, :3])
             rows[:, 3] = off
-            moves = np.bincount(idx, (rows.take(item, axis=0) * w).ravel(), minlength=size).reshape(-1, 4)
-            x += (RELAX / np.maximum(moves[:, 3], 1.0))[:, None] * moves[:, :3]
+            moves = _sparse_product(matrix, rows)
+            x += (RELAX / np.maximum(moves[n:, 3], 1.0))[:, None] * moves[:n, :3]
         if corrected is None:
             return x, v, 0
         # corrected edges stop stretching (squeezed ones stop shortening)
@@ -287,14 +302,11 @@ class ClothDynamics:
         low[~corrected] = 0.0
         high = np.where(corrected & ~longer, 0.0, np.inf)
         high[~corrected] = 0.0
-        idx, item, w = self._spread_plan
-        u_items = u.take(item, axis=0)
         for _ in range(VELOCITY_SWEEPS):
             dv = v.take(e1, axis=0)
             dv -= v.take(e0, axis=0)
             rate = np.minimum(np.maximum(rowdot(dv, u), low), high)
-            spread = np.bincount(idx, (rate.take(item)[:, None] * u_items * w).ravel(), minlength=self._p3)
-            v += scale * spread.reshape(-1, 3)
+            v += scale * _sparse_product(self._spread_matrix, rate[:, None] * u)
         return x, v, int(corrected.sum())
 
     def _tethers(self):

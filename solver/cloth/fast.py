@@ -14,3 +14,19 @@ except ImportError:  # numpy < 1.26
 def rowdot(a, b):
     """Row-wise dot products of two (N, 3) arrays: np.einsum("ij,ij->i", a, b)."""
     return _c_einsum("ij,ij->i", a, b)
+
+
+try:  # scipy's compiled CSR times dense kernel, without the sparse matrix's Python dispatch
+    from scipy.sparse._sparsetools import csr_matvecs as _csr_matvecs
+except ImportError:
+    _csr_matvecs = None
+
+
+def sparse_product(matrix, dense):
+    """matrix (CSR, float64) @ dense (C-contiguous (N, K) float64): (M, K)."""
+    if _csr_matvecs is None:
+        return matrix @ dense
+    m, n = matrix.shape
+    out = np.zeros((m, dense.shape[1]))
+    _csr_matvecs(m, n, dense.shape[1], matrix.indptr, matrix.indices, matrix.data, dense.ravel(), out.ravel())
+    return out
