@@ -102,3 +102,17 @@ def test_the_frames_last_phi_is_reused_only_while_nothing_moved():
     capsules.set_motion(a0, b0, a2, b2, 1 / 30)
     moved = np.maximum(-capsules.query(sim.x, 1.0)[0], 0.0)
     assert moved.max() > 0.01 and np.allclose(sim.depth_inside(), moved)
+
+
+def test_the_compiled_sparse_product_equals_scipys_and_its_fallback(monkeypatch):
+    from scipy import sparse
+    from humananim.solver.cloth import fast
+    rng = np.random.default_rng(11)
+    m = sparse.random(40, 25, density=0.2, random_state=3, format="csr")
+    dense = rng.normal(size=(25, 4))
+    direct = fast.sparse_product(m, dense)
+    assert np.allclose(direct, m @ dense, atol=1e-14)
+    assert np.allclose(fast.sparse_product(m, np.asfortranarray(dense)[:, :3]), m @ dense[:, :3], atol=1e-14)
+    monkeypatch.setattr(fast, "_csr_matvecs", None)
+    assert np.allclose(fast.sparse_product(m, dense), direct, atol=1e-14)
+    assert np.allclose(fast.rowdot(dense, dense), (dense * dense).sum(axis=1))
