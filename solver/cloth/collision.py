@@ -24,6 +24,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from .fast import rowdot
+
 
 def closest_on_segments(p, a, b):
     """Closest points on segments ab to points p (broadcasting): (q, t)."""
@@ -33,8 +35,16 @@ def closest_on_segments(p, a, b):
     return a + t[..., None] * ab, t
 
 
+BROAD_PHASE_FROM = 256  # points in a capsule query from which far capsules are skipped first
+
+
 class CapsuleBody:
     """Capsules: segments a-b with radii, moving linearly within a frame."""
+
+    # without max_distance, queries report exact distances up to this far (the collision's
+    # 1-Lipschitz bounds cull faces and fine vertices farther out than an edge: capsule
+    # distances are as cheap far as near)
+    REACH = 0.15
 
     def __init__(self, radius, names=None):
         self.radius = np.asarray(radius, float)
@@ -48,65 +58,92 @@ class CapsuleBody:
         self.a1 = self.a0 if a1 is None else np.asarray(a1, float)
         self.b1 = self.b0 if b1 is None else np.asarray(b1, float)
         self.dt = dt
+        self.motions = getattr(self, "motions", 0) + 1  # tells cached queries from a past frame
         va, vb = (self.a1 - self.a0) / self.dt, (self.b1 - self.b0) / self.dt
         self._velocity = va, vb - va
         self._at = {}
 
     def _pose(self, s):
-        """What the queries at time s share (a frame's queries come at a few times only):
-        ends, axes and their products, the capsules' boxes."""
+        """What the queries at time s share (a frame's queries come at a few times only), packed
+        in one array per capsule so a query takes the capsules near it in one call: columns
+        a (3), ab (3), 1/|ab|^2, a.ab, a.a, radius, velocity of a (3), of b minus a's (3); and
+        the capsules' boxes (lo | hi, (C, 6)) and [ab | a] (3, 2C) for one product."""
         pose = self._at.get(s)
         if pose is None:
             a = self.a0 + s * (self.a1 - self.a0)
             b = self.b0 + s * (self.b1 - self.b0)
             ab = b - a
             r = self.radius[:, None]
-            pose = (a, ab, np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18), np.einsum("ij,ij->i", a, ab),
-                    np.einsum("ij,ij->i", a, a), np.minimum(a, b) - r, np.maximum(a, b) + r, self.radius)
+            va, dv = self._velocity
+            packed = np.column_stack([a, ab, 1.0 / np.maximum(rowdot(ab, ab), 1e-18),
+                                      rowdot(a, ab), rowdot(a, a), self.radius,
+                                      va, dv])
+            pose = (packed, np.minimum(a, b) - r, np.maximum(a, b) + r, np.concatenate((ab, a)).T.copy(),
+                    packed.T.copy())
             if len(self._at) > 8:
                 self._at.clear()
             self._at[s] = pose
         return pose
 
-    def query(self, points, s=1.0, max_distance=0.05):
+    def query(self, points, s=1.0, max_distance=None, second=False):
         """(phi (N,), outward unit normal (N, 3), surface velocity (N, 3)). Only capsules whose
-        box comes within max_distance of the points' box are tested; points beyond them all
-        report phi = max_distance (a lower bound). All points against all capsules in one
-        broadcast."""
-        a, ab, ab2, a_ab, a_a, box_lo, box_hi, radius = self._pose(s)
-        lo, hi = points.min(axis=0) - max_distance, points.max(axis=0) + max_distance
-        near = np.all((box_lo <= hi) & (box_hi >= lo), axis=1)
+        box comes within max_distance (default REACH) of the points' box are tested; points
+        beyond them all report phi = max_distance (a lower bound). All points against all
+        capsules in one broadcast. With `second`, also a lower bound of each point's distance
+        to the other capsules (the second smallest phi)."""
+        md = self.REACH if max_distance is None else max_distance
+        packed, box_lo, box_hi, axes, columns = self._pose(s)
         n = len(points)
-        if not near.all():
-            if not near.any():
-                normal = np.zeros((n, 3))
-                normal[:, 2] = 1.0
-                return np.full(n, float(max_distance)), normal, np.zeros((n, 3))
-            idx = np.flatnonzero(near)
-            a, ab, ab2, a_ab, a_a, radius = a[idx], ab[idx], ab2[idx], a_ab[idx], a_a[idx], radius[idx]
-        else:
-            idx = None
+        c = len(packed)
+        if n > BROAD_PHASE_FROM:  # a few points: testing every capsule costs less than choosing
+            lo, hi = points.min(axis=0), points.max(axis=0)
+            lo -= md
+            hi += md
+            near = np.flatnonzero(np.logical_and.reduce((box_lo <= hi) & (box_hi >= lo), axis=1))
+            c = len(near)
+        if c == 0:
+            normal = np.zeros((n, 3))
+            normal[:, 2] = 1.0
+            out = np.full(n, float(md)), normal, np.zeros((n, 3))
+            return out + (np.full(n, float(md)),) if second else out
+        if c < len(packed):
+            packed, columns = packed.take(near, axis=0), columns.take(near, axis=1)
+            axes = axes.take(np.concatenate((near, near + len(box_lo))), axis=1)
         # distances to all segments from (N, C) products: |p - a - t ab|^2 expanded
-        pa = points @ ab.T - a_ab[None]  # (p - a) . ab
-        t = np.minimum(np.maximum(pa / ab2[None], 0.0), 1.0)
-        pp = np.einsum("ij,ij->i", points, points)[:, None] - 2.0 * points @ a.T + a_a[None]
-        dist2 = np.maximum(pp - 2.0 * t * pa + t * t * ab2[None], 0.0)
-        phi = np.sqrt(dist2) - radius[None]
-        k = np.argmin(phi, axis=1)
-        tk = t[np.arange(n), k]
-        dk = points - (a[k] + tk[:, None] * ab[k])
-        distk = np.sqrt(np.einsum("ij,ij->i", dk, dk))
+        prod = points @ axes  # [p . ab | p . a]
+        pa = prod[:, :c] - columns[7]  # (p - a) . ab
+        t = pa * columns[6]
+        np.maximum(t, 0.0, out=t)
+        np.minimum(t, 1.0, out=t)
+        dist2 = prod[:, c:]
+        dist2 *= -2.0
+        dist2 += columns[8]
+        dist2 += rowdot(points, points)[:, None]
+        pa += pa
+        pa -= t / columns[6]
+        pa *= t
+        dist2 -= pa  # |p - a|^2 - t (2 (p - a).ab - t |ab|^2)
+        np.maximum(dist2, 0.0, out=dist2)
+        np.sqrt(dist2, out=dist2)
+        dist2 -= columns[9]
+        k = dist2.argmin(axis=1)
+        if second:  # (the expanded form's rounding is far below a micrometre)
+            other = np.partition(dist2, 1, axis=1)[:, 1] - 1e-6 if c > 1 else np.full(n, float(md))
+        tk = t.take(k + c * np.arange(n))
+        pk = packed.take(k, axis=0)
+        dk = points - pk[:, 0:3]
+        dk -= tk[:, None] * pk[:, 3:6]
+        distk = np.sqrt(rowdot(dk, dk))
         normal = dk / np.maximum(distk, 1e-12)[:, None]
-        on_axis = distk <= 1e-9
-        if on_axis.any():  # a point on the axis: any direction across it
-            across = np.cross(ab[k[on_axis]], [0.0, 0.0, 1.0])
+        if distk.min() <= 1e-9:  # a point on the axis: any direction across it
+            on_axis = distk <= 1e-9
+            across = np.cross(pk[on_axis, 3:6], [0.0, 0.0, 1.0])
             across[np.linalg.norm(across, axis=1) < 1e-9] = (1.0, 0.0, 0.0)
             normal[on_axis] = across / np.linalg.norm(across, axis=1)[:, None]
-        ck = k if idx is None else idx[k]
-        va, dv = self._velocity
-        velocity = va[ck] + tk[:, None] * dv[ck]
-        phi_k = distk - self.radius[ck]
-        return np.minimum(phi_k, max_distance), normal, velocity
+        velocity = pk[:, 10:13] + tk[:, None] * pk[:, 13:16]
+        distk -= pk[:, 9]
+        np.minimum(distk, md, out=distk)
+        return (distk, normal, velocity, np.minimum(other, md)) if second else (distk, normal, velocity)
 
 
 def _cross(u, v):
@@ -184,6 +221,7 @@ class MeshBody:
         self.v0 = np.asarray(v0, float)
         self.v1 = self.v0 if v1 is None else np.asarray(v1, float)
         self.dt = dt
+        self.motions = getattr(self, "motions", 0) + 1  # tells cached queries from a past frame
         self._pose = None
 
     def pose_at(self, s):
@@ -352,87 +390,114 @@ FACE_SAMPLES = np.array([
 
 def _keep_tangential(v, hit, normal, surface_velocity, friction):
     rel = v[hit] - surface_velocity
-    rel_n = np.einsum("ij,ij->i", rel, normal)[:, None] * normal
+    rel_n = rowdot(rel, normal)[:, None] * normal
     v[hit] = surface_velocity + (1.0 - friction) * (rel - rel_n)
 
 
-def resolve_particles(x, v, bodies, s, thickness, movable, friction=0.0, passes=4):
+def resolve_particles(x, v, bodies, s, thickness, movable, friction=0.0, passes=4, rows=None, phi=None):
     """Vertex case (Fig. 4.6 a, c): particles inside the body (or within the thickness) move to
-    the surface; the number moved and every particle's phi before. A particle pushed out of one
-    part of the body into an overlapping part is pushed again (up to `passes` times)."""
-    phi, normal, vs = query_bodies(bodies, x, s)
-    hit = (phi < thickness) & movable
-    moved = hit.copy()
-    rows = np.flatnonzero(hit)
-    ph, n, vel = phi[rows], normal[rows], vs[rows]
+    the surface; returns the number moved and every particle's phi at its final position. A
+    particle pushed out of one part of the body into an overlapping part is pushed again (up to
+    `passes` times). With `rows` (and `phi`, known for the others), only those particles are
+    queried: the others have not moved since their phi was found.
+
+    Against capsules alone, a point pushed along its nearest capsule's normal stays at the
+    thickness from it, and the other capsules can come no closer than their distance before
+    minus the push (phi is 1-Lipschitz): only points that can land in another capsule are
+    queried again."""
+    capsules = len(bodies) == 1 and isinstance(bodies[0], CapsuleBody)
+
+    def ask(points):
+        if capsules:
+            return bodies[0].query(points, s, second=True)
+        return query_bodies(bodies, points, s) + (None,)
+
+    if rows is None:
+        phi, normal, vs, other = ask(x)
+        rows = np.flatnonzero((phi < thickness) & movable)
+        ph, n, vel = phi[rows], normal[rows], vs[rows]
+        other = None if other is None else other[rows]
+    else:
+        ph, n, vel, other = ask(x[rows])
+        phi[rows] = ph
+        hit = (ph < thickness) & movable[rows]
+        rows, ph, n, vel = rows[hit], ph[hit], n[hit], vel[hit]
+        other = None if other is None else other[hit]
+    moved = len(rows)
     for _ in range(passes):
         if len(rows) == 0:
             break
-        x[rows] += (thickness - ph)[:, None] * n
+        push = thickness - ph
+        x[rows] += push[:, None] * n
         _keep_tangential(v, rows, n, vel, friction)
-        ph, n, vel = query_bodies(bodies, x[rows], s)
+        if other is not None:
+            clear = other - push >= thickness
+            phi[rows[clear]] = thickness
+            if clear.all():
+                break
+            rows = rows[~clear]
+        ph, n, vel, other = ask(x[rows])
+        phi[rows] = ph
         again = ph < thickness - 1e-9
-        rows, ph, n, vel = rows[again], ph[again], n[again], vel[again]
-    return int(moved.sum()), phi
+        if again.any():
+            rows, ph, n, vel = rows[again], ph[again], n[again], vel[again]
+            other = None if other is None else other[again]
+        else:
+            break
+    return moved, phi
+
+
+_NONE = np.zeros(0, dtype=np.int64)
+_SAMPLE_REACH = 1.0 - FACE_SAMPLES  # (S, 3)
 
 
 def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, friction=0.0):
     """Face case (Fig. 4.6 b, d): a face whose interior cuts the body while its corners are out
-    is moved out whole by its deepest point. The number of faces moved."""
+    is moved out whole by its deepest point. (The number of faces moved, the particles moved.)"""
     tri = x[faces]  # (F, 3, 3)
     side = tri - tri[:, (2, 0, 1)]
     edge = np.sqrt(np.einsum("fkj,fkj->fk", side, side).max(axis=1))
+    phi_c = corner_phi[faces]
     # phi is 1-Lipschitz: a face whose farthest-out corner is beyond its longest edge can't touch
-    near = corner_phi[faces].max(axis=1) - edge < thickness
+    near = phi_c.max(axis=1) - edge < thickness
     if not near.any():
-        return 0
+        return 0, _NONE
     f_idx = np.flatnonzero(near)
     samples = np.einsum("sk,fkj->fsj", FACE_SAMPLES, tri[f_idx])  # (F', S, 3)
-    # ... and a sample farther out than that from any corner can't be inside either
-    gap = np.linalg.norm(samples[:, :, None, :] - tri[f_idx][:, None, :, :], axis=3)  # (F', S, 3)
-    bound = (corner_phi[faces[f_idx]][:, None, :] - gap).max(axis=2)
+    # ... and a sample farther out than that from any corner can't be inside either: the
+    # sample w.c is within (1 - w_k) times the longest edge of corner k
+    bound = (phi_c[f_idx][:, None, :] - _SAMPLE_REACH * edge[f_idx, None, None]).max(axis=2)
     test = bound < thickness
     if not test.any():
-        return 0
-    pts = samples[test]
-    ph, nrm, vel = query_bodies(bodies, pts, s)
-    ns = len(FACE_SAMPLES)
-    phi = np.full(test.shape, np.inf)
-    phi[test] = ph
-    normal = np.zeros(test.shape + (3,))
-    normal[test] = nrm
-    vs = np.zeros(test.shape + (3,))
-    vs[test] = vel
-    phi, normal, vs = phi.reshape(-1), normal.reshape(-1, 3), vs.reshape(-1, 3)
-    depth = (thickness - phi).reshape(-1, ns)
-    deepest = np.argmax(depth, axis=1)
-    rows = np.arange(len(f_idx))
-    d = depth[rows, deepest]
+        return 0, _NONE
+    ph, nrm, vel = query_bodies(bodies, samples[test], s)
+    depth = np.full(test.shape, -np.inf)
+    depth[test] = thickness - ph
+    deepest = depth.argmax(axis=1)
+    d = depth[np.arange(len(f_idx)), deepest]
     cut = d > 1e-9
     if not cut.any():
-        return 0
+        return 0, _NONE
     f_idx, deepest, d = f_idx[cut], deepest[cut], d[cut]
-    k = np.flatnonzero(cut) * ns + deepest
-    push, n_k, v_k = d[:, None] * normal[k], normal[k], vs[k]
+    slot = np.cumsum(test.ravel()) - 1  # each sample's row among the tested ones
+    k = slot[np.flatnonzero(cut) * len(FACE_SAMPLES) + deepest]
+    n_k, v_k = nrm[k], vel[k]
     corners = faces[f_idx].ravel()
-    push3, n3, v3 = np.repeat(push, 3, axis=0), np.repeat(n_k, 3, axis=0), np.repeat(v_k, 3, axis=0)
     ok = movable[corners]
-    corners, push3, n3, v3 = corners[ok], push3[ok], n3[ok], v3[ok]
+    face_of = np.repeat(np.arange(len(f_idx)), 3)[ok]
+    corners = corners[ok]
     if len(corners) == 0:
-        return 0
-    # a particle in several cut faces takes the largest push
-    order = np.lexsort((np.linalg.norm(push3, axis=1), corners))
-    last = np.r_[corners[order][1:] != corners[order][:-1], True]
+        return 0, _NONE
+    # a particle in several cut faces takes the largest push (the push is d along a unit normal)
+    order = np.lexsort((d[face_of], corners))
+    ranked = corners[order]
+    last = np.ones(len(ranked), dtype=bool)
+    np.not_equal(ranked[1:], ranked[:-1], out=last[:-1])
     pick = order[last]
-    moved = corners[pick]
-    x[moved] += push3[pick]
-    hit = np.zeros(len(x), dtype=bool)
-    hit[moved] = True
-    normal_at = np.zeros_like(x)
-    vel_at = np.zeros_like(x)
-    normal_at[moved], vel_at[moved] = n3[pick], v3[pick]
-    _keep_tangential(v, hit, normal_at[hit], vel_at[hit], friction)
-    return len(f_idx)
+    moved, f = corners[pick], face_of[pick]
+    x[moved] += d[f, None] * n_k[f]
+    _keep_tangential(v, moved, n_k[f], v_k[f], friction)
+    return len(f_idx), moved
 
 
 def resolve_contacts(x, v, faces, bodies, s, thickness, movable, friction=0.0, pushable=None):
@@ -444,9 +509,9 @@ def resolve_contacts(x, v, faces, bodies, s, thickness, movable, friction=0.0, p
         return 0, 0
     pushable = movable if pushable is None else pushable
     n_p, phi = resolve_particles(x, v, bodies, s, thickness, pushable, friction)
-    n_f = resolve_faces(x, v, faces, bodies, s, thickness, movable, phi, friction)
-    if n_f:
-        n_p += resolve_particles(x, v, bodies, s, thickness, pushable, friction)[0]
+    n_f, moved = resolve_faces(x, v, faces, bodies, s, thickness, movable, phi, friction)
+    if n_f:  # only the corners the faces moved can be inside again
+        n_p += resolve_particles(x, v, bodies, s, thickness, pushable, friction, rows=moved, phi=phi)[0]
     return n_p, n_f
 
 

@@ -5,6 +5,7 @@ substeps; Provot-style correction of elongated edges (§4.4.3); particles pinned
 import numpy as np
 from scipy import sparse
 
+from .fast import rowdot, sparse_product as _sparse_product
 from .materials import AIR_DENSITY, as_vector
 
 # explicit RK4 is stable for |lambda dt| up to about 2.8 on the imaginary axis: keep a margin
@@ -32,6 +33,16 @@ def _scatter_plan(first, second, w_first, w_second, descending=False):
     return _flat3(particle[order]), item[order], np.r_[w_first, w_second][order][:, None]
 
 
+def _plan_matrix(plan, particles):
+    """The sum of a scatter plan as a CSR matrix (particles x items) whose entries per row are
+    in the plan's order: a compiled sparse product adds them as the np.bincount did."""
+    idx, item, w = plan
+    particle = idx[::3] // 3
+    indptr = np.r_[0, np.cumsum(np.bincount(particle, minlength=particles))]
+    return sparse.csr_matrix((w[:, 0].astype(float), item.astype(np.int32), indptr.astype(np.int32)),
+                             shape=(particles, int(item.max()) + 1 if len(item) else 0))
+
+
 class ClothDynamics:
     """Forces and integration of the particles; `pinned` particles follow given targets."""
 
@@ -55,22 +66,32 @@ class ClothDynamics:
         self._floor = mesh.rest_length * (1.0 - params.compress_limit) if params.compress_limit > 0 else \
             np.zeros(len(e0))
         self._movable_edge = (self.inv_mass[e0] + self.inv_mass[e1]) > 0.0
+        # the sweeps' limits, open ([0, inf)) on edges no correction can move: never off
+        self._floor_m = np.where(self._movable_edge, self._floor, 0.0)
+        self._limit_m = np.where(self._movable_edge, self._limit, np.inf)
         wsum = np.where(self._movable_edge, self.inv_mass[e0] + self.inv_mass[e1], 1.0)
         self._share0, self._share1 = self.inv_mass[e0] / wsum, self.inv_mass[e1] / wsum
         # a correction along each edge, shared by the inverse masses: +share0 at the first
         # particle, -share1 at the second; `reach` counts the edges that move a particle
         # (numpy's per-call cost dominates at tens of particles, so sums over edges into particles
-        # are single np.bincount calls over precomputed flat indices, not sparse products)
+        # are single calls: np.bincount over precomputed flat indices, or scipy's compiled sparse
+        # product on a matrix whose entries are in the same order)
         self._spread_plan = _scatter_plan(e0, e1, self._share0, -self._share1)
         self._reach_idx = np.r_[e0, e1]
         self._reach_w = (np.r_[self._share0, self._share1] > 0).astype(float)
-        # a sweep's moves and counts in one bincount: columns x y z of the correction (weighted
-        # by the shares) and a 4th of the edge being off (weighted by whether it moves the particle)
-        idx, item, w = _scatter_plan(e0, e1, self._share0, -self._share1)
-        particle = idx[::3] // 3
-        self._sweep_plan = ((4 * particle[:, None] + np.arange(4)).ravel(), item,
-                            np.column_stack([np.repeat(w, 3, axis=1), w[:, 0] != 0.0]).astype(float))
+        # a sweep's moves and counts in one sparse product of the (E, 4) rows [correction x y z,
+        # edge off]: rows 0..P-1 of the matrix spread the corrections by the shares, rows
+        # P..2P-1 count the off edges that move each particle (entries per row in edge order)
+        idx, item, w = self._spread_plan
+        particle, share = idx[::3] // 3, w[:, 0]
+        keep = share != 0.0
         self._sweep_rows = np.empty((len(e0), 4))
+        self._sweep_matrix = sparse.csr_matrix(
+            (np.r_[share[keep], np.ones(keep.sum())],
+             (np.r_[particle[keep], p_count + particle[keep]], np.r_[item[keep], item[keep]])),
+            shape=(2 * p_count, len(e0)))
+        self._sweep_matrix.sort_indices()
+        self._spread_matrix = _plan_matrix(self._spread_plan, p_count)
         self._tether_data = self._tethers()
         self._face_idx = _flat3(mesh.faces.ravel())  # coordinates of every face corner
         self._p3 = 3 * p_count
@@ -133,6 +154,7 @@ class ClothDynamics:
         # divided by its mass (pinned ones: 0); one bincount over the flat coordinates
         self._acc_plan = _scatter_plan(self._s0, self._s1, self.inv_mass[self._s0], -self.inv_mass[self._s1],
                                        descending=True)
+        self._acc_matrix = _plan_matrix(self._acc_plan, len(self.mass))
         self._free_f = self.free.astype(float)[:, None]
         self._drag_of = 0.5 * AIR_DENSITY * p.drag * mesh.area * self.inv_mass
         self._edges = e
@@ -141,37 +163,45 @@ class ClothDynamics:
         """Per-edge forces on the first particle, eq. 4.1 with a dashpot: (E, 3)."""
         mesh = self.mesh
         d = x[self._e1] - x[self._e0]
-        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        length = np.sqrt(rowdot(d, d))
         stretch = (length - mesh.rest_length) / mesh.rest_length  # |f| = k |d|/L (|d| - L), along d
         dv = v[self._e1] - v[self._e0]
-        along = np.einsum("ij,ij->i", dv, d) / np.maximum(length * length, 1e-18)
+        along = rowdot(dv, d) / np.maximum(length * length, 1e-18)
         return (self.stretch * stretch + self.damping * along)[:, None] * d
 
     def accelerations(self, x, v, normals=None):
         """Accelerations of all particles (zero for pinned ones). `normals` (for the air drag) may
         be given: they change little within a step."""
+        return self.derivative(np.concatenate((x, v), axis=1), normals)[:, 3:]
+
+    def derivative(self, y, normals=None):
+        """d/dt of the state y = [x | v] (P, 6): [v | accelerations]. Positions and velocities
+        side by side, so one difference over the springs gives both their vectors and their
+        relative velocities."""
         p = self.params
-        d = x.take(self._s1, axis=0)
-        d -= x.take(self._s0, axis=0)
-        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        both = y.take(self._s1, axis=0)
+        both -= y.take(self._s0, axis=0)
+        d = both[:, :3]
+        length = np.sqrt(rowdot(d, d))
         coef = self._sk * (length - self._srest)  # eq. 4.1 (bending springs alike)
         e = self._edges
         if self.damping > 0.0:
-            dv = v.take(self._e1, axis=0)
-            dv -= v.take(self._e0, axis=0)
             le = length[:e]
-            coef[:e] += self.damping * np.einsum("ij,ij->i", dv, d[:e]) / (le * le + 1e-18)
+            coef[:e] += self.damping * rowdot(both[:e, 3:], d[:e]) / (le * le + 1e-18)
         d *= coef[:, None]
-        idx, item, w = self._acc_plan
-        acc = np.bincount(idx, (d.take(item, axis=0) * w).ravel(), minlength=self._p3).reshape(-1, 3)
+        out = np.empty_like(y)
+        v = y[:, 3:]
+        out[:, :3] = v
+        acc = out[:, 3:]
+        acc[...] = _sparse_product(self._acc_matrix, d)
         acc += self._free_f * (self.gravity - p.air_damping * v)
         if p.drag > 0.0:  # air pushes against the motion across the cloth: 1/2 rho Cd A |vn| vn
-            n = self.particle_normals(x) if normals is None else normals
-            vn = np.einsum("ij,ij->i", v - self.wind, n)
+            n = self.particle_normals(y[:, :3]) if normals is None else normals
+            vn = rowdot(v - self.wind, n)
             w = self._drag_of * np.abs(vn)
             w *= vn
             acc -= w[:, None] * n
-        return acc
+        return out
 
     def particle_normals(self, x):
         f = self.mesh.faces
@@ -180,32 +210,38 @@ class ClothDynamics:
         n = np.column_stack([u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1], u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2],
                              u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]])  # area-weighted face normals
         out = np.bincount(self._face_idx, np.repeat(n, 3, axis=0).ravel(), minlength=self._p3).reshape(-1, 3)
-        return out / np.maximum(np.sqrt(np.einsum("ij,ij->i", out, out)), 1e-12)[:, None]
+        return out / np.maximum(np.sqrt(rowdot(out, out)), 1e-12)[:, None]
 
     # ---- integration ----------------------------------------------------------------------
     def rk4_step(self, x, v, dt, pin_x0, pin_x1):
-        """One RK4 step of length dt; pinned particles move linearly from pin_x0 to pin_x1."""
+        """One RK4 step of length dt; pinned particles move linearly from pin_x0 to pin_x1.
+        Positions and velocities advance together as one state [x | v]."""
         pins = self.pinned
         pin_v = (pin_x1 - pin_x0) / dt
-        pin_mid = 0.5 * (pin_x0 + pin_x1)
-        x0, v0 = x.copy(), v.copy()
-        x0[pins], v0[pins] = pin_x0, pin_v
-        n = self.particle_normals(x0) if self.params.drag > 0.0 else None
+        y0 = np.concatenate((x, v), axis=1)
+        y0[pins] = np.concatenate((pin_x0, pin_v), axis=1)
+        n = self.particle_normals(y0[:, :3]) if self.params.drag > 0.0 else None
         h = 0.5 * dt
-        a1 = self.accelerations(x0, v0, n)
-        x2, v2 = x0 + h * v0, v0 + h * a1
-        x2[pins] = pin_mid
-        a2 = self.accelerations(x2, v2, n)
-        x3, v3 = x0 + h * v2, v0 + h * a2
-        x3[pins] = pin_mid
-        a3 = self.accelerations(x3, v3, n)
-        x4, v4 = x0 + dt * v3, v0 + dt * a3
-        x4[pins] = pin_x1
-        a4 = self.accelerations(x4, v4, n)
-        x_new = x0 + dt / 6.0 * (v0 + 2.0 * v2 + 2.0 * v3 + v4)
-        v_new = v0 + dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-        x_new[pins], v_new[pins] = pin_x1, pin_v
-        return x_new, v_new
+        k1 = self.derivative(y0, n)
+        y = y0 + h * k1
+        pin_mid = 0.5 * (pin_x0 + pin_x1)
+        y[pins, :3] = pin_mid
+        k2 = self.derivative(y, n)
+        y = y0 + h * k2
+        y[pins, :3] = pin_mid
+        k3 = self.derivative(y, n)
+        y = y0 + dt * k3
+        y[pins, :3] = pin_x1
+        k4 = self.derivative(y, n)
+        k2 *= 2.0
+        k2 += k1
+        k3 *= 2.0
+        k2 += k3
+        k2 += k4
+        k2 *= dt / 6.0
+        k2 += y0
+        k2[pins] = np.concatenate((pin_x1, pin_v), axis=1)
+        return k2[:, :3].copy(), k2[:, 3:].copy()
 
     def _spread(self, dx):
         """Edge corrections (E, 3) to particle moves (P, 3): +share0 dx at the first particle,
@@ -231,40 +267,46 @@ class ClothDynamics:
         p = self.params
         x, v = x.copy(), v.copy()
         e0, e1 = self._e0, self._e1
-        limit, floor = self._limit, self._floor
-        movable = self._movable_edge
-        corrected = np.zeros(len(e0), dtype=bool)
+        floor, limit = self._floor_m, self._limit_m
+        corrected = None
         self._tether(x, v)
+        rows, matrix, n = self._sweep_rows, self._sweep_matrix, len(x)
         for _ in range(max(1, iterations or p.constraint_iterations)):
             d = x.take(e1, axis=0)
             d -= x.take(e0, axis=0)
-            length = np.sqrt(np.einsum("ij,ij->i", d, d))
+            length = np.sqrt(rowdot(d, d))
             target = np.minimum(np.maximum(length, floor), limit)
-            off = (np.abs(target - length) > SLACK * target) & movable
+            over = length - target
+            target *= SLACK
+            off = np.abs(over) > target
             if not off.any():
                 break
-            corrected |= off
-            rows = self._sweep_rows
-            np.multiply(d, np.where(off, (length - target) / length, 0.0)[:, None], out=rows[:, :3])
+            corrected = off if corrected is None else corrected | off
+            over /= length
+            over *= off
+            np.multiply(d, over[:, None], out=rows[:, :3])
             rows[:, 3] = off
-            idx, item, w = self._sweep_plan
-            moves = np.bincount(idx, (rows.take(item, axis=0) * w).ravel(), minlength=4 * len(x)).reshape(-1, 4)
-            x += (RELAX / np.maximum(moves[:, 3], 1.0))[:, None] * moves[:, :3]
-        if corrected.any():  # corrected edges stop stretching (squeezed ones stop shortening)
-            d = x.take(e1, axis=0)
-            d -= x.take(e0, axis=0)
-            length = np.sqrt(np.einsum("ij,ij->i", d, d))
-            u = d / np.maximum(length, 1e-12)[:, None]
-            longer = length > self.mesh.rest_length
-            scale = (RELAX / np.maximum(self._reach(corrected), 1.0))[:, None]
-            stretching = corrected & longer  # may only shorten from here (rate <= 0 kept)
-            squeezing = corrected & ~longer
-            for _ in range(VELOCITY_SWEEPS):
-                dv = v.take(e1, axis=0)
-                dv -= v.take(e0, axis=0)
-                rate = np.einsum("ij,ij->i", dv, u)
-                rate = np.where(stretching, np.maximum(rate, 0.0), np.where(squeezing, np.minimum(rate, 0.0), 0.0))
-                v += scale * self._spread(rate[:, None] * u)
+            moves = _sparse_product(matrix, rows)
+            x += (RELAX / np.maximum(moves[n:, 3], 1.0))[:, None] * moves[:n, :3]
+        if corrected is None:
+            return x, v, 0
+        # corrected edges stop stretching (squeezed ones stop shortening)
+        d = x.take(e1, axis=0)
+        d -= x.take(e0, axis=0)
+        length = np.sqrt(rowdot(d, d))
+        u = d / np.maximum(length, 1e-12)[:, None]
+        longer = length > self.mesh.rest_length
+        scale = (RELAX / np.maximum(self._reach(corrected), 1.0))[:, None]
+        # a stretching edge's rate may only go down to 0, a squeezed one's up to 0: clip bounds
+        low = np.where(corrected & longer, 0.0, -np.inf)
+        low[~corrected] = 0.0
+        high = np.where(corrected & ~longer, 0.0, np.inf)
+        high[~corrected] = 0.0
+        for _ in range(VELOCITY_SWEEPS):
+            dv = v.take(e1, axis=0)
+            dv -= v.take(e0, axis=0)
+            rate = np.minimum(np.maximum(rowdot(dv, u), low), high)
+            v += scale * _sparse_product(self._spread_matrix, rate[:, None] * u)
         return x, v, int(corrected.sum())
 
     def _tethers(self):
@@ -287,15 +329,16 @@ class ClothDynamics:
         if self._tether_data is None:
             return
         i, anchor, reach = self._tether_data
-        d = x[i] - x[anchor]
-        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        d = x.take(i, axis=0)
+        d -= x.take(anchor, axis=0)
+        length = np.sqrt(rowdot(d, d))
         over = length > reach
         if not over.any():
             return
         i, d, length, reach = i[over], d[over], length[over], reach[over]
         u = d / length[:, None]
         x[i] -= ((length - reach)[:, None]) * u
-        out = np.maximum(np.einsum("ij,ij->i", v[i] - v[anchor[over]], u), 0.0)
+        out = np.maximum(rowdot(v[i] - v[anchor[over]], u), 0.0)
         v[i] -= out[:, None] * u
 
     # ---- energy (for tests and diagnostics) -------------------------------------------------
@@ -310,6 +353,6 @@ class ClothDynamics:
         lb = np.linalg.norm(x[self._b1] - x[self._b0], axis=1)
         # the bending springs are linear in (l - L)/L times d: the same integral shape
         u = spring(self.stretch, le, mesh.rest_length).sum() + spring(self.bend, lb, mesh.bend_rest).sum()
-        kinetic = 0.5 * np.sum(self.mass[self.free] * np.einsum("ij,ij->i", v[self.free], v[self.free]))
+        kinetic = 0.5 * np.sum(self.mass[self.free] * rowdot(v[self.free], v[self.free]))
         grav = -np.sum(self.mass[self.free] * (x[self.free] @ self.gravity))
         return kinetic + u + grav

@@ -157,18 +157,28 @@ def split_curve_length(p0, n0, pm, nm, p1, n1):
 
 def _split_speed(p0, n0, m, nm, p1, n1):
     """B'(t) of the two halves at the quadrature nodes as V0 + h V1 for a midpoint m + h nm:
-    the PN control points are affine in h, so each bisection step is one fused evaluation."""
-    def halves(mid):
-        c1, c2 = edge_controls(p0, n0, mid, nm)
-        c3, c4 = edge_controls(mid, nm, p1, n1)
-        ctrl = np.stack([np.stack([p0, c1, c2, mid], axis=-2), np.stack([mid, c3, c4, p1], axis=-2)], axis=1)
-        return DERIV @ ctrl  # (M, 2, T, 3)
-
-    v0 = halves(m)
-    return v0, halves(m + nm) - v0
+    the PN control points are affine in h, so each bisection step is one fused evaluation.
+    V1 is B' of the control points' rates in h (from edge_controls: the inner points next to
+    the midpoint move by (2 + nm.nm)/3 nm, the outer ones by the part of nm across their
+    end's normal, over 3)."""
+    c1, c2 = edge_controls(p0, n0, m, nm)
+    c3, c4 = edge_controls(m, nm, p1, n1)
+    ctrl = np.empty((len(m), 2, 4, 3))
+    ctrl[:, 0, 0], ctrl[:, 0, 1], ctrl[:, 0, 2], ctrl[:, 0, 3] = p0, c1, c2, m
+    ctrl[:, 1, 0], ctrl[:, 1, 1], ctrl[:, 1, 2], ctrl[:, 1, 3] = m, c3, c4, p1
+    rate = np.zeros_like(ctrl)
+    rate[:, 0, 1] = (nm - _dot(nm, n0)[:, None] * n0) / 3.0
+    rate[:, 0, 2] = rate[:, 1, 1] = ((2.0 + _dot(nm, nm)) / 3.0)[:, None] * nm
+    rate[:, 0, 3] = rate[:, 1, 0] = nm
+    rate[:, 1, 2] = (nm - _dot(nm, n1)[:, None] * n1) / 3.0
+    return DERIV @ ctrl, DERIV @ rate  # (M, 2, T, 3) each
 
 
 # ---- edge length control ------------------------------------------------------------------
+
+GROW = 8  # bracket doublings evaluated together
+HALVING_BITS = 3  # bisection halvings done in one pass (2^bits - 1 lengths per edge)
+_DOUBLINGS = 2.0 ** np.arange(GROW)
 
 def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
     """Midpoints (E, 3), their normals, h (E,) and whether each edge was shortened: §4.3.3.
@@ -178,7 +188,9 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
     starts at the initial guess of eq. 4.6, h0 = k (L - |p_i - p_j|), and grows until it holds
     the root; a fixed number of halvings follows, for all shortened edges at once."""
     c1, c2 = edge_controls(p0, n0, p1, n1)
-    mid = cubic_point(p0, c1, c2, p1, 0.5)
+    mid = p0 + p1
+    mid += 3.0 * (c1 + c2)
+    mid *= 0.125  # the curve at t = 1/2
     nm = pn_mid_normal(p0, n0, p1, n1)
     h = np.zeros(len(rest))
     short = cubic_length(p0, c1, c2, p1) < rest
@@ -198,19 +210,29 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
 
     chord = np.linalg.norm(a1 - a0, axis=1)
     h0 = np.maximum(k_guess * (target - chord), 1e-6 * target)  # eq. 4.6
-    lo, hi = np.zeros(len(i)), h0.copy()
-    for _ in range(40):  # grow the bracket until the curve at hi is long enough
+    # grow the bracket from h0, doubling, until the curve at hi is long enough: the first
+    # GROW doublings evaluated at once, the rare longer searches one doubling at a time
+    cand = h0[:, None] * _DOUBLINGS  # (M, GROW)
+    hh = cand[..., None, None]
+    long_enough = (np.sqrt(np.maximum(qa[:, None] + hh * (qb[:, None] + hh * qc[:, None]), 0.0))
+                   .reshape(len(i), GROW, -1) @ weights) >= target[:, None]
+    j = np.where(long_enough.any(axis=1), long_enough.argmax(axis=1), GROW)
+    rows = np.arange(len(i))
+    hi = np.where(j < GROW, cand[rows, np.minimum(j, GROW - 1)], 2.0 * cand[:, -1])
+    lo = np.where(j > 0, cand[rows, np.maximum(j - 1, 0)], 0.0)
+    lo = np.where(j == GROW, cand[:, -1], lo)
+    for _ in range(40 - GROW):
         low = length(hi) < target
         if not low.any():
             break
         lo = np.where(low, hi, lo)
         hi = np.where(low, 2.0 * hi, hi)
-    # the halvings, up to five at a time: the length grows with h, so `bits` halvings of [lo, hi]
+    # the halvings, HALVING_BITS at a time: the length grows with h, so `bits` halvings of [lo, hi]
     # end in the one of its 2^bits equal parts where the length crosses the target, found by
     # evaluating all their inner ends at once (one pass instead of `bits` passes)
     done = 0
     while done < iterations:
-        bits = min(5, iterations - done)
+        bits = min(HALVING_BITS, iterations - done)
         parts = 1 << bits
         width = hi - lo
         hh = (lo[:, None] + width[:, None] * (np.arange(1, parts) / parts))[..., None, None]  # (M, parts-1, 1, 1)

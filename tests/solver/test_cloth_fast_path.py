@@ -54,3 +54,65 @@ def test_the_precomputed_surface_map_is_the_pn_triangles_of_the_sub_patches():
     assert np.array_equal(fine[:mesh.particle_count], x)
     # unchanged by the fast path: the weights in the tessellation are the Bernstein ones
     assert np.allclose(bernstein(np.array([[1.0, 0.0, 0.0]])), np.eye(10)[:1])
+
+
+def test_pushes_out_of_overlapping_capsules_equal_the_generic_requery():
+    """Against capsules alone, a pushed particle is queried again only when another capsule can
+    be within the thickness after the push: the result equals querying every pushed particle
+    again (the generic path, taken for a union of bodies)."""
+    from humananim.solver.cloth import CapsuleBody
+    from humananim.solver.cloth.collision import resolve_particles
+    a, b = legs(0.3)
+    near = CapsuleBody(RADII)
+    near.set_motion(a, b)
+    far = CapsuleBody([0.01])
+    far.set_motion([[50.0, 0, 0]], [[50.0, 0, 1]])
+    rng = np.random.default_rng(3)
+    # points around the hips, where the hip, thigh and torso capsules overlap
+    x = np.array([0.0, 0.0, 0.9]) + rng.uniform(-0.2, 0.2, (400, 3))
+    v = rng.normal(0, 0.5, x.shape)
+    results = []
+    for bodies in ([near], [near, far]):
+        xx, vv = x.copy(), v.copy()
+        n, phi = resolve_particles(xx, vv, bodies, 1.0, 0.008, np.ones(len(x), bool))
+        results.append((n, xx, vv, phi))
+    (n1, x1, v1, phi1), (n2, x2, v2, phi2) = results
+    assert n1 == n2 > 100
+    assert np.allclose(x1, x2, atol=1e-12) and np.allclose(v1, v2, atol=1e-12)
+    inside = phi2 < 0.15
+    assert np.allclose(phi1[inside], phi2[inside], atol=1e-9)
+    assert capsule_depth(x1, a, b, RADII).max() < 1e-9  # all out
+
+
+def test_the_frames_last_phi_is_reused_only_while_nothing_moved():
+    """The surface push and the depth reuse phi from the frame's last collision pass; once the
+    body is given the next frame's motion, a fresh query answers."""
+    mesh, pinned, capsules = walking_skirt()
+    from humananim.solver.cloth import ClothSimulation, preset
+    sim = ClothSimulation(mesh, preset("COTTON"), pinned, [capsules], level=2, fps=30)
+    a0, b0 = legs(0.0)
+    for f in range(1, 6):
+        a1, b1 = legs(f / 30.0)
+        capsules.set_motion(a0, b0, a1, b1, 1 / 30)
+        sim.step(mesh.rest[pinned], 1 / 30)
+        a0, b0 = a1, b1
+    fresh = np.maximum(-capsules.query(sim.x, 1.0)[0], 0.0)
+    assert np.allclose(sim.depth_inside(), fresh, atol=1e-12)
+    a2, b2 = legs(0.5)  # the legs jump into the skirt: the next frame's motion
+    capsules.set_motion(a0, b0, a2, b2, 1 / 30)
+    moved = np.maximum(-capsules.query(sim.x, 1.0)[0], 0.0)
+    assert moved.max() > 0.01 and np.allclose(sim.depth_inside(), moved)
+
+
+def test_the_compiled_sparse_product_equals_scipys_and_its_fallback(monkeypatch):
+    from scipy import sparse
+    from humananim.solver.cloth import fast
+    rng = np.random.default_rng(11)
+    m = sparse.random(40, 25, density=0.2, random_state=3, format="csr")
+    dense = rng.normal(size=(25, 4))
+    direct = fast.sparse_product(m, dense)
+    assert np.allclose(direct, m @ dense, atol=1e-14)
+    assert np.allclose(fast.sparse_product(m, np.asfortranarray(dense)[:, :3]), m @ dense[:, :3], atol=1e-14)
+    monkeypatch.setattr(fast, "_csr_matvecs", None)
+    assert np.allclose(fast.sparse_product(m, dense), direct, atol=1e-14)
+    assert np.allclose(fast.rowdot(dense, dense), (dense * dense).sum(axis=1))
