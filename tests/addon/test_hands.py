@@ -85,6 +85,49 @@ def test_grasp_selected_object(metarig, kind, size):
     assert np.allclose(m0[:3, 3], (-0.25, -0.35, 1.15), atol=0.002)  # did not jump when taken
 
 
+def test_pattern_from_a_pose_action(metarig):
+    """A hand pattern from the animator's pose library (an action; its first frame is the pose):
+    during the closing each finger bone of the grasping hand turns from where the reach left it
+    toward the pattern's rotation (a share of the way, stopped at a touch), not toward the
+    built-in pattern's; the pattern action is left as it was."""
+    from mathutils import Quaternion
+    scene = bpy.context.scene
+    rig = metarig
+    fingers = [b for b in rig.pose.bones if b.name.startswith(("thumb.", "f_")) and b.name.endswith(".R")]
+    start = {b.name: b.matrix_basis.to_quaternion() for b in fingers}
+    for b in fingers:  # the pose: every finger bone curled 70 deg about its X axis
+        b.rotation_mode = "QUATERNION"
+        b.rotation_quaternion = Quaternion((1.0, 0.0, 0.0), np.radians(70.0))
+        b.keyframe_insert("rotation_quaternion", frame=1)
+    pose = rig.animation_data.action
+    pose.name = "Curled"
+    pattern = {b.name: b.rotation_quaternion.copy() for b in fingers}
+    snap = fcurve_snapshot(pose, rig)
+    rig.animation_data.action = None
+    for b in fingers:
+        b.rotation_quaternion = start[b.name]
+    target = add_object("CYLINDER", (-0.25, -0.35, 1.15), 0.05)
+    select(rig, target)
+    scene.humananim_hands.side = "R"
+    scene.humananim_hands.pattern = pose
+    assert bpy.ops.humananim.grasp() == {"FINISHED"}
+    props = scene.humananim_hands
+    reached = props.start_frame + int(round(props.duration * scene.render.fps))
+    scene.frame_set(reached)
+    start = {b.name: b.matrix_basis.to_quaternion() for b in fingers}  # the closing starts here
+    scene.frame_set(reached + int(round(props.close_duration * scene.render.fps)))
+    closed = 0
+    for b in fingers:
+        final = b.matrix_basis.to_quaternion()
+        way = start[b.name].rotation_difference(pattern[b.name]).angle
+        done, left = start[b.name].rotation_difference(final).angle, final.rotation_difference(pattern[b.name]).angle
+        assert done + left == pytest.approx(way, abs=2e-3), b.name  # on its way to the pattern
+        closed += done > 0.5 * way
+    assert closed >= 3  # fingers that touch nothing go (more than half) toward the pattern
+    after = fcurve_snapshot(pose, rig)
+    assert after.keys() == snap.keys() and all(np.array_equal(after[k], snap[k]) for k in snap)
+
+
 def test_source_action_untouched_and_new_action(metarig):
     rig = metarig
     # a source action: a small keyed pose
