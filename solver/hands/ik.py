@@ -116,6 +116,17 @@ def rot_log(r):
     return Rotation.from_matrix(r).as_rotvec()  # near a half turn the skew part loses the axis
 
 
+def rot_log_many(r):
+    """rot_log of (B, 3, 3) rotations."""
+    v = np.stack((r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]), axis=1)
+    s = 0.5 * np.sqrt(np.einsum("bi,bi->b", v, v))
+    th = np.arctan2(s, 0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0))
+    out = v * np.where(th < 1e-6, 0.5, th / (2.0 * np.maximum(s, 1e-300)))[:, None]
+    for i in np.flatnonzero(th >= np.pi - 1e-3):  # near a half turn the skew part loses the axis
+        out[i] = rot_log(r[i])
+    return out
+
+
 def chain_frames(eul, rest_r, offsets, base):
     """World frames (..., n, 4, 4) of a chain's bones and the world directions (..., n, 3, 3) of
     each bone's X, Y' and Z'' axes (intrinsic X-Y-Z), for angles eul (..., n, 3); each bone's

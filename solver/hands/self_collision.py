@@ -57,25 +57,6 @@ def _inside(skeleton, sensors, world, volumes, margin, pts=None):
     return out
 
 
-def _near_frames(skeleton, sensors, worlds, volumes, margin):
-    """Per frame of worlds (F, J, 4, 4): is a sensor within `margin` of a volume, and the depth of
-    the deepest one inside (0 when none); every frame at once."""
-    f = len(worlds)
-    if not sensors or not volumes:
-        return np.zeros(f, bool), np.zeros(f)
-    joints = np.array([x.joint for x in sensors], int)
-    local = np.array([[0.0, x.along * skeleton.lengths[x.joint], 0.0] for x in sensors])
-    w = worlds[:, joints]
-    pts = (w[..., :3, :3] @ local[:, :, None])[..., 0] + w[..., :3, 3]  # (F, S, 3)
-    radii = np.array([x.radius for x in sensors])
-    depth = np.full((f, len(sensors)), -np.inf)
-    for v in volumes:
-        own = np.array([own_volume(x, v) for x in sensors], bool)
-        depth = np.maximum(depth, np.where(own, -np.inf, radii - v.distance(pts)))
-    deepest = depth.max(axis=1)
-    return deepest > -margin, np.maximum(deepest, 0.0)
-
-
 def correct_frame(skeleton, basis, armature_to_world, side, target_pos, target_rot, volumes=None,
                   margin=0.01, max_steps=40, with_spine=False, method="SECONDARY", sensors=None, world=None,
                   _full=False, _corrector=None):
@@ -290,7 +271,7 @@ class _ChainCorrector:
             else:
                 ep = target_pos[live] + end_push - x
             er = np.zeros((len(live), 3)) if target_rot is None else \
-                _rot_log_many(target_rot[live] @ np.swapaxes(tip[:, :3, :3], 1, 2))
+                ik.rot_log_many(target_rot[live] @ np.swapaxes(tip[:, :3, :3], 1, 2))
             # done when every sensor keeps half the margin (the response aims at the whole margin,
             # which it only approaches geometrically) and the effector is on its goal
             done = (deepest <= -0.5 * margin) & (np.einsum("bi,bi->b", ep, ep) < 4e-8) & \
@@ -425,7 +406,10 @@ class ArmPass:
             self.tr = None if target[1] is None else np.asarray(target[1], float)
         else:
             self.tp, self.tr = world_in[:, hand, :3, 3], world_in[:, hand, :3, :3]
-        self.near, self.depth_in = _near_frames(skeleton, self.cor.sensors, world_in, volumes, margin)
+        # per input frame: a sensor within the margin of a volume, and the deepest one's depth
+        depth, _ = self.cor.vols.depths(self.cor.points(world_in[:, self.chain.joints]))
+        deepest = depth.max(axis=(1, 2), initial=-np.inf)
+        self.near, self.depth_in = deepest > -margin, np.maximum(deepest, 0.0)
         # the hand's goal error counts where its target is clear of the body
         radius = max(x.radius for x in sensors if x.joint == hand)
         dist = np.min([v.distance(self.tp) for v in volumes], axis=0) if volumes else np.full(len(self.tp), np.inf)
@@ -459,17 +443,6 @@ class ArmPass:
         for k, t in enumerate(near):
             err = float(np.linalg.norm(res[5][k] - self.tp[t])) if self.target_clear[t] else None
             self.tally.add(self.depth_in[t], res[2][k], err, int(res[3][k]))
-
-
-def _rot_log_many(r):
-    """ik.rot_log of (B, 3, 3) rotations."""
-    v = np.stack((r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]), axis=1)
-    s = 0.5 * np.sqrt(np.einsum("bi,bi->b", v, v))
-    th = np.arctan2(s, 0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0))
-    out = v * np.where(th < 1e-6, 0.5, th / (2.0 * np.maximum(s, 1e-300)))[:, None]
-    for i in np.flatnonzero(th >= np.pi - 1e-3):  # near a half turn the skew part loses the axis
-        out[i] = ik.rot_log(r[i])
-    return out
 
 
 def _leg_depth(skeleton, sensors, world, margin=0.0):
