@@ -240,18 +240,6 @@ class MeshBody:
         self._pose = {"s": s, "v": v, "tri": tri, "fn": fn, "lo": lo, "hi": hi, "tree": None, "centroids": None}
         return self._pose
 
-    def trees_at(self, s):
-        """(vertices, [(triangles, tree, reach, lo, hi) per part]) at time s (one tree per part;
-        for inspection: the queries use the joint tree)."""
-        pose = self.pose_at(s)
-        out = []
-        for i, tris in enumerate(self.parts):
-            tri = pose["tri"][tris]
-            centroids = tri.mean(axis=1)
-            reach = float(np.sqrt(((tri - centroids[:, None]) ** 2).sum(axis=2).max()))
-            out.append((tris, cKDTree(centroids), reach, pose["lo"][i], pose["hi"][i]))
-        return pose["v"], out
-
     def _reach(self, pose):
         """Per part, how far from its centroid a triangle can hold the closest point (the
         largest over the part's triangles); the centroids too. Once per pose."""

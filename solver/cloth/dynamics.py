@@ -169,11 +169,6 @@ class ClothDynamics:
         along = rowdot(dv, d) / np.maximum(length * length, 1e-18)
         return (self.stretch * stretch + self.damping * along)[:, None] * d
 
-    def accelerations(self, x, v, normals=None):
-        """Accelerations of all particles (zero for pinned ones). `normals` (for the air drag) may
-        be given: they change little within a step."""
-        return self.derivative(np.concatenate((x, v), axis=1), normals)[:, 3:]
-
     def derivative(self, y, normals=None):
         """d/dt of the state y = [x | v] (P, 6): [v | accelerations]. Positions and velocities
         side by side, so one difference over the springs gives both their vectors and their
@@ -242,12 +237,6 @@ class ClothDynamics:
         k2 += y0
         k2[pins] = np.concatenate((pin_x1, pin_v), axis=1)
         return k2[:, :3].copy(), k2[:, 3:].copy()
-
-    def _spread(self, dx):
-        """Edge corrections (E, 3) to particle moves (P, 3): +share0 dx at the first particle,
-        -share1 dx at the second."""
-        idx, item, w = self._spread_plan
-        return np.bincount(idx, (dx.take(item, axis=0) * w).ravel(), minlength=self._p3).reshape(-1, 3)
 
     def _reach(self, edges):
         """Per particle, how many of the given edges (bool (E,)) move it."""

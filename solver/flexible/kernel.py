@@ -323,7 +323,6 @@ class Kernel:
         Rpl = Rp.ravel().tolist()
         contact = self.single
         turn = 0
-        touchf = None
         onesP = np.ones(P)
         k = muk = 0.0
         if contact:
@@ -385,7 +384,7 @@ class Kernel:
             """b at the current z and rigid frame into bx (and Q z after it), for kind 0 (thesis: b),
             1 (predictor: (b - h/2 K u), with the system matrix (M + h/2 C + h^2/4 K) / h returned)
             or 2 (corrector: b - M du / h, du in DU). Returns (A or None, power)."""
-            nonlocal turn, touchf
+            nonlocal turn
             # the rotation into the plane frame, the body origin in it, w in it
             if flat:
                 Rql = Rl
