@@ -47,12 +47,12 @@ def figure_timings():
 
     def fresh(fn):  # every call sees a new configuration: no cached frames
         def run():
-            d.q = None
+            d.key = None
             fn()
         return run
 
     def control_step():  # one state: frames once, then inverse dynamics, H and the ZMP
-        d.q = None
+        d.key = None
         rnea(m, d, q, v, a)
         crba(m, d, q)
         zmp(m, d, q, v, a)

@@ -17,7 +17,7 @@ def update_frames(model: Model, data: Data, q):
     in `data` until q changes (the world inertias are computed on first use, Data.inertia)."""
     q = np.asarray(q, dtype=float)
     key = q.tobytes()  # a bytes comparison is ~10x cheaper than np.array_equal on a small q
-    if data.q is not None and key == data.key:
+    if key == data.key:
         return data
     nb = model.nb
     local = data.local
@@ -39,7 +39,6 @@ def update_frames(model: Model, data: Data, q):
     data.set_force_transforms(parts)  # gathered when the world inertias are first asked for
     data.subspace = None
     data.velocity = None
-    data.q = q.copy()
     data.key = key
     return data
 

@@ -228,8 +228,7 @@ class Data:
     def __init__(self, model: Model):
         nb = model.nb
         self.model = model
-        self.q = None
-        self.key = None  # q's bytes (kinematics.update_frames)
+        self.key = None  # the bytes of the q whose kinematics this holds (kinematics.update_frames)
         self.local = np.zeros((nb + 1, 4, 4))
         self.local[:nb] = model.tree
         self.local[nb] = np.eye(4)
@@ -257,11 +256,6 @@ class Data:
             xf = self._force[:, self.model.force_gather].reshape(self.model.nb, 6, 6)
             self._inertia = xf @ self.model.spatial_inertia @ np.swapaxes(xf, 1, 2)
         return self._inertia
-
-    @inertia.setter
-    def inertia(self, value):
-        self._inertia = value
-        self._composite = None
 
     @property
     def composite(self):

@@ -59,8 +59,8 @@ class StrengthModel:
         angle = np.maximum(0.3, np.cos(0.6 * np.minimum(np.maximum(np.asarray(angles, float), -np.pi), np.pi)))
         w = np.asarray(velocities, float) / self.max_velocity
         top = self.scale * self.peak * angle
-        # _hill(w) and _hill(-w) from |w| in one pass: one direction shortens, the other lengthens
-        # (the same arithmetic as _hill; both are 1 at rest)
+        # the Hill torque-velocity factors of w and -w from |w| in one pass: one direction shortens
+        # (max((1 - w) / (1 + 4 w), 0.1)), the other lengthens (1.3 - 0.3 / (1 + 10 w)); both are 1 at rest
         p = np.abs(w)
         short = np.maximum((1.0 - p) / (1.0 + p / 0.25), 0.1)
         long = 1.3 - 0.3 / (1.0 + 10.0 * p)
@@ -76,13 +76,6 @@ class StrengthModel:
         low, high = self.limits(angles, velocities)
         usage = np.where(tau >= 0.0, tau / np.maximum(high, 1e-12), tau / np.minimum(low, -1e-12))
         return np.clip(tau, low, high), usage
-
-
-def _hill(w):
-    """Torque-velocity factor for normalised velocity w (positive: shortening)."""
-    shortening = np.maximum((1.0 - w) / (1.0 + w / 0.25), 0.1)  # floor: mocap noise can exceed v_max
-    lengthening = 1.3 - 0.3 / (1.0 - 10.0 * np.minimum(w, 0.0))
-    return np.where(w >= 0.0, shortening, lengthening)
 
 
 def default_strength(model, scale=1.0, gravity=9.81):

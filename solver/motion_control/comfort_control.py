@@ -274,19 +274,10 @@ def _required_torques(state, a):
     return tau, wrench
 
 
-def ground_reaction(state, wrench):
-    """World wrenches (nb, 6) on the feet in contact that sum to `wrench`: the force at the ZMP,
-    split between the feet by where the ZMP lies between their sole centres."""
-    ground = _ground_wrenches(state, np.asarray(wrench, float))
-    if ground is None:
-        return None
-    out = np.zeros((state.model.nb, 6))
-    out[ground[0]] = ground[1]
-    return out
-
-
 def _ground_wrenches(state, wrench):
-    """ground_reaction as the foot bodies (k,) and their wrenches (k, 6), on plain floats."""
+    """World wrenches on the feet in contact that sum to `wrench`: the force at the ZMP, split between
+    the feet by where the ZMP lies between their sole centres; as the foot bodies (k,) and their
+    wrenches (k, 6), on plain floats."""
     sides = state.sides()
     if not len(sides):
         return None

@@ -352,18 +352,22 @@ class _Loop:
         self.allow_capture = _window_max(self.allow_capture)
         return _window_max(tau_x), _window_max(zmp_x)
 
+    def _frame_index(self, t):
+        """The input frame a step at time t belongs to."""
+        return min(int(math.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+
     def _can_stop(self, cs, t):
         """Whether the figure can still stop over its feet: its capture point no further outside
         the support polygon than the input's own, plus _CAPTURE_TOLERANCE."""
-        fi = min(int(np.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+        fi = self._frame_index(t)
         allowed = (self.allow_capture[fi] if self.allow_tau is not None else 0.0) + _CAPTURE_TOLERANCE
         return self._capture_error(cs) <= allowed
 
-    def _capture_error(self, cs, v=None):
+    def _capture_error(self, cs):
         """How far (m) the capture point (the centre of mass extrapolated by its velocity over
         sqrt(h / g), Hof 2005) lies outside the support polygon: where a standing figure can still
         stop without a step; 0 inside or without support."""
-        return math.hypot(*self._capture_offset(cs, v))
+        return math.hypot(*self._capture_offset(cs))
 
     def _capture_offset(self, cs, v=None):
         """The capture point's offset (x, y) from the support polygon (from its nearest point; 0
@@ -388,14 +392,14 @@ class _Loop:
         already was (a walk's runs ahead of its feet; a push the other way gets no such allowance)."""
         ax, ay = self._capture_offset(cs, v)
         bx, by = self._capture_offset(cs)
-        fi = min(int(math.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+        fi = self._frame_index(t)
         own = self.allow_capture[fi] if self.allow_tau is not None and ax * bx + ay * by > 0.0 else 0.0
         return math.hypot(ax, ay) > own + _CAPTURE_TOLERANCE
 
     def _allowance(self, t):
         if self.allow_tau is None:
             return None, self.st.criteria
-        fi = min(int(math.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+        fi = self._frame_index(t)
         zmp = float(self.allow_zmp[fi])
         if zmp <= self.st.criteria.zmp_tolerance:
             return self.allow_tau[fi], self.st.criteria
@@ -431,7 +435,7 @@ class _Loop:
         if self.fallen:
             feet = np.zeros(2, bool)
         else:
-            fi = min(int(math.floor(t / self.dt_frame + 1e-9)), self.tr.frame_count - 1)
+            fi = self._frame_index(t)
             feet = self.support_in[fi].copy()
             self._update_plants(body, feet, t)
         planted = bool(feet[0] or feet[1])  # (a Python bool: feet.any() costs a numpy call)
@@ -1125,11 +1129,11 @@ def _swept_contacts(a, b, rb, move, p0, p1, rc):
         hi_s = np.where(left, m2, hi_s)
         lo_s = np.where(left, lo_s, m1)
     s_min = 0.5 * (lo_s + hi_s)
-    d0 = dist(np.zeros(shape))
-    touch = (d0 <= limit) | (dist(s_min) <= limit) | (dist(np.ones(shape)) <= limit)
+    d0, d_min, d1 = dist(np.zeros(shape)), dist(s_min), dist(np.ones(shape))
+    touch = (d0 <= limit) | (d_min <= limit) | (d1 <= limit)
     if not touch.any():
         return []
-    s_min = np.where(dist(np.ones(shape)) <= dist(s_min), 1.0, s_min)
+    s_min = np.where(d1 <= d_min, 1.0, s_min)
     lo_s, hi_s = np.zeros(shape), s_min.copy()
     for _ in range(_SWEEP_ITERATIONS):  # the first instant within reach, between the start and the minimum
         mid = 0.5 * (lo_s + hi_s)

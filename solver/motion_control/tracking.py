@@ -138,7 +138,6 @@ class TrackingController:
         # each DOF's body quaternion in q, and the rows of the root translation's DOFs
         self._cur_index = 3 + 4 * m.dof_body[:, None] + np.arange(4)[None, :]
         self._k = np.arange(m.nv)
-        self._axis = axis
         self._rel_axis = 1 + np.minimum(axis, 2)  # each DOF's component of its relative quaternion
         self._lin = np.flatnonzero(lin)
         self._lin_axis = slot[lin] - 3
