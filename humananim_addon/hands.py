@@ -60,8 +60,10 @@ register, unregister = settings_registration((HumanAnimHands,), bpy.types.Scene,
 # --- reading Blender -----------------------------------------------------------------------
 def solver_view(obj, skeleton, sides=("L", "R"), with_spine=False):
     """(control rig or None, the skeleton the solver works on) for the rig's `skeleton`: on a
-    control rig the solver keeps the bones it must not move still (see ControlRig)."""
-    crig = require_posable_hands(obj, skeleton, sides, with_spine)
+    control rig the solver keeps the bones it must not move still (see ControlRig). A rig whose arm
+    or finger role bones follow other bones through constraints and have no control that moves
+    them is refused (control_rig): keys on the role bones would be ignored."""
+    crig = control_rig(obj, skeleton, sides, with_spine)
     return crig, (crig.solver_skeleton(skeleton) if crig else skeleton)
 
 
@@ -69,13 +71,6 @@ def rig_pose(obj, scene, skeleton, crig, frames):
     """pose_frames, made rigid on a control rig (its stretch removed, see ControlRig.rigid)."""
     base = pose_frames(obj, scene, skeleton, frames)
     return base if crig is None else crig.rigid(base)
-
-
-def require_posable_hands(obj, skeleton, sides=("L", "R"), with_spine=False):
-    """The control rig of `obj` (see `control_rig`), or None for a plain FK rig. A rig whose arm
-    or finger role bones follow other bones through constraints and have no control that moves
-    them is refused: keys on the role bones would be ignored."""
-    return control_rig(obj, skeleton, sides, with_spine)
 
 
 def hand_skeleton(obj, scene):
@@ -647,8 +642,7 @@ def control_targets(skeleton, crig, base, out):
     """Armature-space frames (metres) of every mapped control over the frames: where the solved
     pose puts the bone it carries, times the control's rest frame in the bone's. Also each
     known bone's old and new frames {bone: (old (F,4,4), new (F,4,4))}."""
-    old = np.array([skeleton.world_frames(b) for b in base])
-    new = np.array([skeleton.world_frames(b) for b in out])
+    old, new = skeleton.world_frames(base), skeleton.world_frames(out)
     targets, known = {}, {}
     for j, (c, offset) in sorted(crig.controls.items()):
         targets[c] = new[:, j] @ offset
@@ -683,7 +677,7 @@ def control_bases(obj, skeleton, targets, known, old):
     return bases
 
 
-def control_errors(obj, scene, skeleton, crig, frames, targets, sample):
+def control_errors(obj, scene, skeleton, frames, targets, sample):
     """Largest position (m) and angle (rad) between Blender's evaluated controls and their
     targets, on the frames at `sample` (indices)."""
     pos, ang = 0.0, 0.0
@@ -792,7 +786,7 @@ class _ActionKeys:
         return fc
 
 
-def write_controls(obj, scene, skeleton, crig, frames, bases, name, keys=None):
+def write_controls(obj, scene, crig, frames, bases, name, keys=None):
     """Keys the controls' bases and the IK/FK switches (CONSTANT, the value before the range kept
     on the frame before) into a new action (`keys`, reused when correcting)."""
     output = getattr(getattr(scene, "humananim", None), "output", "ACTION")
@@ -851,10 +845,10 @@ def write_result(obj, scene, skeleton, crig, frames, base, out, name):
     actual = base if crig.actual is None else np.broadcast_to(crig.actual, base.shape)
     targets, known, old = control_targets(skeleton, crig, actual, out)
     bases = control_bases(obj, skeleton, targets, known, old)
-    keys = write_controls(obj, scene, skeleton, crig, frames, bases, name)
+    keys = write_controls(obj, scene, crig, frames, bases, name)
     sample = sorted({0, len(frames) // 2, len(frames) - 1})
-    pos, ang = control_errors(obj, scene, skeleton, crig, frames, targets, sample)
+    pos, ang = control_errors(obj, scene, skeleton, frames, targets, sample)
     if pos > 2e-4 or ang > 1e-3:  # a parent not carried rigidly: Blender's evaluation, frame by frame
         bases = correct_controls(obj, scene, skeleton, frames, targets, bases)
-        write_controls(obj, scene, skeleton, crig, frames, bases, name, keys)
+        write_controls(obj, scene, crig, frames, bases, name, keys)
     return keys.action

@@ -5,7 +5,7 @@ from bpy.props import FloatProperty, IntProperty
 
 from ..humananim_addon import cloth
 from ..solver.errors import HumanAnimError
-from .common import JobOperator, _end_job, active_armature, run_reporting
+from .common import JobOperator, _end_job, _fail, active_armature, run_reporting
 
 
 def _message(s):
@@ -92,8 +92,7 @@ class HUMANANIM_OT_cloth_preview(bpy.types.Operator):
             self._preview.tick()
         except HumanAnimError as error:  # ends the preview, which leaves nothing
             self._stop(context, report=False)
-            self.report({"ERROR"}, str(error))
-            return {"CANCELLED"}
+            return _fail(self, error)
         except Exception:
             self._stop(context, report=False)
             raise

@@ -6,7 +6,7 @@ from bpy.props import IntProperty
 
 from ..humananim_addon import synthesis
 from ..solver.errors import MotionError
-from .common import JobOperator, active_armature, run_reporting
+from .common import JobOperator, RemoveActiveItem, active_armature, run_reporting
 
 
 class HUMANANIM_OT_synthesize(JobOperator, bpy.types.Operator):
@@ -47,19 +47,12 @@ class HUMANANIM_OT_queue_add(bpy.types.Operator):
         return run_reporting(self, work)
 
 
-class HUMANANIM_OT_queue_remove(bpy.types.Operator):
+class HUMANANIM_OT_queue_remove(RemoveActiveItem, bpy.types.Operator):
     """Remove the selected entry from the Motion Queue"""
 
     bl_idname = "humananim.queue_remove"
     bl_label = "Remove from Motion Queue"
-    bl_options = {"REGISTER", "UNDO"}
-
-    def execute(self, context):
-        props = context.scene.humananim_synthesis
-        if 0 <= props.entry_index < len(props.entries):
-            props.entries.remove(props.entry_index)
-            props.entry_index = min(props.entry_index, len(props.entries) - 1)
-        return {"FINISHED"}
+    settings, items, index = "humananim_synthesis", "entries", "entry_index"
 
 
 class HUMANANIM_OT_queue_move(bpy.types.Operator):

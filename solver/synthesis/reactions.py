@@ -22,7 +22,7 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline
 
 from .. import rotations
-from ..dynamics import motion_floor, spatial
+from ..dynamics import spatial
 from ..motion_control import ControlSettings, control
 from ..motion_control.limb_ik import LimbIK
 from ..trajectories import Trajectories
@@ -148,8 +148,7 @@ def react(action, control_settings=None, settings=None, fall_actions=None):
     kind, f, v = detect(sk, action, res, s)
     speed = np.linalg.norm(v, axis=-1)
     _, acc = root_rates(sk, res.trajectories, action.trajectories, res.foot_skate)
-    floor = float(res.ground_height if res.ground_height is not None else
-                  motion_floor(sk, action.trajectories) if cs.ground_height is None else cs.ground_height)
+    floor = float(res.ground_height)
     support = {side: res.support[:, i] for i, side in enumerate("LR")}
     if kind == "none":
         return ReactionResult(kind, -1, res.trajectories, res, speed, acc, support)
