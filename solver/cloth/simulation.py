@@ -8,7 +8,7 @@ from .collision import penetration, query_bodies, resolve_contacts, resolve_part
 from .dynamics import ClothDynamics
 from .fast import rowdot
 from .mesh import ClothError, edge_lengths
-from .smoothing import Smoother
+from .smoothing import Smoother, _grid
 
 # the per-phase timings are CPU time of this process: on a shared machine wall-clock time counts
 # the other processes' share too (the simulation runs on one thread)
@@ -43,7 +43,7 @@ class ClothSimulation:
         # phi(q) >= phi(corner) - |q - corner| tells which fine vertices can reach the body
         tess = self.smoother.tess
         n = 2 * tess.level
-        grid = np.array([(n - i - j, i, j) for j in range(n + 1) for i in range(n + 1 - j)])
+        grid = np.array([(n - i - j, i, j) for i, j in _grid(n)])
         corner = mesh.faces[:, np.argmax(grid, axis=1)]  # (F, G)
         ref = np.empty(tess.vertex_count, dtype=np.int64)
         ref[tess.vertex_of.ravel()] = corner.ravel()

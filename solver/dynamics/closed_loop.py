@@ -169,6 +169,7 @@ class _Run:
             kinematic_mass=st.kinematic_fraction * (skeleton.total_mass + sum(st.loads.values())))
         run.data = model.create_data()
         run.qd, run.vd, run.ad, frame_dt = desired_motion(model, skeleton, tr)
+        run.steps = kinematics.difference(model, run.qd[:-1], run.qd[1:])  # each frame's way to the next
         if st.armature_ratio > 0.0:
             model.set_armature(np.maximum(st.armature, st.armature_ratio * np.diag(crba(model, run.data, run.qd[0]))))
         run.contacts = st.contacts if st.contacts is not None else default_contacts(model)
@@ -189,8 +190,7 @@ class _Run:
         """Desired position, velocity and acceleration at control step k of frame f."""
         qd, vd, ad = self.qd, self.vd, self.ad
         alpha = k / self.per_frame  # desired state between frames, linearly blended
-        step = kinematics.difference(self.model, qd[f], qd[f + 1])
-        target_q = kinematics.integrate(self.model, qd[f], step * alpha)
+        target_q = kinematics.integrate(self.model, qd[f], self.steps[f] * alpha)
         target_v = (1 - alpha) * vd[f] + alpha * vd[f + 1]
         # torques are held over the step: aim at the mean desired acceleration over it, that of
         # its midpoint, or the motion lags half a control step behind
