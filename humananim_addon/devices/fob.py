@@ -358,6 +358,7 @@ class FlockOfBirds(Device):
         if code:
             raise DeviceError(f"{self.name}: flock error {code}: {ERRORS.get(code, 'unknown error')}")
         self._parser = RecordParser(self.record, self.range_inches, self.birds if self.group else None)
+        self._held = []
         if self.mode == "STREAM":
             self._write(STREAM)
         self._last_data = time.perf_counter()
@@ -373,11 +374,27 @@ class FlockOfBirds(Device):
         records = self._records(data, now)
         if records is None:
             return []
+        if self.group:
+            records = self._whole_records(records)
         samples = []
         for address, d in records:
             bird = self.birds[0] if address is None else address
             samples.append(self.make_sample(f"bird{bird}", "pose", d, now))
         return samples
+
+    def _whole_records(self, records):
+        """Group-mode birds held until their record is whole: a read can end mid-record, and the
+        birds of one record must reach the take together (not some before recording began)."""
+        out = []
+        for address, d in records:
+            if self._held and address <= self._held[-1][0]:  # a bird was lost: a new record began
+                out += self._held
+                self._held = []
+            self._held.append((address, d))
+            if address == max(self.birds):
+                out += self._held
+                self._held = []
+        return out
 
     def _close(self):
         ser, self._ser = self._ser, None

@@ -118,6 +118,35 @@ def test_group_mode_reads_several_birds_on_one_port_through_fbb_addressing():
                 _check(s, sim, "POSITION/MATRIX", b, first + k)
 
 
+class _Chunks:
+    """A port whose reads return the given byte chunks, one per read."""
+
+    def __init__(self, chunks):
+        self.chunks = list(chunks)
+        self.in_waiting = 0
+
+    def read(self, n):
+        return self.chunks.pop(0) if self.chunks else b""
+
+
+def test_a_group_record_split_between_reads_reaches_the_buffer_whole():
+    fmt, birds = "POSITION/QUATERNION", (1, 2, 3)
+    dev = fob.FlockOfBirds("fob", "unused", birds=birds, record=fmt)
+    dev.range_inches = 36.0
+    dev._parser = fob.RecordParser(fmt, dev.range_inches, birds)
+    dev._held = []
+    record = lambda b, k: fob.encode_record(fmt, (0.01 * k, 0.02 * b, 0.0), (10.0 * b, 0, 0), 36.0, b)
+    one = record(1, 0) + record(2, 0) + record(3, 0)
+    two = record(1, 1) + record(2, 1) + record(3, 1)
+    lost = record(1, 2) + record(3, 2)  # bird 2's record of this tick lost on the line
+    size = len(record(1, 0))
+    dev._ser = _Chunks([one[:size + 4], one[size + 4:] + two[:2 * size], two[2 * size:], lost, record(1, 3)])
+    reads = [[s.channel for s in dev._read()] for _ in range(5)]
+    assert reads == [[], ["bird1", "bird2", "bird3"], ["bird1", "bird2", "bird3"], ["bird1", "bird3"], []]
+    assert [a for a, _ in dev._whole_records([(2, {}), (3, {})])] == [1, 2, 3]  # bird 1 of tick 3 was held
+    assert dev._held == []
+
+
 def test_missing_bird_and_flock_errors_are_reported():
     with fob.FlockSimulator(birds=(1, 2), rate=50) as sim:
         dev = fob.FlockOfBirds("fob", sim.port, birds=(1, 3), settle=0.02, reconnect_interval=0.05)
