@@ -77,7 +77,7 @@ def _fcurve_basis(obj, skeleton, action, frames):
     for fc in action_api.fcurves_of(action, obj):
         m = _BONE_PATH.match(fc.data_path)
         if m and not fc.mute:
-            name = m.group(1).replace('\\"', '"').replace("\\\\", "\\")
+            name = bpy.utils.unescape_identifier(m.group(1))
             channels[(name, m.group(2), fc.array_index)] = fc
     n_frames, n = len(frames), skeleton.joint_count
     trans, quats = np.zeros((n_frames, n, 3)), np.zeros((n_frames, n, 4))
@@ -130,16 +130,22 @@ def _evaluated_basis(obj, scene, skeleton, action, frames):
                 ad.action_slot = saved[1]
         ad.use_nla = saved[2]
         scene.frame_set(saved[3], subframe=saved[4])
-    matrices = pose.reshape(len(frames), n, 4, 4).transpose(0, 1, 3, 2)
-    # Stretch and scale (e.g. Rigify's stretchy limbs) can't live in a rigid skeleton: make every
-    # evaluated frame rigid first, so the rigid chain reproduces each bone's world pose exactly.
-    matrices[..., :3, :3] /= np.linalg.norm(matrices[..., :3, :3], axis=-2, keepdims=True)
-    matrices[..., :3, 3] *= skeleton.unit_scale
-    parent = np.where(skeleton.parents[None, :, None, None] >= 0,
-                      matrices[:, np.maximum(skeleton.parents, 0)], np.eye(4))
-    basis = np.linalg.solve(parent @ skeleton.rest_local, matrices)
+    basis = rigid_basis(pose.reshape(len(frames), n, 4, 4).transpose(0, 1, 3, 2), skeleton)
     basis[..., :3, 3] /= skeleton.unit_scale
     return basis
+
+
+def rigid_basis(matrices, skeleton):
+    """Local bases (..., J, 4, 4), metres, with which a rigid FK skeleton reproduces the armature-space
+    pose matrices (..., J, 4, 4) Blender evaluated (Blender units). Changes `matrices`.
+
+    Stretch and scale (e.g. Rigify's stretchy limbs) can't live in a rigid skeleton: every bone's
+    matrix is made rigid first, so the rigid chain reproduces each bone's world pose exactly."""
+    matrices[..., :3, :3] /= np.linalg.norm(matrices[..., :3, :3], axis=-2, keepdims=True)
+    matrices[..., :3, 3] *= skeleton.unit_scale
+    parent = np.where(skeleton.parents[:, None, None] >= 0,
+                      matrices[..., np.maximum(skeleton.parents, 0), :, :], np.eye(4))
+    return np.linalg.solve(parent @ skeleton.rest_local, matrices)
 
 
 def write_action(obj, skeleton, traj, name, output="ACTION", source=None, extra_channels=None):
@@ -154,7 +160,7 @@ def write_action(obj, skeleton, traj, name, output="ACTION", source=None, extra_
     channels = _rotation_channels(obj, skeleton, traj)
     for j, bone in enumerate(skeleton.names):
         trans = traj.translations[:, j] / skeleton.unit_scale
-        path = f'pose.bones["{_escape(bone)}"]'
+        path = bone_path(bone)
         if j not in channels:
             continue  # rest pose throughout: no channel needed
         if not skeleton.connected[j] and not np.allclose(trans, 0.0, atol=1e-9):
@@ -212,8 +218,4 @@ def _write_channels(writer, data_path, group, frames, values):
 
 
 def bone_path(bone):
-    return f'pose.bones["{_escape(bone)}"]'
-
-
-def _escape(name):
-    return name.replace("\\", "\\\\").replace('"', '\\"')
+    return f'pose.bones["{bpy.utils.escape_identifier(bone)}"]'

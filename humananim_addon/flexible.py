@@ -528,16 +528,12 @@ def _bake_keys(key, names, frames, gamma):
         new = lambda path, i, group: action.fcurves.new(path, index=i, action_group=group)  # noqa: E731
     writer = type("KeyWriter", (), {"new_fcurve": staticmethod(new)})
     for k, name in enumerate(names):
-        _write(writer, f'key_blocks["{_escape(name)}"].value', "Shape Keys", frames, gamma[:, k:k + 1])
+        _write(writer, f'key_blocks["{bpy.utils.escape_identifier(name)}"].value', "Shape Keys", frames, gamma[:, k:k + 1])
     ad = key.animation_data or key.animation_data_create()
     ad.action = action
     if slot is not None:
         ad.action_slot = slot
     return action
-
-
-def _escape(name):
-    return name.replace("\\", "\\\\").replace('"', '\\"')
 
 
 def _write(writer, path, group, frames, values):

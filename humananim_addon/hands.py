@@ -115,10 +115,7 @@ def evaluated_basis(obj, skeleton):
     """Local bases (J, 4, 4), metres, of the pose Blender shows now, for a rigid FK skeleton."""
     bpy.context.view_layer.update()
     m = np.array([np.array(obj.pose.bones[n].matrix, dtype=float) for n in skeleton.names])
-    m[:, :3, :3] /= np.linalg.norm(m[:, :3, :3], axis=-2, keepdims=True)
-    m[:, :3, 3] *= skeleton.unit_scale
-    parent = np.where(skeleton.parents[:, None, None] >= 0, m[np.maximum(skeleton.parents, 0)], np.eye(4))
-    return np.linalg.solve(parent @ skeleton.rest_local, m)
+    return actions.rigid_basis(m, skeleton)
 
 
 def object_shape(target, scene):
@@ -196,12 +193,10 @@ def _write(obj, scene, skeleton, frames, basis, name):
 
 
 # --- grasp ----------------------------------------------------------------------------------
-last_grasp = {}  # the last solve (skeleton, result, shape, ...), for checking what Blender shows against it
-
-
-def run_grasp(obj, scene, target, props=None):
+def run_grasp(obj, scene, target, props=None, solved=None):
     """Job: reach, close, write the new action and the keyed Child Of. Yields progress; returns
-    the summary dict."""
+    the summary dict. `solved`, a dict, receives the solve (skeleton, result, shape, armature to
+    world, grasped frame) to check what Blender shows against it."""
     props = props or scene.humananim_hands
     skeleton = hand_skeleton(obj, scene)
     sides = ("L", "R") if props.side == "AUTO" else (props.side,)
@@ -244,7 +239,9 @@ def run_grasp(obj, scene, target, props=None):
     hand_bone = skeleton.names[skeleton.role_index(sided("hand", result.hands[0].side))]
     attach(obj, scene, target, hand_bone, end, release)
     m = grasp_measures(skeleton, result, shape, a2w)
-    last_grasp.update(skeleton=skeleton, result=result, shape=shape, armature_to_world=a2w, grasped_frame=int(end))
+    if solved is not None:
+        solved.update(skeleton=skeleton, result=result, shape=shape, armature_to_world=a2w,
+                      grasped_frame=int(end))
     return {"action": action.name, "object": target.name, "type": result.gtype, "primitive": kind(shape),
             "hands": [h.side for h in result.hands], "fingers_touching": {h.side: list(h.fingers_touching)
                                                                            for h in result.hands},
@@ -449,10 +446,6 @@ class ControlRig:
         return replace(skeleton, dof=dof)
 
 
-def _unescape(name):
-    return name.replace('\\"', '"').replace("\\\\", "\\")
-
-
 def _driven(pb):
     return any(not c.mute and c.influence > 0 for c in pb.constraints)
 
@@ -500,7 +493,7 @@ def _switches(obj, bones):
     out = []
     for d in (ad.drivers if ad else ()):
         m = _CON_PATH.match(d.data_path)
-        if not m or _unescape(m.group(1)) not in bones:
+        if not m or bpy.utils.unescape_identifier(m.group(1)) not in bones:
             continue
         for v in d.driver.variables:
             if v.type != "SINGLE_PROP" or v.targets[0].id != obj:
@@ -508,7 +501,7 @@ def _switches(obj, bones):
             p = _PROP_PATH.match(v.targets[0].data_path or "")
             if not p:
                 continue
-            key = (_unescape(p.group(1)), _unescape(p.group(2)))
+            key = (bpy.utils.unescape_identifier(p.group(1)), bpy.utils.unescape_identifier(p.group(2)))
             if key[0] in obj.pose.bones and isinstance(obj.pose.bones[key[0]].get(key[1]), float) \
                     and key not in out:
                 out.append(key)
@@ -809,7 +802,7 @@ def write_controls(obj, scene, crig, frames, bases, name, keys=None):
                 _key_channel(keys.find, f"{path}.location", i, c, frames, loc[:, i])
     if first:
         for (bone, prop), value in crig.switches.items():
-            path = f'{actions.bone_path(bone)}["{actions._escape(prop)}"]'
+            path = f'{actions.bone_path(bone)}["{bpy.utils.escape_identifier(prop)}"]'
             before = _value_before(obj, source, path, frames[0] - 1, obj.pose.bones[bone][prop])
             fc = keys.find(path, 0, bone)
             _key_channel(keys.find, path, 0, bone, frames, np.full(len(frames), float(value)), "CONSTANT")

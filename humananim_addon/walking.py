@@ -403,7 +403,7 @@ def copy_channels(source, obj, bones, name, key_rest=False):
 
 def _bone_of(data_path):
     m = actions._BONE_PATH.match(data_path)
-    return m.group(1).replace('\\"', '"').replace("\\\\", "\\") if m else None
+    return bpy.utils.unescape_identifier(m.group(1)) if m else None
 
 
 def _generator_of(action, obj, bones_of_scope):

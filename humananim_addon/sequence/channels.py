@@ -48,7 +48,7 @@ class Group:
 
 def bone_of(data_path):
     m = _BONE.match(data_path)
-    return m.group(1).replace('\\"', '"').replace("\\\\", "\\") if m else None
+    return bpy.utils.unescape_identifier(m.group(1)) if m else None
 
 
 def _property_of(data_path):
