@@ -173,11 +173,12 @@ def linux_zip() -> dict:
     if prebuilt:  # test a zip built elsewhere (e.g. by an earlier CI step) instead of building
         path = Path(prebuilt).resolve()
         return {"platform": "linux-x64", "path": str(path), "bytes": path.stat().st_size}
-    out = REPO / "build" / "test-dist"
+    # one build folder per environment: CI tests Blender 5.0 and 4.2 side by side
+    build_dir = REPO / "build" / f"test-{Path(sys.prefix).name}"
     t0 = time.monotonic()
     res = subprocess.run(
-        [sys.executable, str(BUILD_SCRIPT), "--platforms", "linux-x64", "--out", str(out), "--repository",
-         "--json"],
+        [sys.executable, str(BUILD_SCRIPT), "--platforms", "linux-x64", "--out", str(build_dir / "dist"),
+         "--build-dir", str(build_dir), "--repository", "--json"],
         capture_output=True, text=True, timeout=900,
     )
     if res.returncode != 0:
