@@ -752,21 +752,16 @@ class _ActionKeys:
             self.action = bpy.data.actions.new(name)
             self.writer = action_api.ChannelWriter(self.action, obj)
             self.slot = self.writer.slot
-        self._made = {}
+        self._curves = {(fc.data_path, fc.array_index): fc
+                        for fc in (action_api.fcurves_of(self.action, obj) if self.writer is None else ())}
 
     def has(self, path, index):
-        return (path, index) in self._made or any(
-            fc.data_path == path and fc.array_index == index
-            for fc in (self.api.fcurves_of(self.action, self.obj) if self.writer is None else ()))
+        return (path, index) in self._curves
 
     def find(self, path, index, group):
         key = (path, index)
-        if key in self._made:
-            return self._made[key]
-        for fc in self.api.fcurves_of(self.action, self.obj) if self.writer is None else ():
-            if fc.data_path == path and fc.array_index == index:
-                self._made[key] = fc
-                return fc
+        if key in self._curves:
+            return self._curves[key]
         if self.writer is not None:
             fc = self.writer.new_fcurve(path, index, group)
         elif not self.api.SLOTTED:
@@ -775,7 +770,7 @@ class _ActionKeys:
             layer = self.action.layers[0] if len(self.action.layers) else self.action.layers.new("Layer")
             strip = layer.strips[0] if len(layer.strips) else layer.strips.new(type="KEYFRAME")
             fc = strip.channelbag(self.slot, ensure=True).fcurves.new(path, index=index)
-        self._made[key] = fc
+        self._curves[key] = fc
         return fc
 
 
