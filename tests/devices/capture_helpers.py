@@ -17,3 +17,18 @@ def collect(device, n, timeout=10.0):
     out = []
     wait_for(lambda: out.extend(device.buffer.drain()) or len(out) >= n, timeout)
     return out
+
+
+def drained(devices, quiet=0.2, timeout=30.0):
+    """Wait until the devices' readers have taken every record on the line (no new sample for
+    `quiet` seconds, the senders being stopped): a loaded machine reads late, not less."""
+    last, since = None, time.perf_counter()
+    end = since + timeout
+    while time.perf_counter() < end:
+        now = tuple(d.seq for d in devices)
+        if now != last:
+            last, since = now, time.perf_counter()
+        elif time.perf_counter() - since >= quiet:
+            return True
+        time.sleep(0.01)
+    return False

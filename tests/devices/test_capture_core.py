@@ -19,7 +19,7 @@ from humananim.solver.hands.sensors import Box, Sphere, default_hand_sensors, se
 from humananim.humananim_addon.devices.replay import ReplayDevice
 from humananim.humananim_addon.devices.ringbuffer import RingBuffer
 from humananim.humananim_addon.devices.session import Session, Take
-from capture_helpers import wait_for
+from capture_helpers import drained, wait_for
 from capture_rigs import curled_basis, hand_skeleton
 
 CLIP = os.path.join(os.path.dirname(__file__), "..", "..", "humananim_addon", "data", "mocap", "cmu_131_01.bvh")
@@ -76,6 +76,7 @@ def _record_two_devices(seconds, speed):
     try:
         assert wait_for(lambda: fsim.streaming and gsim.streaming and all(d.seq for d in devices))
         with fsim._lock, gsim._lock:  # start both at a tick boundary: the take holds exactly these ticks
+            assert drained(devices)  # what was sent before is read before recording starts
             session.start_recording()
             first = (fsim.tick_count, gsim.tick_count)
         n = int(seconds * rate)  # device time: 60 s at 120 Hz is 7200 records from each device
@@ -84,7 +85,7 @@ def _record_two_devices(seconds, speed):
         with fsim._lock, gsim._lock:
             last = (fsim.tick_count, gsim.tick_count)
             fsim.streaming = gsim.streaming = False
-        wait_for(lambda: False, timeout=0.3)  # the last records cross the line
+        assert drained(devices)  # the last records cross the line
         take = session.stop_recording()
     finally:
         session.stop()
@@ -95,8 +96,7 @@ def _record_two_devices(seconds, speed):
     for key, k in ((("fob", "bird1"), 0), (("glove", "glove"), 1)):
         seqs = [x.seq for x in take.samples[key]]
         assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # nothing lost between reader and take
-        # every record sent while recording is in the take; a few more were on the line when it started
-        assert 0 <= len(seqs) - sent[k] <= 32
+        assert len(seqs) == sent[k]  # every record sent while recording is in the take, and no other
     assert session.dropped == 0 and all(d.garbage_bytes == 0 and d.lost == 0 and d.reconnects == 0
                                         for d in devices)
     assert fsim.dropped_bytes == 0 and gsim.dropped_bytes == 0
