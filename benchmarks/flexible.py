@@ -91,6 +91,42 @@ def thesis_workload():
     return out
 
 
+def step_floor(steps=1200):
+    """What a step of the thesis table can't do without, per step (us): the Cholesky solve of its
+    10 x 10 system (one LAPACK call, as the kernel makes it), the rigid motion of the floating frame
+    (plain Python floats, as the kernel does it), and one numpy call on arrays of the table's size
+    (the price of every other operation of the step, however small)."""
+    from humananim.solver.flexible.kernel import rigid_move
+    from humananim.solver.flexible.lapack import CholeskySolver
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(10, 10))
+    spd = a @ a.T + 10 * np.eye(10)
+    A, b = np.empty((10, 10)), np.empty(10)
+    solver = CholeskySolver(A, b)
+
+    def solves():
+        for _ in range(steps):
+            np.copyto(A, spd)
+            b.fill(1.0)
+            solver.solve()
+
+    def moves():
+        q, t = [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+        mv = [1e-3, 2e-3, 0.0, 1e-3, 0.0, 2e-3]
+        for _ in range(steps):
+            rigid_move(q, t, mv)
+
+    x, y, z = np.ones(33), np.ones(33), np.empty(33)
+
+    def calls():
+        for _ in range(steps):
+            np.add(x, y, out=z)
+
+    per = lambda fn: cpu_ms(fn, repeat=5) * 1e3 / steps
+    return {"floor_solve_us_per_step": per(solves), "floor_rigid_move_us_per_step": per(moves),
+            "numpy_call_us": per(calls), "aim_us_per_step": 20.0e3 / steps}
+
+
 def big_character():
     body = blob_body(points=200, modes=8)
     gains = ModeGains.from_frequency(body, 3.0, 0.3)
@@ -127,6 +163,7 @@ def main():
     args = parser.parse_args()
     out = {}
     out.update(thesis_workload())
+    out.update(step_floor())
     out.update(big_character())
     out.update(annealing(args.trials))
     out = {k: round(v, 3) if isinstance(v, float) else v for k, v in out.items()}
