@@ -5,7 +5,7 @@ substeps; Provot-style correction of elongated edges (§4.4.3); particles pinned
 import numpy as np
 from scipy import sparse
 
-from .fast import rowdot, sparse_product as _sparse_product
+from .fast import Product, clip as _clip, difference_matrix, rowdot, sparse_product as _sparse_product
 from .materials import AIR_DENSITY, as_vector
 
 # explicit RK4 is stable for |lambda dt| up to about 2.8 on the imaginary axis: keep a margin
@@ -92,6 +92,13 @@ class ClothDynamics:
             shape=(2 * p_count, len(e0)))
         self._sweep_matrix.sort_indices()
         self._spread_matrix = _plan_matrix(self._spread_plan, p_count)
+        # the sweeps' products with their outputs kept (a sweep is ~20 numpy calls: each counts)
+        self._edge_diff = Product(difference_matrix(e0, e1, p_count), 3)
+        self._sweep = Product(self._sweep_matrix, 4)
+        self._spread = Product(self._spread_matrix, 3)
+        self._sweep_moves, self._sweep_count = self._sweep.out[:p_count, :3], self._sweep.out[p_count:, 3]
+        self._sweep_scale, self._sweep_step = np.empty((p_count, 1)), np.empty((p_count, 3))
+        self._rows_d, self._rows_off = self._sweep_rows[:, :3], self._sweep_rows[:, 3]
         self._tether_data = self._tethers()
         self._face_idx = _flat3(mesh.faces.ravel())  # coordinates of every face corner
         self._p3 = 3 * p_count
@@ -255,33 +262,38 @@ class ClothDynamics:
         number of edges corrected)."""
         p = self.params
         x, v = x.copy(), v.copy()
-        e0, e1 = self._e0, self._e1
         floor, limit = self._floor_m, self._limit_m
         corrected = None
         self._tether(x, v)
-        rows, matrix, n = self._sweep_rows, self._sweep_matrix, len(x)
+        rows_d, rows_off, sweep, diff = self._rows_d, self._rows_off, self._sweep, self._edge_diff
+        moves, count, scale, step = self._sweep_moves, self._sweep_count, self._sweep_scale, self._sweep_step
+        rows = self._sweep_rows
         for _ in range(max(1, iterations or p.constraint_iterations)):
-            d = x.take(e1, axis=0)
-            d -= x.take(e0, axis=0)
+            d = diff(x)
             length = np.sqrt(rowdot(d, d))
-            target = np.minimum(np.maximum(length, floor), limit)
+            target = _clip(length, floor, limit)
             over = length - target
             target *= SLACK
             off = np.abs(over) > target
             if not off.any():
                 break
-            corrected = off if corrected is None else corrected | off
+            if corrected is None:
+                corrected = off
+            else:
+                corrected |= off
             over /= length
             over *= off
-            np.multiply(d, over[:, None], out=rows[:, :3])
-            rows[:, 3] = off
-            moves = _sparse_product(matrix, rows)
-            x += (RELAX / np.maximum(moves[n:, 3], 1.0))[:, None] * moves[:n, :3]
+            np.multiply(d, over[:, None], out=rows_d)
+            rows_off[...] = off
+            sweep(rows)
+            np.maximum(count, 1.0, out=scale[:, 0])
+            np.divide(RELAX, scale, out=scale)
+            np.multiply(scale, moves, out=step)
+            x += step
         if corrected is None:
             return x, v, 0
         # corrected edges stop stretching (squeezed ones stop shortening)
-        d = x.take(e1, axis=0)
-        d -= x.take(e0, axis=0)
+        d = diff(x)
         length = np.sqrt(rowdot(d, d))
         u = d / np.maximum(length, 1e-12)[:, None]
         longer = length > self.mesh.rest_length
@@ -291,11 +303,10 @@ class ClothDynamics:
         low[~corrected] = 0.0
         high = np.where(corrected & ~longer, 0.0, np.inf)
         high[~corrected] = 0.0
+        spread = self._spread
         for _ in range(VELOCITY_SWEEPS):
-            dv = v.take(e1, axis=0)
-            dv -= v.take(e0, axis=0)
-            rate = np.minimum(np.maximum(rowdot(dv, u), low), high)
-            v += scale * _sparse_product(self._spread_matrix, rate[:, None] * u)
+            rate = _clip(rowdot(diff(v), u), low, high)  # (low <= high everywhere)
+            v += scale * spread(rate[:, None] * u)
         return x, v, int(corrected.sum())
 
     def _tethers(self):
