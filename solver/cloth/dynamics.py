@@ -163,6 +163,15 @@ class ClothDynamics:
                                        descending=True)
         self._acc_matrix = _plan_matrix(self._acc_plan, len(self.mass))
         self._free_f = self.free.astype(float)[:, None]
+        # gravity and air damping act on the free particles: free_f (g - c v) as g_f - c_f v
+        self._gravity_f = self._free_f * self.gravity
+        self._air_f = self._free_f * p.air_damping
+        self._windy = bool(np.any(self.wind != 0.0))
+        self._pin_idx = np.flatnonzero(self.pinned)
+        p_count = len(self.mass)
+        self._spring_diff = Product(difference_matrix(self._s0, self._s1, p_count), 3)
+        self._edge_rate = Product(difference_matrix(self._e0, self._e1, p_count), 3)
+        self._acc = Product(self._acc_matrix, 3)
         self._drag_of = 0.5 * AIR_DENSITY * p.drag * mesh.area * self.inv_mass
         self._edges = e
 
@@ -177,29 +186,26 @@ class ClothDynamics:
         return (self.stretch * stretch + self.damping * along)[:, None] * d
 
     def derivative(self, y, normals=None):
-        """d/dt of the state y = [x | v] (P, 6): [v | accelerations]. Positions and velocities
-        side by side, so one difference over the springs gives both their vectors and their
-        relative velocities."""
+        """d/dt of the state y = [x, v] (2, P, 3): [v, accelerations]. The springs' vectors and
+        the edges' relative velocities come from compiled difference products (contiguous
+        arrays throughout: numpy's strided in-place operations cost several times more)."""
         p = self.params
-        both = y.take(self._s1, axis=0)
-        both -= y.take(self._s0, axis=0)
-        d = both[:, :3]
+        x, v = y[0], y[1]
+        d = self._spring_diff(x)
         length = np.sqrt(rowdot(d, d))
         coef = self._sk * (length - self._srest)  # eq. 4.1 (bending springs alike)
         e = self._edges
         if self.damping > 0.0:
             le = length[:e]
-            coef[:e] += self.damping * rowdot(both[:e, 3:], d[:e]) / (le * le + 1e-18)
-        d *= coef[:, None]
+            coef[:e] += self.damping * rowdot(self._edge_rate(v), d[:e]) / (le * le + 1e-18)
         out = np.empty_like(y)
-        v = y[:, 3:]
-        out[:, :3] = v
-        acc = out[:, 3:]
-        acc[...] = _sparse_product(self._acc_matrix, d)
-        acc += self._free_f * (self.gravity - p.air_damping * v)
+        out[0] = v
+        acc = out[1]
+        acc[...] = self._acc(d * coef[:, None])
+        acc += self._gravity_f - self._air_f * v
         if p.drag > 0.0:  # air pushes against the motion across the cloth: 1/2 rho Cd A |vn| vn
-            n = self.particle_normals(y[:, :3]) if normals is None else normals
-            vn = rowdot(v - self.wind, n)
+            n = self.particle_normals(x) if normals is None else normals
+            vn = rowdot(v - self.wind if self._windy else v, n)
             w = self._drag_of * np.abs(vn)
             w *= vn
             acc -= w[:, None] * n
@@ -217,23 +223,24 @@ class ClothDynamics:
     # ---- integration ----------------------------------------------------------------------
     def rk4_step(self, x, v, dt, pin_x0, pin_x1):
         """One RK4 step of length dt; pinned particles move linearly from pin_x0 to pin_x1.
-        Positions and velocities advance together as one state [x | v]."""
-        pins = self.pinned
+        Positions and velocities advance together as one state [x, v] (2, P, 3)."""
+        pins = self._pin_idx
         pin_v = (pin_x1 - pin_x0) / dt
-        y0 = np.concatenate((x, v), axis=1)
-        y0[pins] = np.concatenate((pin_x0, pin_v), axis=1)
-        n = self.particle_normals(y0[:, :3]) if self.params.drag > 0.0 else None
+        y0 = np.array((x, v))
+        y0[0, pins] = pin_x0
+        y0[1, pins] = pin_v
+        n = self.particle_normals(y0[0]) if self.params.drag > 0.0 else None
         h = 0.5 * dt
         k1 = self.derivative(y0, n)
         y = y0 + h * k1
         pin_mid = 0.5 * (pin_x0 + pin_x1)
-        y[pins, :3] = pin_mid
+        y[0, pins] = pin_mid
         k2 = self.derivative(y, n)
         y = y0 + h * k2
-        y[pins, :3] = pin_mid
+        y[0, pins] = pin_mid
         k3 = self.derivative(y, n)
         y = y0 + dt * k3
-        y[pins, :3] = pin_x1
+        y[0, pins] = pin_x1
         k4 = self.derivative(y, n)
         k2 *= 2.0
         k2 += k1
@@ -242,8 +249,9 @@ class ClothDynamics:
         k2 += k4
         k2 *= dt / 6.0
         k2 += y0
-        k2[pins] = np.concatenate((pin_x1, pin_v), axis=1)
-        return k2[:, :3].copy(), k2[:, 3:].copy()
+        k2[0, pins] = pin_x1
+        k2[1, pins] = pin_v
+        return k2[0], k2[1]
 
     def _reach(self, edges):
         """Per particle, how many of the given edges (bool (E,)) move it."""
