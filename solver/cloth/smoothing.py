@@ -151,6 +151,10 @@ DERIV = 3.0 * np.hstack([-(1 - _T) ** 2, (1 - _T) ** 2 - 2 * (1 - _T) * _T, 2 * 
 
 def cubic_length(p0, c1, c2, p1):
     """Length of cubic Bezier curves (..., 3) by 5-point Gauss-Legendre on |B'(t)|."""
+    shape = p0.shape
+    if c1.shape == shape and c2.shape == shape and p1.shape == shape:  # B' as one 2-D product
+        speed = (DERIV @ np.array((p0, c1, c2, p1)).reshape(4, -1)).reshape(len(DERIV), -1, 3)
+        return (np.sqrt(_c_einsum("tnj,tnj->nt", speed, speed)) @ GL_W).reshape(shape[:-1])
     ctrl = np.stack([p0, c1, c2, p1], axis=-2)  # (..., 4, 3)
     return _speed_length(DERIV @ ctrl)
 
@@ -177,12 +181,14 @@ def _split_speed(p0, n0, m, nm, p1, n1):
     end's normal, over 3)."""
     c1, c2 = edge_controls(p0, n0, m, nm)
     c3, c4 = edge_controls(m, nm, p1, n1)
-    ctrl = np.stack((p0, c1, c2, m, m, c3, c4, p1), axis=1).reshape(-1, 2, 4, 3)
+    k = len(m)
+    # (halves, control points, M x 3): each half's B' at the nodes is one 2-D product
+    ctrl = np.array((p0, c1, c2, m, m, c3, c4, p1)).reshape(2, 4, 3 * k)
     inner = ((2.0 + _dot(nm, nm)) / 3.0)[:, None] * nm
     zero = np.zeros_like(nm)
-    rate = np.stack((zero, (nm - _dot(nm, n0)[:, None] * n0) / 3.0, inner, nm,
-                     nm, inner, (nm - _dot(nm, n1)[:, None] * n1) / 3.0, zero), axis=1).reshape(-1, 2, 4, 3)
-    return DERIV @ ctrl, DERIV @ rate  # (M, 2, T, 3) each
+    rate = np.array((zero, (nm - _dot(nm, n0)[:, None] * n0) / 3.0, inner, nm,
+                     nm, inner, (nm - _dot(nm, n1)[:, None] * n1) / 3.0, zero)).reshape(2, 4, 3 * k)
+    return (DERIV @ ctrl).reshape(2, -1, k, 3), (DERIV @ rate).reshape(2, -1, k, 3)  # (2, T, M, 3) each
 
 
 # ---- edge length control ------------------------------------------------------------------
@@ -211,8 +217,8 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
     a0, b0, a1, b1, m, n, target = p0[i], n0[i], p1[i], n1[i], mid[i], nm[i], rest[i]
     v0, v1 = _split_speed(a0, b0, m, n, a1, b1)
     # |v0 + h v1|^2 = A + h (B + h C) at every quadrature node: each bisection step is one pass
-    qa, qb, qc = (_c_einsum("ahtj,ahtj->aht", v0, v0), 2.0 * _c_einsum("ahtj,ahtj->aht", v0, v1),
-                  _c_einsum("ahtj,ahtj->aht", v1, v1))
+    qa, qb, qc = (_c_einsum("htaj,htaj->aht", v0, v0), 2.0 * _c_einsum("htaj,htaj->aht", v0, v1),
+                  _c_einsum("htaj,htaj->aht", v1, v1))
     weights = np.concatenate([GL_W, GL_W])
     qa, qb, qc = qa.reshape(len(i), 1, -1), qb.reshape(len(i), 1, -1), qc.reshape(len(i), 1, -1)
 
