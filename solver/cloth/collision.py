@@ -24,7 +24,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .fast import clip as _clip, rowdot
+from .fast import _c_einsum, clip as _clip, rowdot
 
 
 def closest_on_segments(p, a, b):
@@ -445,21 +445,22 @@ def resolve_particles(x, v, bodies, s, thickness, movable, friction=0.0, passes=
 
 _NONE = np.zeros(0, dtype=np.int64)
 _SAMPLE_REACH = 1.0 - FACE_SAMPLES  # (S, 3)
+_PREVIOUS = np.array([2, 0, 1])  # each face corner's previous one
 
 
 def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, friction=0.0):
     """Face case (Fig. 4.6 b, d): a face whose interior cuts the body while its corners are out
     is moved out whole by its deepest point. (The number of faces moved, the particles moved.)"""
-    tri = x[faces]  # (F, 3, 3)
-    side = tri - tri[:, (2, 0, 1)]
-    edge = np.sqrt(np.einsum("fkj,fkj->fk", side, side).max(axis=1))
-    phi_c = corner_phi[faces]
+    tri = x.take(faces, axis=0)  # (F, 3, 3)
+    side = tri - tri.take(_PREVIOUS, axis=1)
+    edge = np.sqrt(_c_einsum("fkj,fkj->fk", side, side).max(axis=1))
+    phi_c = corner_phi.take(faces)
     # phi is 1-Lipschitz: a face whose farthest-out corner is beyond its longest edge can't touch
     near = phi_c.max(axis=1) - edge < thickness
     if not near.any():
         return 0, _NONE
     f_idx = np.flatnonzero(near)
-    samples = np.einsum("sk,fkj->fsj", FACE_SAMPLES, tri[f_idx])  # (F', S, 3)
+    samples = _c_einsum("sk,fkj->fsj", FACE_SAMPLES, tri.take(f_idx, axis=0))  # (F', S, 3)
     # ... and a sample farther out than that from any corner can't be inside either: the
     # sample w.c is within (1 - w_k) times the longest edge of corner k
     bound = (phi_c[f_idx][:, None, :] - _SAMPLE_REACH * edge[f_idx, None, None]).max(axis=2)
