@@ -5,7 +5,7 @@ substeps; Provot-style correction of elongated edges (§4.4.3); particles pinned
 import numpy as np
 from scipy import sparse
 
-from .fast import Product, clip as _clip, difference_matrix, rowdot, sparse_product as _sparse_product
+from .fast import Product, clip as _clip, difference_matrix, rowdot
 from .materials import AIR_DENSITY, as_vector
 
 # explicit RK4 is stable for |lambda dt| up to about 2.8 on the imaginary axis: keep a margin
