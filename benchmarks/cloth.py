@@ -100,6 +100,41 @@ logic) and smoothing (~150 calls on arrays of 10-20k numbers) add ~4 ms. The fin
 correction does not converge on this garment (about 50 edges stay beyond a limit after 30
 sweeps; the mean stretch goes from 0.9 % after 5 sweeps to 1.6 % after 30), so fewer sweeps
 (a change of the defaults) or compiled code is what 3 ms would take.
+
+Since the third call-count round (the same physics, defaults and results: the particles bit for
+bit as before on the benchmark's 120 frames and the tests' reference, the fine surface within
+1e-15 m): the Provot sweeps' and the springs' edge vectors from one compiled difference product
+(-a + b is b - a exactly) into kept outputs, the sweeps' sums into kept outputs, the clip ufunc
+itself; RK4 on a contiguous [x, v] (2, P, 3) state (numpy's strided in-place operations on the
+old [x | v] (P, 6) columns cost several times a contiguous one), gravity and air damping
+premultiplied by the free mask, pins by index; capsule queries with one product and one sum
+for [2 (p - a).ab | |p - a|^2 - |p|^2], the second nearest by masking the nearest instead of a
+partition; the smoothing's dots, norms and face normals through the compiled routines, curve
+speeds as 2-D products over stacked control points. Benchmark before (main) -> after, back to
+back (CPU time, fastest of --repeat 2, OPENBLAS_NUM_THREADS=1, 4 s of the walk; the machine
+loaded by two other sessions, load average 3-6 on 2 cores, numpy a+b 1.19-1.52 us), two pairs,
+the second in the order after -> before:
+  skirt, capsules    66 -> 1,760 faces: simulation 5.6 -> 4.4 / 5.2 -> 4.4, collision 5.1 -> 4.3
+                     / 4.7 -> 4.3, smoothing 2.3 -> 1.9 / 2.3 -> 1.9 = 13.0 -> 10.5 / 12.2 -> 10.6
+                     ms/frame (1.16-1.24x); Blender cloth 179-215 ms/frame: 17.0x / 19.4x
+  coat, capsules    300 -> 8,800 faces: 26.9 -> 14.9 / 23.7 -> 23.3 ms/frame: 36.8x / 22.8x
+  skirt, body mesh   55.4 -> 48.2 / 50.9 -> 51.8; coat, body mesh 158.0 -> 133.4 / 139.8 -> 143.3
+                     (the mesh queries are unchanged: noise); deepest 0.00 mm, mean stretch
+                     within 2 % everywhere (skirt 1.66 %, coat 1.89 %, as before).
+A solver-only replay of the benchmark's recorded skirt inputs, alternating before and after
+(three pairs, more loaded still): 13.3 / 12.6 / 12.9 -> 11.4 / 11.7 / 10.1 ms/frame (1.08-1.27x).
+So on this loaded machine the skirt on capsules is 17-19x faster than Blender's cloth (the
+code before: 16.5x / 17.4x in the same runs; 21-25x in the previous round's less loaded runs),
+the coat 23-37x; and 3 ms per frame for the thesis skirt does not hold: ~10 ms here. Why,
+measured in the replay: ~10.5 capsule queries a frame cost 150-430 us each inside the
+simulation (70-130 us in a tight loop: with the other work in between, caches are cold and the
+~40 numpy calls of a query cost 2-3x more), ~2.5 ms; the Provot correction (38 sweeps of ~20
+calls, tethers, velocity sweeps) ~2 ms; 8 RK4 evaluations ~1 ms; the smoothing ~1.5 ms. Tried
+and dropped: a Newton projection of all off edges at once (one dense solve of J M^-1 J^T per
+iteration) instead of the sweeps: on this garment's walking frames the limits cannot all hold
+at once (the collisions and the stretched waist make the set infeasible: even 300 Jacobi sweeps
+leave 16-70 edges beyond a limit), so the projection diverged or needed 20 iterations; a broad
+phase for every capsule query (more calls than the capsules it removes).
 """
 
 import argparse

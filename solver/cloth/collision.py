@@ -24,7 +24,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .fast import rowdot
+from .fast import _c_einsum, clip as _clip, rowdot
 
 
 def closest_on_segments(p, a, b):
@@ -66,8 +66,10 @@ class CapsuleBody:
     def _pose(self, s):
         """What the queries at time s share (a frame's queries come at a few times only), packed
         in one array per capsule so a query takes the capsules near it in one call: columns
-        a (3), ab (3), 1/|ab|^2, a.ab, a.a, radius, velocity of a (3), of b minus a's (3); and
-        the capsules' boxes (lo | hi, (C, 6)) and [ab | a] (3, 2C) for one product."""
+        a (3), ab (3), 1/|ab|^2, a.ab, a.a, radius, velocity of a (3), of b minus a's (3); the
+        capsules' boxes (lo | hi, (C, 6)); [2 ab | -2 a] (3, 2C) and [-2 a.ab | a.a] (2C,) for
+        one product and one sum giving [2 (p - a).ab | |p - a|^2 - |p|^2]; and the rows
+        1 / (2 |ab|^2), |ab|^2, radius (3, C)."""
         pose = self._at.get(s)
         if pose is None:
             a = self.a0 + s * (self.a1 - self.a0)
@@ -75,11 +77,12 @@ class CapsuleBody:
             ab = b - a
             r = self.radius[:, None]
             va, dv = self._velocity
-            packed = np.column_stack([a, ab, 1.0 / np.maximum(rowdot(ab, ab), 1e-18),
-                                      rowdot(a, ab), rowdot(a, a), self.radius,
-                                      va, dv])
-            pose = (packed, np.minimum(a, b) - r, np.maximum(a, b) + r, np.concatenate((ab, a)).T.copy(),
-                    packed.T.copy())
+            ab2 = np.maximum(rowdot(ab, ab), 1e-18)
+            packed = np.column_stack([a, ab, 1.0 / ab2, rowdot(a, ab), rowdot(a, a), self.radius, va, dv])
+            axes = np.concatenate((2.0 * ab, -2.0 * a)).T.copy()
+            bias = np.concatenate((-2.0 * packed[:, 7], packed[:, 8]))
+            rows = np.array([0.5 / ab2, ab2, self.radius])
+            pose = (packed, np.minimum(a, b) - r, np.maximum(a, b) + r, axes, bias, rows)
             if len(self._at) > 8:
                 self._at.clear()
             self._at[s] = pose
@@ -92,7 +95,7 @@ class CapsuleBody:
         capsules in one broadcast. With `second`, also a lower bound of each point's distance
         to the other capsules (the second smallest phi)."""
         md = self.REACH if max_distance is None else max_distance
-        packed, box_lo, box_hi, axes, columns = self._pose(s)
+        packed, box_lo, box_hi, axes, bias, rows = self._pose(s)
         n = len(points)
         c = len(packed)
         if n > BROAD_PHASE_FROM:  # a few points: testing every capsule costs less than choosing
@@ -107,29 +110,34 @@ class CapsuleBody:
             out = np.full(n, float(md)), normal, np.zeros((n, 3))
             return out + (np.full(n, float(md)),) if second else out
         if c < len(packed):
-            packed, columns = packed.take(near, axis=0), columns.take(near, axis=1)
-            axes = axes.take(np.concatenate((near, near + len(box_lo))), axis=1)
-        # distances to all segments from (N, C) products: |p - a - t ab|^2 expanded
-        prod = points @ axes  # [p . ab | p . a]
-        pa = prod[:, :c] - columns[7]  # (p - a) . ab
-        t = pa * columns[6]
-        np.maximum(t, 0.0, out=t)
-        np.minimum(t, 1.0, out=t)
+            packed, rows = packed.take(near, axis=0), rows.take(near, axis=1)
+            both = np.concatenate((near, near + len(box_lo)))
+            axes, bias = axes.take(both, axis=1), bias.take(both)
+        # distances to all segments from (N, C) products: with s = (p - a).ab and t = s / |ab|^2
+        # clipped to [0, 1], |p - a - t ab|^2 = |p - a|^2 + t (t |ab|^2 - 2 s)
+        prod = points @ axes
+        prod += bias  # [2 s | |p - a|^2 - |p|^2]
+        two_s = prod[:, :c]
+        t = two_s * rows[0]
+        _clip(t, 0.0, 1.0, out=t)
+        w = t * rows[1]
+        w -= two_s
+        w *= t
         dist2 = prod[:, c:]
-        dist2 *= -2.0
-        dist2 += columns[8]
+        dist2 += w
         dist2 += rowdot(points, points)[:, None]
-        pa += pa
-        pa -= t / columns[6]
-        pa *= t
-        dist2 -= pa  # |p - a|^2 - t (2 (p - a).ab - t |ab|^2)
         np.maximum(dist2, 0.0, out=dist2)
         np.sqrt(dist2, out=dist2)
-        dist2 -= columns[9]
+        dist2 -= rows[2]
         k = dist2.argmin(axis=1)
+        flat = k + c * np.arange(n)
+        tk = t.take(flat)
         if second:  # (the expanded form's rounding is far below a micrometre)
-            other = np.partition(dist2, 1, axis=1)[:, 1] - 1e-6 if c > 1 else np.full(n, float(md))
-        tk = t.take(k + c * np.arange(n))
+            if c > 1:
+                prod.put(flat + c * np.arange(1, n + 1), np.inf)  # the nearest out of dist2 (a view)
+                other = dist2.min(axis=1) - 1e-6
+            else:
+                other = np.full(n, float(md))
         pk = packed.take(k, axis=0)
         dk = points - pk[:, 0:3]
         dk -= tk[:, None] * pk[:, 3:6]
@@ -437,21 +445,22 @@ def resolve_particles(x, v, bodies, s, thickness, movable, friction=0.0, passes=
 
 _NONE = np.zeros(0, dtype=np.int64)
 _SAMPLE_REACH = 1.0 - FACE_SAMPLES  # (S, 3)
+_PREVIOUS = np.array([2, 0, 1])  # each face corner's previous one
 
 
 def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, friction=0.0):
     """Face case (Fig. 4.6 b, d): a face whose interior cuts the body while its corners are out
     is moved out whole by its deepest point. (The number of faces moved, the particles moved.)"""
-    tri = x[faces]  # (F, 3, 3)
-    side = tri - tri[:, (2, 0, 1)]
-    edge = np.sqrt(np.einsum("fkj,fkj->fk", side, side).max(axis=1))
-    phi_c = corner_phi[faces]
+    tri = x.take(faces, axis=0)  # (F, 3, 3)
+    side = tri - tri.take(_PREVIOUS, axis=1)
+    edge = np.sqrt(_c_einsum("fkj,fkj->fk", side, side).max(axis=1))
+    phi_c = corner_phi.take(faces)
     # phi is 1-Lipschitz: a face whose farthest-out corner is beyond its longest edge can't touch
     near = phi_c.max(axis=1) - edge < thickness
     if not near.any():
         return 0, _NONE
     f_idx = np.flatnonzero(near)
-    samples = np.einsum("sk,fkj->fsj", FACE_SAMPLES, tri[f_idx])  # (F', S, 3)
+    samples = _c_einsum("sk,fkj->fsj", FACE_SAMPLES, tri.take(f_idx, axis=0))  # (F', S, 3)
     # ... and a sample farther out than that from any corner can't be inside either: the
     # sample w.c is within (1 - w_k) times the longest edge of corner k
     bound = (phi_c[f_idx][:, None, :] - _SAMPLE_REACH * edge[f_idx, None, None]).max(axis=2)

@@ -5,7 +5,7 @@ substeps; Provot-style correction of elongated edges (§4.4.3); particles pinned
 import numpy as np
 from scipy import sparse
 
-from .fast import rowdot, sparse_product as _sparse_product
+from .fast import Product, clip as _clip, difference_matrix, rowdot
 from .materials import AIR_DENSITY, as_vector
 
 # explicit RK4 is stable for |lambda dt| up to about 2.8 on the imaginary axis: keep a margin
@@ -92,6 +92,13 @@ class ClothDynamics:
             shape=(2 * p_count, len(e0)))
         self._sweep_matrix.sort_indices()
         self._spread_matrix = _plan_matrix(self._spread_plan, p_count)
+        # the sweeps' products with their outputs kept (a sweep is ~20 numpy calls: each counts)
+        self._edge_diff = Product(difference_matrix(e0, e1, p_count), 3)
+        self._sweep = Product(self._sweep_matrix, 4)
+        self._spread = Product(self._spread_matrix, 3)
+        self._sweep_moves, self._sweep_count = self._sweep.out[:p_count, :3], self._sweep.out[p_count:, 3]
+        self._sweep_scale, self._sweep_step = np.empty((p_count, 1)), np.empty((p_count, 3))
+        self._rows_d, self._rows_off = self._sweep_rows[:, :3], self._sweep_rows[:, 3]
         self._tether_data = self._tethers()
         self._face_idx = _flat3(mesh.faces.ravel())  # coordinates of every face corner
         self._p3 = 3 * p_count
@@ -156,6 +163,15 @@ class ClothDynamics:
                                        descending=True)
         self._acc_matrix = _plan_matrix(self._acc_plan, len(self.mass))
         self._free_f = self.free.astype(float)[:, None]
+        # gravity and air damping act on the free particles: free_f (g - c v) as g_f - c_f v
+        self._gravity_f = self._free_f * self.gravity
+        self._air_f = self._free_f * p.air_damping
+        self._windy = bool(np.any(self.wind != 0.0))
+        self._pin_idx = np.flatnonzero(self.pinned)
+        p_count = len(self.mass)
+        self._spring_diff = Product(difference_matrix(self._s0, self._s1, p_count), 3)
+        self._edge_rate = Product(difference_matrix(self._e0, self._e1, p_count), 3)
+        self._acc = Product(self._acc_matrix, 3)
         self._drag_of = 0.5 * AIR_DENSITY * p.drag * mesh.area * self.inv_mass
         self._edges = e
 
@@ -170,29 +186,26 @@ class ClothDynamics:
         return (self.stretch * stretch + self.damping * along)[:, None] * d
 
     def derivative(self, y, normals=None):
-        """d/dt of the state y = [x | v] (P, 6): [v | accelerations]. Positions and velocities
-        side by side, so one difference over the springs gives both their vectors and their
-        relative velocities."""
+        """d/dt of the state y = [x, v] (2, P, 3): [v, accelerations]. The springs' vectors and
+        the edges' relative velocities come from compiled difference products (contiguous
+        arrays throughout: numpy's strided in-place operations cost several times more)."""
         p = self.params
-        both = y.take(self._s1, axis=0)
-        both -= y.take(self._s0, axis=0)
-        d = both[:, :3]
+        x, v = y[0], y[1]
+        d = self._spring_diff(x)
         length = np.sqrt(rowdot(d, d))
         coef = self._sk * (length - self._srest)  # eq. 4.1 (bending springs alike)
         e = self._edges
         if self.damping > 0.0:
             le = length[:e]
-            coef[:e] += self.damping * rowdot(both[:e, 3:], d[:e]) / (le * le + 1e-18)
-        d *= coef[:, None]
+            coef[:e] += self.damping * rowdot(self._edge_rate(v), d[:e]) / (le * le + 1e-18)
         out = np.empty_like(y)
-        v = y[:, 3:]
-        out[:, :3] = v
-        acc = out[:, 3:]
-        acc[...] = _sparse_product(self._acc_matrix, d)
-        acc += self._free_f * (self.gravity - p.air_damping * v)
+        out[0] = v
+        acc = out[1]
+        acc[...] = self._acc(d * coef[:, None])
+        acc += self._gravity_f - self._air_f * v
         if p.drag > 0.0:  # air pushes against the motion across the cloth: 1/2 rho Cd A |vn| vn
-            n = self.particle_normals(y[:, :3]) if normals is None else normals
-            vn = rowdot(v - self.wind, n)
+            n = self.particle_normals(x) if normals is None else normals
+            vn = rowdot(v - self.wind if self._windy else v, n)
             w = self._drag_of * np.abs(vn)
             w *= vn
             acc -= w[:, None] * n
@@ -210,23 +223,24 @@ class ClothDynamics:
     # ---- integration ----------------------------------------------------------------------
     def rk4_step(self, x, v, dt, pin_x0, pin_x1):
         """One RK4 step of length dt; pinned particles move linearly from pin_x0 to pin_x1.
-        Positions and velocities advance together as one state [x | v]."""
-        pins = self.pinned
+        Positions and velocities advance together as one state [x, v] (2, P, 3)."""
+        pins = self._pin_idx
         pin_v = (pin_x1 - pin_x0) / dt
-        y0 = np.concatenate((x, v), axis=1)
-        y0[pins] = np.concatenate((pin_x0, pin_v), axis=1)
-        n = self.particle_normals(y0[:, :3]) if self.params.drag > 0.0 else None
+        y0 = np.array((x, v))
+        y0[0, pins] = pin_x0
+        y0[1, pins] = pin_v
+        n = self.particle_normals(y0[0]) if self.params.drag > 0.0 else None
         h = 0.5 * dt
         k1 = self.derivative(y0, n)
         y = y0 + h * k1
         pin_mid = 0.5 * (pin_x0 + pin_x1)
-        y[pins, :3] = pin_mid
+        y[0, pins] = pin_mid
         k2 = self.derivative(y, n)
         y = y0 + h * k2
-        y[pins, :3] = pin_mid
+        y[0, pins] = pin_mid
         k3 = self.derivative(y, n)
         y = y0 + dt * k3
-        y[pins, :3] = pin_x1
+        y[0, pins] = pin_x1
         k4 = self.derivative(y, n)
         k2 *= 2.0
         k2 += k1
@@ -235,8 +249,9 @@ class ClothDynamics:
         k2 += k4
         k2 *= dt / 6.0
         k2 += y0
-        k2[pins] = np.concatenate((pin_x1, pin_v), axis=1)
-        return k2[:, :3].copy(), k2[:, 3:].copy()
+        k2[0, pins] = pin_x1
+        k2[1, pins] = pin_v
+        return k2[0], k2[1]
 
     def _reach(self, edges):
         """Per particle, how many of the given edges (bool (E,)) move it."""
@@ -255,33 +270,38 @@ class ClothDynamics:
         number of edges corrected)."""
         p = self.params
         x, v = x.copy(), v.copy()
-        e0, e1 = self._e0, self._e1
         floor, limit = self._floor_m, self._limit_m
         corrected = None
         self._tether(x, v)
-        rows, matrix, n = self._sweep_rows, self._sweep_matrix, len(x)
+        rows_d, rows_off, sweep, diff = self._rows_d, self._rows_off, self._sweep, self._edge_diff
+        moves, count, scale, step = self._sweep_moves, self._sweep_count, self._sweep_scale, self._sweep_step
+        rows = self._sweep_rows
         for _ in range(max(1, iterations or p.constraint_iterations)):
-            d = x.take(e1, axis=0)
-            d -= x.take(e0, axis=0)
+            d = diff(x)
             length = np.sqrt(rowdot(d, d))
-            target = np.minimum(np.maximum(length, floor), limit)
+            target = _clip(length, floor, limit)
             over = length - target
             target *= SLACK
             off = np.abs(over) > target
             if not off.any():
                 break
-            corrected = off if corrected is None else corrected | off
+            if corrected is None:
+                corrected = off
+            else:
+                corrected |= off
             over /= length
             over *= off
-            np.multiply(d, over[:, None], out=rows[:, :3])
-            rows[:, 3] = off
-            moves = _sparse_product(matrix, rows)
-            x += (RELAX / np.maximum(moves[n:, 3], 1.0))[:, None] * moves[:n, :3]
+            np.multiply(d, over[:, None], out=rows_d)
+            rows_off[...] = off
+            sweep(rows)
+            np.maximum(count, 1.0, out=scale[:, 0])
+            np.divide(RELAX, scale, out=scale)
+            np.multiply(scale, moves, out=step)
+            x += step
         if corrected is None:
             return x, v, 0
         # corrected edges stop stretching (squeezed ones stop shortening)
-        d = x.take(e1, axis=0)
-        d -= x.take(e0, axis=0)
+        d = diff(x)
         length = np.sqrt(rowdot(d, d))
         u = d / np.maximum(length, 1e-12)[:, None]
         longer = length > self.mesh.rest_length
@@ -291,11 +311,10 @@ class ClothDynamics:
         low[~corrected] = 0.0
         high = np.where(corrected & ~longer, 0.0, np.inf)
         high[~corrected] = 0.0
+        spread = self._spread
         for _ in range(VELOCITY_SWEEPS):
-            dv = v.take(e1, axis=0)
-            dv -= v.take(e0, axis=0)
-            rate = np.minimum(np.maximum(rowdot(dv, u), low), high)
-            v += scale * _sparse_product(self._spread_matrix, rate[:, None] * u)
+            rate = _clip(rowdot(diff(v), u), low, high)  # (low <= high everywhere)
+            v += scale * spread(rate[:, None] * u)
         return x, v, int(corrected.sum())
 
     def _tethers(self):

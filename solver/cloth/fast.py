@@ -30,3 +30,46 @@ def sparse_product(matrix, dense):
     out = np.zeros((m, dense.shape[1]))
     _csr_matvecs(m, n, dense.shape[1], matrix.indptr, matrix.indices, matrix.data, dense.ravel(), out.ravel())
     return out
+
+
+try:  # the clip ufunc itself: np.clip's Python front end costs more than the clip
+    from numpy._core.umath import clip as clip
+except ImportError:  # numpy < 2
+    try:
+        from numpy.core.umath import clip as clip
+    except ImportError:
+        clip = np.clip
+
+
+class Product:
+    """`matrix @ dense` for one fixed CSR matrix and (N, cols) C-contiguous float64 operands, into
+    an output kept between calls (overwritten by the next call: use it before calling again).
+    The hot loops call a few such products tens of times a frame: what sparse_product looks up
+    per call is bound once here."""
+
+    def __init__(self, matrix, cols):
+        matrix = matrix.tocsr()
+        m, n = matrix.shape
+        self.matrix, self.cols = matrix, cols
+        self.out = np.zeros((m, cols))
+        self._flat = self.out.ravel()
+        self._args = (m, n, cols, matrix.indptr, matrix.indices, matrix.data)
+
+    def __call__(self, dense):
+        if _csr_matvecs is None:
+            self.out[...] = self.matrix @ dense
+            return self.out
+        self._flat.fill(0.0)
+        _csr_matvecs(*self._args, dense.ravel(), self._flat)
+        return self.out
+
+
+def difference_matrix(first, second, count):
+    """(S, count) CSR: row s is -1 at first[s], +1 at second[s], so `D @ x` is x[second] - x[first]
+    (bit for bit: -a + b is b - a in floating point)."""
+    from scipy import sparse
+    s = len(first)
+    rows = np.r_[np.arange(s), np.arange(s)]
+    m = sparse.csr_matrix((np.r_[-np.ones(s), np.ones(s)], (rows, np.r_[first, second])), shape=(s, count))
+    m.sort_indices()
+    return m

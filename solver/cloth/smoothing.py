@@ -16,19 +16,33 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mesh import face_normals
+from .fast import _c_einsum
 
 # Gauss-Legendre nodes and weights on [0, 1] for the length of a cubic curve
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
 GL_T, GL_W = 0.5 * (_GL_X + 1.0), 0.5 * _GL_W
 
 
+# (numpy's Python front ends, np.einsum, np.linalg.norm, np.cross, cost more than the arithmetic
+# on these few hundred rows: the smoothing calls the compiled routines themselves)
 def _unit(v):
-    return v / np.maximum(np.linalg.norm(v, axis=-1), 1e-18)[..., None]
+    return v / np.maximum(np.sqrt(_c_einsum("...i,...i->...", v, v)), 1e-18)[..., None]
 
 
 def _dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
+    return _c_einsum("...i,...i->...", a, b)
+
+
+def face_normals(x, faces):
+    """Unit normals (F, 3) and areas (F,) of the flat faces (as mesh.face_normals)."""
+    a = x[faces[:, 0]]
+    u, w = x[faces[:, 1]] - a, x[faces[:, 2]] - a
+    n = np.empty_like(u)
+    n[:, 0] = u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1]
+    n[:, 1] = u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2]
+    n[:, 2] = u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]
+    length = np.sqrt(_dot(n, n))
+    return n / np.maximum(length, 1e-12)[:, None], 0.5 * length
 
 
 # ---- particle normals -------------------------------------------------------------------------
@@ -65,9 +79,9 @@ def elastic_face_forces(mesh, x, k_elastic):
     f, nxt, prv, la, lc, _ = _corner_tables(mesh)
     pa = x[f]
     db, dc = x[nxt] - pa, x[prv] - pa
-    lb, lcc = np.sqrt(np.einsum("fcj,fcj->fc", db, db)), np.sqrt(np.einsum("fcj,fcj->fc", dc, dc))
+    lb, lcc = np.sqrt(_c_einsum("fcj,fcj->fc", db, db)), np.sqrt(_c_einsum("fcj,fcj->fc", dc, dc))
     force = ((lb - la) / la)[..., None] * db + ((lcc - lc) / lc)[..., None] * dc
-    return k_elastic * np.sqrt(np.einsum("fcj,fcj->fc", force, force))
+    return k_elastic * np.sqrt(_c_einsum("fcj,fcj->fc", force, force))
 
 
 def controlled_normals(mesh, x, k_elastic=1.0, control=True):
@@ -137,12 +151,16 @@ DERIV = 3.0 * np.hstack([-(1 - _T) ** 2, (1 - _T) ** 2 - 2 * (1 - _T) * _T, 2 * 
 
 def cubic_length(p0, c1, c2, p1):
     """Length of cubic Bezier curves (..., 3) by 5-point Gauss-Legendre on |B'(t)|."""
+    shape = p0.shape
+    if c1.shape == shape and c2.shape == shape and p1.shape == shape:  # B' as one 2-D product
+        speed = (DERIV @ np.array((p0, c1, c2, p1)).reshape(4, -1)).reshape(len(DERIV), -1, 3)
+        return (np.sqrt(_c_einsum("tnj,tnj->nt", speed, speed)) @ GL_W).reshape(shape[:-1])
     ctrl = np.stack([p0, c1, c2, p1], axis=-2)  # (..., 4, 3)
     return _speed_length(DERIV @ ctrl)
 
 
 def _speed_length(velocity):
-    return np.sqrt(np.einsum("...tj,...tj->...t", velocity, velocity)) @ GL_W
+    return np.sqrt(_c_einsum("...tj,...tj->...t", velocity, velocity)) @ GL_W
 
 
 def pn_curve_length(p0, n0, p1, n1):
@@ -163,15 +181,14 @@ def _split_speed(p0, n0, m, nm, p1, n1):
     end's normal, over 3)."""
     c1, c2 = edge_controls(p0, n0, m, nm)
     c3, c4 = edge_controls(m, nm, p1, n1)
-    ctrl = np.empty((len(m), 2, 4, 3))
-    ctrl[:, 0, 0], ctrl[:, 0, 1], ctrl[:, 0, 2], ctrl[:, 0, 3] = p0, c1, c2, m
-    ctrl[:, 1, 0], ctrl[:, 1, 1], ctrl[:, 1, 2], ctrl[:, 1, 3] = m, c3, c4, p1
-    rate = np.zeros_like(ctrl)
-    rate[:, 0, 1] = (nm - _dot(nm, n0)[:, None] * n0) / 3.0
-    rate[:, 0, 2] = rate[:, 1, 1] = ((2.0 + _dot(nm, nm)) / 3.0)[:, None] * nm
-    rate[:, 0, 3] = rate[:, 1, 0] = nm
-    rate[:, 1, 2] = (nm - _dot(nm, n1)[:, None] * n1) / 3.0
-    return DERIV @ ctrl, DERIV @ rate  # (M, 2, T, 3) each
+    k = len(m)
+    # (halves, control points, M x 3): each half's B' at the nodes is one 2-D product
+    ctrl = np.array((p0, c1, c2, m, m, c3, c4, p1)).reshape(2, 4, 3 * k)
+    inner = ((2.0 + _dot(nm, nm)) / 3.0)[:, None] * nm
+    zero = np.zeros_like(nm)
+    rate = np.array((zero, (nm - _dot(nm, n0)[:, None] * n0) / 3.0, inner, nm,
+                     nm, inner, (nm - _dot(nm, n1)[:, None] * n1) / 3.0, zero)).reshape(2, 4, 3 * k)
+    return (DERIV @ ctrl).reshape(2, -1, k, 3), (DERIV @ rate).reshape(2, -1, k, 3)  # (2, T, M, 3) each
 
 
 # ---- edge length control ------------------------------------------------------------------
@@ -200,29 +217,35 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
     a0, b0, a1, b1, m, n, target = p0[i], n0[i], p1[i], n1[i], mid[i], nm[i], rest[i]
     v0, v1 = _split_speed(a0, b0, m, n, a1, b1)
     # |v0 + h v1|^2 = A + h (B + h C) at every quadrature node: each bisection step is one pass
-    qa, qb, qc = (np.einsum("ahtj,ahtj->aht", v0, v0), 2.0 * np.einsum("ahtj,ahtj->aht", v0, v1),
-                  np.einsum("ahtj,ahtj->aht", v1, v1))
+    qa, qb, qc = (_c_einsum("htaj,htaj->aht", v0, v0), 2.0 * _c_einsum("htaj,htaj->aht", v0, v1),
+                  _c_einsum("htaj,htaj->aht", v1, v1))
     weights = np.concatenate([GL_W, GL_W])
+    qa, qb, qc = qa.reshape(len(i), 1, -1), qb.reshape(len(i), 1, -1), qc.reshape(len(i), 1, -1)
 
-    def length(hh):
-        hh = hh[:, None, None]
-        return np.sqrt(np.maximum(qa + hh * (qb + hh * qc), 0.0)).reshape(len(hh), -1) @ weights
+    def lengths(hh):  # hh (M, K) -> the split curves' lengths (M, K)
+        hh = hh[:, :, None]
+        s = hh * qc
+        s += qb
+        s *= hh
+        s += qa  # A + h (B + h C)
+        np.maximum(s, 0.0, out=s)
+        np.sqrt(s, out=s)
+        return s @ weights
 
-    chord = np.linalg.norm(a1 - a0, axis=1)
+    chord = a1 - a0
+    chord = np.sqrt(_dot(chord, chord))
     h0 = np.maximum(k_guess * (target - chord), 1e-6 * target)  # eq. 4.6
     # grow the bracket from h0, doubling, until the curve at hi is long enough: the first
     # GROW doublings evaluated at once, the rare longer searches one doubling at a time
     cand = h0[:, None] * _DOUBLINGS  # (M, GROW)
-    hh = cand[..., None, None]
-    long_enough = (np.sqrt(np.maximum(qa[:, None] + hh * (qb[:, None] + hh * qc[:, None]), 0.0))
-                   .reshape(len(i), GROW, -1) @ weights) >= target[:, None]
+    long_enough = lengths(cand) >= target[:, None]
     j = np.where(long_enough.any(axis=1), long_enough.argmax(axis=1), GROW)
     rows = np.arange(len(i))
     hi = np.where(j < GROW, cand[rows, np.minimum(j, GROW - 1)], 2.0 * cand[:, -1])
     lo = np.where(j > 0, cand[rows, np.maximum(j - 1, 0)], 0.0)
     lo = np.where(j == GROW, cand[:, -1], lo)
-    for _ in range(40 - GROW):
-        low = length(hi) < target
+    for _ in range(40 - GROW if j.max() == GROW else 0):  # (the others' hi is long enough)
+        low = lengths(hi[:, None])[:, 0] < target
         if not low.any():
             break
         lo = np.where(low, hi, lo)
@@ -235,9 +258,8 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
         bits = min(HALVING_BITS, iterations - done)
         parts = 1 << bits
         width = hi - lo
-        hh = (lo[:, None] + width[:, None] * (np.arange(1, parts) / parts))[..., None, None]  # (M, parts-1, 1, 1)
-        speed = np.sqrt(np.maximum(qa[:, None] + hh * (qb[:, None] + hh * qc[:, None]), 0.0))
-        below = (speed.reshape(len(lo), parts - 1, -1) @ weights < target[:, None]).sum(axis=1)
+        hh = lo[:, None] + width[:, None] * (np.arange(1, parts) / parts)  # (M, parts - 1)
+        below = (lengths(hh) < target[:, None]).sum(axis=1)
         lo, hi = lo + width * (below / parts), lo + width * ((below + 1) / parts)
         done += bits
     h[i] = 0.5 * (lo + hi)
@@ -400,7 +422,7 @@ class Smoother:
         ni = nrm.take(self._pi, axis=0)  # (F, Q, 3)
         d = pts.take(self._pj, axis=0)
         d -= pts.take(self._pi, axis=0)
-        ni *= np.einsum("fqj,fqj->fq", d, ni)[..., None]  # w_ij n_i
+        ni *= _c_einsum("fqj,fqj->fq", d, ni)[..., None]  # w_ij n_i
         terms = np.concatenate((pts.take(self._six, axis=0), ni), axis=1)  # (F, 6 + Q, 3)
         fine = self._op @ terms.transpose(1, 0, 2).reshape(terms.shape[1], -1)  # (G, 3F): one product
         return np.concatenate((x, fine.reshape(-1, 3).take(self._src, axis=0)))  # exactly through the particles
