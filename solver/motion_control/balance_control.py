@@ -37,7 +37,9 @@ def support_polygon(state):
 
     The hull's vertex indices are remembered per body parts and contact set: while the feet stay
     (every sole point within _HULL_REUSE of where the hull was built; planted feet do not move)
-    the polygon is those points at their current positions, without a new hull. Once per state."""
+    the polygon is those points at their current positions, without a new hull; beyond that, while
+    the points keep the order the hull's construction depends on (_hull_order), the same
+    vertices. Once per state."""
     polygon = state._cache.get("polygon")
     if polygon is None:
         polygon = state._cache["polygon"] = _support_polygon(state)
@@ -54,15 +56,33 @@ def _support_polygon(state):
     cached = _hull_cache.get(key)
     if cached is not None and cached[0].shape == pts.shape and np.abs(cached[0] - pts).max() < _HULL_REUSE:
         return pts[cached[1]]
-    hull = convex_hull(pts)
-    first = {}
-    for i, p in enumerate(map(tuple, pts.tolist())):
-        first.setdefault(p, i)
-    idx = np.array([first[p] for p in map(tuple, hull.tolist())], int)
+    order = _hull_order(pts)
+    if cached is not None and order is not None and cached[2] == order:
+        idx = cached[1]  # the monotone chain would take the same path to the same vertices
+    else:
+        hull = convex_hull(pts)
+        first = {}
+        for i, p in enumerate(map(tuple, pts.tolist())):
+            first.setdefault(p, i)
+        idx = np.array([first[p] for p in map(tuple, hull.tolist())], int)
+        if len(first) < len(pts):  # duplicates: set() in convex_hull merges them, no order is kept
+            order = None
     if len(_hull_cache) > 16:
         _hull_cache.clear()
-    _hull_cache[key] = (pts, idx)
+    _hull_cache[key] = (pts, idx, order)
     return pts[idx]
+
+
+def _hull_order(pts):
+    """What decides convex_hull's (Andrew's monotone chain's) path on points (k, 2): the signs of
+    every pair's coordinate differences (its sort and its duplicates) and, for every triple, its
+    turn test (turn <= 1e-14: the same products on the same floats). Two point sets with the same
+    order get the same vertex indices, so the rolling feet's hull, whose points move every step
+    but keep their order, is built once per contact set (bit for bit the hull's own result)."""
+    d = pts[None, :, :] - pts[:, None, :]  # d[o, a] = pts[a] - pts[o]
+    dx, dy = d[:, :, 0], d[:, :, 1]
+    turn = dx[:, :, None] * dy[:, None, :] - dy[:, :, None] * dx[:, None, :]  # turn(o, a, b)
+    return np.sign(d).tobytes() + (turn <= 1e-14).tobytes()
 
 
 _HULL_REUSE = 1e-4  # m
