@@ -208,7 +208,12 @@ def integrate(model, q, v, dt=1.0):
     small = angle < 1e-6
     exp = np.empty((model.nb, 4))
     exp[:, 0] = np.cos(half)
-    exp[:, 1:] = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / (angle + small))[:, None] * turn
+    if small.all():  # np.where's branch alone (a figure at rest: no body turns)
+        exp[:, 1:] = (0.5 - angle * angle / 48.0)[:, None] * turn
+    elif not small.any():  # (angle + small would add 0.0)
+        exp[:, 1:] = (np.sin(half) / angle)[:, None] * turn
+    else:
+        exp[:, 1:] = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / (angle + small))[:, None] * turn
     turned = np.add.reduce((quats @ spatial._QMUL).reshape(model.nb, 4, 4) * exp[:, None, :], 2)
     out[3:] = (turned / np.sqrt(np.add.reduce(turned * turned, 1))[:, None]).ravel()
     return out

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
-from ..dynamics.balance import convex_hull, inside, minimum_moment_point
+from ..dynamics.balance import closest_boundary_point, convex_hull, inside
 from ..dynamics.inertia_matrix import composite_inertias
 from ..dynamics.kinematics import body_com, motion_subspace, update_frames
 from .comfort_control import ControlLog, bounded, control_sequence, part_matrix, pinv, required_torques
@@ -104,7 +104,7 @@ def _weight(model):
 
 def zmp_of(wrench, ground_height=0.0):
     """ZMP (2,) of a ground wrench (world, about the origin: torque, force)."""
-    n0, n1, _, f0, f1, f2 = (float(x) for x in wrench)
+    n0, n1, _, f0, f1, f2 = np.asarray(wrench, float).tolist()
     h = float(ground_height)
     return np.array([(h * f0 - n1) / f2, (n0 + h * f1) / f2])
 
@@ -146,7 +146,7 @@ def _balance_error(state, wrench, polygon):
     p = zmp_of(wrench, state.ground_height)
     if len(polygon) >= 3 and inside(polygon, p):
         return p, p.copy(), 0.0
-    mmp = minimum_moment_point(polygon, p)
+    mmp = closest_boundary_point(polygon, p)  # minimum_moment_point, p known to lie outside
     dx, dy = float(mmp[0] - p[0]), float(mmp[1] - p[1])
     return p, mmp, math.sqrt(dx * dx + dy * dy)
 

@@ -215,8 +215,15 @@ def _dof_limits(fused, q, v):
     xyz = quat[:, 1:]
     s = np.sqrt(np.einsum("ni,ni->n", xyz, xyz))
     small = s < 1e-8
-    scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(np.copysign(s, w), aw) / (s + small))
-    angle = scale * np.where(small & (w < 0.0), -quat[component], quat[component])
+    # np.where's two branches: only the one it would take when every DOF takes the same (a posed
+    # body has no near-identity rotation, a figure at rest only those), both otherwise
+    if not small.any():  # s + small would add 0.0
+        angle = 2.0 * np.arctan2(np.copysign(s, w), aw) / s * quat[component]
+    elif small.all():
+        angle = 2.0 / np.maximum(aw, 1e-300) * np.where(w < 0.0, -quat[component], quat[component])
+    else:
+        scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(np.copysign(s, w), aw) / (s + small))
+        angle = scale * np.where(small & (w < 0.0), -quat[component], quat[component])
     top = top0 * np.maximum(0.3, np.cos(0.6 * angle))
     rate = v[6:] / vmax
     p = np.abs(rate)

@@ -73,7 +73,7 @@ from ..dynamics.inertia_matrix import bias_forces, crba
 from ..dynamics.inverse_dynamics import velocity_terms
 from ..dynamics.model import build_model
 from ..dynamics.strength import default_strength, limit_torques
-from ..dynamics.balance import inside, minimum_moment_point
+from ..dynamics.balance import closest_boundary_point, inside
 from .balance_control import balance_error, support_polygon
 from .comfort_control import Settings as CriteriaSettings
 from .comfort_control import body_parts, joint_stress, required_torques
@@ -382,7 +382,7 @@ class _Loop:
         point = com[:2] + vel[:2] * np.sqrt(max(com[2] - self.ground, 1e-3) / g)
         if inside(polygon, point):
             return 0.0, 0.0
-        near = minimum_moment_point(polygon, point)
+        near = closest_boundary_point(polygon, point)  # minimum_moment_point, point outside
         return float(point[0] - near[0]), float(point[1] - near[1])
 
     def _knocked_over(self, cs, t, v):

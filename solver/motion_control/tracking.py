@@ -210,7 +210,12 @@ class TrackingController:
         xyz = rel[:, 1:]
         s = np.sqrt(np.add.reduce(xyz * xyz, 1))
         small = s < 1e-8
-        scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
+        if not small.any():  # np.where's branch alone (s + small would add 0.0)
+            scale = 2.0 * np.arctan2(s, aw) / s
+        elif small.all():
+            scale = 2.0 / np.maximum(aw, 1e-300)
+        else:
+            scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
         comp = rel[self._k, self._rel_axis]
         error = scale * np.where(neg, -comp, comp)
         # target angular velocity carried into the current axes: R(rel)[axis, axis] * vel_t
