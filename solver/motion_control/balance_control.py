@@ -179,7 +179,7 @@ def augmented_body(state, dofs=None):
 def _momentum_rate(model, data, q):
     s = motion_subspace(model, data, q)
     ic = composite_inertias(model, data, q)
-    return np.einsum("kij,kj->ik", ic[model.dof_body], s)
+    return np.einsum("kij,kj->ik", ic.take(model.dof_body, axis=0), s)
 
 
 def _subtree_mc(model, data, q):
