@@ -97,6 +97,48 @@ get slower and the mean barely changes; the acting steps' extra time is in the p
 and the balance candidates. Reaching 0.5 ms on CMU needs the two forward kinematics per step
 merged (the re-solve's configuration is the next step's, but sharing it changes the arithmetic,
 which the decisions cannot absorb, see above) or compiled code.
+
+Third round (branch controlspeed-3), against main (commit ffa903e) in the same minutes. The load
+average was 5-9 on the 2 CPUs (other sessions' tests), so CPU times came out ~2.5x the second
+round's quiet ones and only ratios mean anything; the instructions inside the bake's loop
+(valgrind callgrind, zeroed before and dumped after the loop) do not depend on the load:
+
+                                   main             now                          issue's aim
+  instructions per step (callgrind)
+    figure standing                2.28 M           2.10 M (-8.1 %)
+    CMU 131_01                     4.54 M           4.24 M (-6.8 %)
+  CPU ms, one fresh process per sample, main and this branch alternated 6 times, best / median
+    figure standing, median        1.19 / 1.42 ms   1.04 / 1.18 ms (paired x0.86)   < 0.5 ms
+    figure 15 kg, median           1.12 / 1.51 ms   1.05 / 1.28 ms (paired x0.91)
+    CMU 131_01, median             2.14 / 2.24 ms   1.87 / 2.14 ms (paired x0.95)   < 0.5 ms
+    CMU real-time factor at 30 Hz  14.4 / 13.3      16.2 / 13.9    (paired x1.05)   > 50
+
+Scaled to the second round's quiet machine that is the figure at about 0.36-0.42 ms (aim met) and
+the CMU rig at about 0.75-0.85 ms, real-time factor ~37: the CMU rig still misses the issue's aim.
+
+Every output stays bit for bit main's (rotations, translations, stress, ZMP, balance error, foot
+slide, control codes, falling) on the reference cases, the CMU clip with default settings and the
+figure standing and with 15 kg, on numpy 1.26 and 2.4. What was removed: the rolling feet's
+support polygon is no longer rebuilt every step: the hull's vertex indices are reused while the
+sole points keep the order Andrew's monotone chain depends on (every pair's coordinate signs, every
+triple's turn test: the same floats, so the same vertices; 7 in 10 of the hulls beyond the
+reuse tolerance on CMU); np.where's unused branch is not evaluated when every element takes the
+same one (strength limits and tracking error: no near-identity rotation on a posed rig; manifold
+integration: the figure at rest);
+multi-dimensional fancy indexing (forward kinematics' pointer doubling and motion gather, world
+inertias, motion subspace, sole points, leg Jacobians, inverse dynamics' per-DOF wrenches) by
+ndarray.take, a third of its cost (the column gathers through transposes: fancy indexing lays
+their result out column by column, and the batched products on it round differently on another
+layout); two index arrays by one flat index; Model.expand's (v, 0) in a buffer; the MMP of a ZMP
+known to lie outside without a second inside test; the sole centres as floats.
+
+Tried and not kept: the feet's position re-solve replaced by the pose error at the step's start
+fed into the velocity projection (no forward kinematics at the integrated configuration: CMU
+median x0.78), but the planted feet then slid 6.1 mm on CMU 131_01 (the issue: under 2 mm; the
+re-solve keeps them at 1.1 mm): the foot's position is second order in the leg's joint speeds over
+a step, which only a forward kinematics at the new configuration can correct. It also changes the
+outputs beyond rounding. Reaching 0.5 ms on CMU still needs the two forward kinematics per step
+merged or compiled code (see the second round).
 """
 
 import argparse

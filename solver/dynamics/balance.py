@@ -72,7 +72,7 @@ def inside(polygon, point):
     polygon = np.asarray(polygon, float)
     if len(polygon) < 3:
         return len(polygon) > 0 and np.allclose(minimum_moment_point(polygon, point), point)
-    px, py = (float(c) for c in np.asarray(point, float).ravel()[:2])
+    px, py = np.asarray(point, float).ravel()[:2].tolist()
     pts = polygon.tolist()
     x0, y0 = pts[-1]
     for x1, y1 in pts:  # edge from the previous vertex: cross(edge, point - previous) >= 0
@@ -91,9 +91,15 @@ def minimum_moment_point(polygon, zmp_point):
         raise ValueError("no support polygon: nothing touches the ground")
     if len(polygon) >= 3 and inside(polygon, p):
         return p.copy()
+    return closest_boundary_point(polygon, p)
+
+
+def closest_boundary_point(polygon, point):
+    """The point of a polygon's boundary (m, 2) closest to a point (2,) (minimum_moment_point for
+    a point known to lie outside, without testing it again)."""
     # the closest point of each edge (vertex to next vertex), on plain floats
-    px, py = (float(c) for c in p.ravel()[:2])
-    pts = polygon.tolist()
+    px, py = np.asarray(point, float).ravel()[:2].tolist()
+    pts = np.asarray(polygon, float).reshape(-1, 2).tolist()
     best, out = None, None
     for i, (ax, ay) in enumerate(pts):
         bx, by = pts[(i + 1) % len(pts)] if len(pts) > 1 else (ax, ay)

@@ -71,6 +71,7 @@ class Model:
         self.nv = n
         v_index[v_index < 0] = n  # a dummy slot that always holds zero
         self.v_index = v_index
+        self._expand_buffer = np.zeros(n + 1)  # expand's (v, 0): its last entry stays zero
         flat = np.flatnonzero(v_index.ravel() < n)
         self.flat_dof = flat[np.argsort(v_index.ravel()[flat])]  # (nv,) position in a (nb, 6) array
         self.dof_body = self.flat_dof // 6
@@ -216,7 +217,9 @@ class Model:
 
     def expand(self, v):
         """(nb, 6) per-body local (angular, linear) entries of a velocity-like vector."""
-        return np.concatenate((v, _ZERO))[self.v_index]
+        buffer = self._expand_buffer  # np.concatenate((v, 0)) without a new array each call
+        buffer[:-1] = v
+        return buffer[self.v_index]
 
     def create_data(self):
         return Data(self)
@@ -253,7 +256,8 @@ class Data:
     def inertia(self):
         """World spatial inertia (nb, 6, 6) of each body about the origin."""
         if self._inertia is None:
-            xf = self._force[:, self.model.force_gather].reshape(self.model.nb, 6, 6)
+            # _force[:, force_gather] by take, on fancy indexing's column-by-column layout
+            xf = self._force.T.take(self.model.force_gather, axis=0).T.reshape(self.model.nb, 6, 6)
             self._inertia = xf @ self.model.spatial_inertia @ np.swapaxes(xf, 1, 2)
         return self._inertia
 
@@ -383,6 +387,3 @@ def _merge_inertia(sk, nb, body_of, offset, seg_mass, loads, min_inertia):
     low = np.linalg.eigvalsh(about_com)[:, 0]
     about_com += np.maximum(min_inertia - low, 0.0)[:, None, None] * np.eye(3)
     return mass, com, about_com
-
-
-_ZERO = np.zeros(1)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
-from ..dynamics.balance import convex_hull, inside, minimum_moment_point
+from ..dynamics.balance import closest_boundary_point, convex_hull, inside
 from ..dynamics.inertia_matrix import composite_inertias
 from ..dynamics.kinematics import body_com, motion_subspace, update_frames
 from .comfort_control import ControlLog, bounded, control_sequence, part_matrix, pinv, required_torques
@@ -37,7 +37,9 @@ def support_polygon(state):
 
     The hull's vertex indices are remembered per body parts and contact set: while the feet stay
     (every sole point within _HULL_REUSE of where the hull was built; planted feet do not move)
-    the polygon is those points at their current positions, without a new hull. Once per state."""
+    the polygon is those points at their current positions, without a new hull; beyond that, while
+    the points keep the order the hull's construction depends on (_hull_order), the same
+    vertices. Once per state."""
     polygon = state._cache.get("polygon")
     if polygon is None:
         polygon = state._cache["polygon"] = _support_polygon(state)
@@ -54,15 +56,33 @@ def _support_polygon(state):
     cached = _hull_cache.get(key)
     if cached is not None and cached[0].shape == pts.shape and np.abs(cached[0] - pts).max() < _HULL_REUSE:
         return pts[cached[1]]
-    hull = convex_hull(pts)
-    first = {}
-    for i, p in enumerate(map(tuple, pts.tolist())):
-        first.setdefault(p, i)
-    idx = np.array([first[p] for p in map(tuple, hull.tolist())], int)
+    order = _hull_order(pts)
+    if cached is not None and order is not None and cached[2] == order:
+        idx = cached[1]  # the monotone chain would take the same path to the same vertices
+    else:
+        hull = convex_hull(pts)
+        first = {}
+        for i, p in enumerate(map(tuple, pts.tolist())):
+            first.setdefault(p, i)
+        idx = np.array([first[p] for p in map(tuple, hull.tolist())], int)
+        if len(first) < len(pts):  # duplicates: set() in convex_hull merges them, no order is kept
+            order = None
     if len(_hull_cache) > 16:
         _hull_cache.clear()
-    _hull_cache[key] = (pts, idx)
+    _hull_cache[key] = (pts, idx, order)
     return pts[idx]
+
+
+def _hull_order(pts):
+    """What decides convex_hull's (Andrew's monotone chain's) path on points (k, 2): the signs of
+    every pair's coordinate differences (its sort and its duplicates) and, for every triple, its
+    turn test (turn <= 1e-14: the same products on the same floats). Two point sets with the same
+    order get the same vertex indices, so the rolling feet's hull, whose points move every step
+    but keep their order, is built once per contact set (bit for bit the hull's own result)."""
+    d = pts[None, :, :] - pts[:, None, :]  # d[o, a] = pts[a] - pts[o]
+    dx, dy = d[:, :, 0], d[:, :, 1]
+    turn = dx[:, :, None] * dy[:, None, :] - dy[:, :, None] * dx[:, None, :]  # turn(o, a, b)
+    return np.sign(d).tobytes() + (turn <= 1e-14).tobytes()
 
 
 _HULL_REUSE = 1e-4  # m
@@ -84,7 +104,7 @@ def _weight(model):
 
 def zmp_of(wrench, ground_height=0.0):
     """ZMP (2,) of a ground wrench (world, about the origin: torque, force)."""
-    n0, n1, _, f0, f1, f2 = (float(x) for x in wrench)
+    n0, n1, _, f0, f1, f2 = np.asarray(wrench, float).tolist()
     h = float(ground_height)
     return np.array([(h * f0 - n1) / f2, (n0 + h * f1) / f2])
 
@@ -126,7 +146,7 @@ def _balance_error(state, wrench, polygon):
     p = zmp_of(wrench, state.ground_height)
     if len(polygon) >= 3 and inside(polygon, p):
         return p, p.copy(), 0.0
-    mmp = minimum_moment_point(polygon, p)
+    mmp = closest_boundary_point(polygon, p)  # minimum_moment_point, p known to lie outside
     dx, dy = float(mmp[0] - p[0]), float(mmp[1] - p[1])
     return p, mmp, math.sqrt(dx * dx + dy * dy)
 
@@ -159,7 +179,7 @@ def augmented_body(state, dofs=None):
 def _momentum_rate(model, data, q):
     s = motion_subspace(model, data, q)
     ic = composite_inertias(model, data, q)
-    return np.einsum("kij,kj->ik", ic[model.dof_body], s)
+    return np.einsum("kij,kj->ik", ic.take(model.dof_body, axis=0), s)
 
 
 def _subtree_mc(model, data, q):

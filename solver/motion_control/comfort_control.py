@@ -194,7 +194,7 @@ def _fused_strength(model, strength):
     n = model.nv - 6
     body = model.dof_body[6:]
     fused = (3 + 4 * body[:, None] + np.arange(4)[None, :],  # each DOF's body quaternion in q
-             (np.arange(n), 1 + np.asarray(model.dof_slot[6:])),  # its component of the quaternion
+             4 * np.arange(n) + 1 + np.asarray(model.dof_slot[6:]),  # its component, in the flat (n, 4) quaternions
              sel.scale * sel.peak, sel.max_velocity)
     cache.append((strength, fused))
     del cache[:-4]
@@ -210,13 +210,21 @@ def _dof_limits(fused, q, v):
     components lie within [-pi, pi], so limits' clamp to it is omitted."""
     index, component, top0, vmax = fused
     quat = q[index]  # (n, 4)
+    comp = quat.ravel()[component]  # quat[k, 1 + slot]: one flat index is cheaper than two
     w = quat[:, 0]
     aw = np.abs(w)
     xyz = quat[:, 1:]
     s = np.sqrt(np.einsum("ni,ni->n", xyz, xyz))
     small = s < 1e-8
-    scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(np.copysign(s, w), aw) / (s + small))
-    angle = scale * np.where(small & (w < 0.0), -quat[component], quat[component])
+    # np.where's two branches: only the one it would take when every DOF takes the same (a posed
+    # body has no near-identity rotation, a figure at rest only those), both otherwise
+    if not small.any():  # s + small would add 0.0
+        angle = 2.0 * np.arctan2(np.copysign(s, w), aw) / s * comp
+    elif small.all():
+        angle = 2.0 / np.maximum(aw, 1e-300) * np.where(w < 0.0, -comp, comp)
+    else:
+        scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(np.copysign(s, w), aw) / (s + small))
+        angle = scale * np.where(small & (w < 0.0), -comp, comp)
     top = top0 * np.maximum(0.3, np.cos(0.6 * angle))
     rate = v[6:] / vmax
     p = np.abs(rate)
@@ -260,12 +268,12 @@ def required_torques(state, a):
 def _required_torques(state, a):
     m, d = state.model, state.data
     total = subtree_wrenches(m, d, state.q, state.v, a, f_ext=state.f_ext)  # rnea's inward pass
-    below = total[m.dof_body]
+    below = total.take(m.dof_body, axis=0)  # (take: a third of fancy indexing's cost)
     ground = _ground_wrenches(state, total[0])
     if ground is not None:
         # -J' f of the foot wrenches: each DOF against the wrenches on its body's subtree
         bodies, wrenches = ground
-        below = below - m.dof_subtree[bodies].T @ wrenches
+        below = below - m.dof_subtree.take(bodies, axis=0).T @ wrenches
     # rnea's tau: each DOF's motion subspace against the wrench its body's subtree needs
     tau = np.add.reduce(motion_subspace(m, d, state.q) * below, 1) + m.armature_v * a
     wrench = total[0]
@@ -286,8 +294,9 @@ def _ground_wrenches(state, wrench):
         return None
     h = float(state.ground_height)
     px, py = (h * f0 - n1) / f2, (n0 + h * f1) / f2
-    centres = state.cached("sole_centres", lambda: _sole_centres(state, sides, h))
-    c = centres.tolist()
+    c = state._cache.get("sole_centres")
+    if c is None:
+        c = state._cache["sole_centres"] = _sole_centres(state, sides, h)
     w = [1.0] if len(sides) == 1 else _split(c, px, py)
     # application points: the sole centres moved so that their weighted mean is the ZMP
     mx = sum(wi * ci[0] for wi, ci in zip(w, c))
@@ -311,11 +320,11 @@ def _ground_wrenches(state, wrench):
 
 
 def _sole_centres(state, sides, height):
+    """Per side in contact: the mean of its sole points on the ground [x, y, height] (floats)."""
     soles = state.sole_world()
-    out = np.full((len(sides), 3), float(height))
-    for i, s in enumerate(sides):
-        out[i, :2] = np.add.reduce(soles[s][:, :2], 0) / len(soles[s])  # the mean (sum's own reduce)
-    return out
+    h = float(height)
+    # the mean (sum's own reduce)
+    return [(np.add.reduce(soles[s][:, :2], 0) / len(soles[s])).tolist() + [h] for s in sides.tolist()]
 
 
 def _split(centres, px, py):

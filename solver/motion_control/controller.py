@@ -73,7 +73,7 @@ from ..dynamics.inertia_matrix import bias_forces, crba
 from ..dynamics.inverse_dynamics import velocity_terms
 from ..dynamics.model import build_model
 from ..dynamics.strength import default_strength, limit_torques
-from ..dynamics.balance import inside, minimum_moment_point
+from ..dynamics.balance import closest_boundary_point, inside
 from .balance_control import balance_error, support_polygon
 from .comfort_control import Settings as CriteriaSettings
 from .comfort_control import body_parts, joint_stress, required_torques
@@ -382,7 +382,7 @@ class _Loop:
         point = com[:2] + vel[:2] * np.sqrt(max(com[2] - self.ground, 1e-3) / g)
         if inside(polygon, point):
             return 0.0, 0.0
-        near = minimum_moment_point(polygon, point)
+        near = closest_boundary_point(polygon, point)  # minimum_moment_point, point outside
         return float(point[0] - near[0]), float(point[1] - near[1])
 
     def _knocked_over(self, cs, t, v):
@@ -669,7 +669,7 @@ class _Loop:
         key = (q.tobytes(), id(body))
         if self._soles_cache is None or self._soles_cache[0] != key:
             kinematics.update_frames(body.model, body.data, q)
-            f = body.data.frames[body.sole_bodies]
+            f = body.data.frames.take(body.sole_bodies, axis=0)
             pts = np.einsum("kij,kj->ki", f[:, :3, :3], body.sole_local) + f[:, :3, 3]
             k = body.sole_split
             self._soles_cache = (key, [pts[:k], pts[k:]])
@@ -752,7 +752,7 @@ class _Loop:
             frame = d.frames[body.foot_body[s]] @ body.foot_offset[s]
             x0, x1, x2 = frame[:3, 3].tolist()
             dofs = body.leg_dofs[s]
-            cols = sub[dofs]  # (k, 6)
+            cols = sub.take(dofs, axis=0)  # (k, 6)
             jac = np.empty((6, len(dofs)))
             jac[:3] = cols[:, :3].T
             # head velocity v_O + omega x x = v_O - x x omega; rows @ K = x x row
@@ -765,11 +765,11 @@ class _Loop:
     def _both_legs(self, body, d, sub):
         """_leg_jacobians of two planted legs of the same layout, in batched products."""
         bodies, offsets, dofs, pos = body.legs_batched
-        frames = d.frames[bodies] @ offsets  # (2, 4, 4)
+        frames = d.frames.take(bodies, axis=0) @ offsets  # (2, 4, 4); take: a third of [bodies]'s cost
         (a0, a1, a2), (b0, b1, b2) = frames[:, :3, 3].tolist()
         cross = np.array([[[0.0, a2, -a1], [-a2, 0.0, a0], [a1, -a0, 0.0]],
                           [[0.0, b2, -b1], [-b2, 0.0, b0], [b1, -b0, 0.0]]])
-        cols = sub[dofs]  # (2, k, 6)
+        cols = sub.take(dofs, axis=0)  # (2, k, 6)
         jac = np.empty((2, 6, dofs.shape[1]))
         jac[:, :3] = np.swapaxes(cols[:, :, :3], 1, 2)
         jac[:, 3:] = np.swapaxes(cols[:, :, 3:] - cols[:, :, :3] @ cross, 1, 2)
@@ -803,8 +803,8 @@ class _Loop:
         vel, _, product = velocity_terms(m, d, q, v)  # shared with the inverse dynamics
         own = (d.motion @ m.expand(a)[:, :, None])[:, :, 0] + product
         feet_bodies = body.foot_body
-        acc = (m.ancestors[feet_bodies] @ own).tolist()
-        vel = vel[feet_bodies].tolist()
+        acc = (m.ancestors.take(feet_bodies, axis=0) @ own).tolist()
+        vel = vel.take(feet_bodies, axis=0).tolist()
         a = a.copy()
         for s, leg in enumerate(legs):
             if leg is None:
@@ -881,10 +881,10 @@ class _Loop:
         kinematics.update_frames(m, d, q)
         bodies, local = body.spheres
         radii = body.contacts.radii
-        fr = d.frames[bodies]
+        fr = d.frames.take(bodies, axis=0)
         centres = np.einsum("kij,kj->ki", fr[:, :3, :3], local) + fr[:, :3, 3]
         rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
-        vel = kinematics.body_velocities(m, d, q, v)[bodies]
+        vel = kinematics.body_velocities(m, d, q, v).take(bodies, axis=0)
         if ground or self.st.colliders:
             sphere_vel = vel[:, 3:] + _cross(vel[:, :3], centres)
             vz = sphere_vel[:, 2]

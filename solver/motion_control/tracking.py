@@ -139,6 +139,7 @@ class TrackingController:
         self._cur_index = 3 + 4 * m.dof_body[:, None] + np.arange(4)[None, :]
         self._k = np.arange(m.nv)
         self._rel_axis = 1 + np.minimum(axis, 2)  # each DOF's component of its relative quaternion
+        self._rel_flat = 4 * self._k + self._rel_axis  # ... in the flattened (nv, 4) quaternions
         self._lin = np.flatnonzero(lin)
         self._lin_axis = slot[lin] - 3
         self._lin_rows = np.arange(len(self._lin))
@@ -210,8 +211,13 @@ class TrackingController:
         xyz = rel[:, 1:]
         s = np.sqrt(np.add.reduce(xyz * xyz, 1))
         small = s < 1e-8
-        scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
-        comp = rel[self._k, self._rel_axis]
+        if not small.any():  # np.where's branch alone (s + small would add 0.0)
+            scale = 2.0 * np.arctan2(s, aw) / s
+        elif small.all():
+            scale = 2.0 / np.maximum(aw, 1e-300)
+        else:
+            scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
+        comp = rel.ravel()[self._rel_flat]  # rel[k, rel_axis]: one flat index is cheaper than two
         error = scale * np.where(neg, -comp, comp)
         # target angular velocity carried into the current axes: R(rel)[axis, axis] * vel_t
         vel = np.add.reduce(rel * rel * self._diag_sign, 1) * target[2][f]

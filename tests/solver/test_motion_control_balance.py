@@ -112,3 +112,33 @@ def test_real_rig_balance():
         if res.falling is None and res.mmp is not None:
             assert np.linalg.norm(zmp(m, data, q, st.v, a + res.delta, ground_height=ground) - res.mmp) < 1e-3
         print(acc, res.log.actions, res.zmp_before, res.zmp)
+
+
+def _hull_indices(pts):
+    from humananim.solver.dynamics import convex_hull
+    where = {p: i for i, p in reversed(list(enumerate(map(tuple, pts.tolist()))))}
+    return [where[p] for p in map(tuple, convex_hull(pts).tolist())]
+
+
+def test_support_hull_reuse_gives_the_hull_of_the_moved_points():
+    """The support polygon reuses a hull's vertex indices when the sole points keep the order the
+    monotone chain depends on (_hull_order): wherever it does, they are exactly the vertices
+    convex_hull finds for the moved points; a move that changes the hull changes the order."""
+    from humananim.solver.motion_control.balance_control import _hull_order
+    rng = np.random.default_rng(4)
+    reused = rebuilt = 0
+    for _ in range(300):
+        # two feet's sole points (6 each, heel to toe), rolling and sliding a little
+        pts = np.concatenate([rng.normal(c, (0.05, 0.12), (6, 2)) for c in ((0.1, 0.0), (-0.1, 0.05))])
+        moved = pts + rng.normal(0.0, rng.choice([1e-4, 1e-3, 1e-2]), pts.shape)
+        if _hull_order(moved) == _hull_order(pts):
+            assert _hull_indices(moved) == _hull_indices(pts)
+            reused += 1
+        else:
+            rebuilt += 1
+    assert reused > 30 and rebuilt > 30  # both paths are exercised
+    # a point moved out past the hull changes both the hull and the order
+    pts = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5]])
+    out = pts.copy()
+    out[4] = (0.5, 1.5)
+    assert _hull_indices(out) != _hull_indices(pts) and _hull_order(out) != _hull_order(pts)
