@@ -24,7 +24,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .fast import _c_einsum, clip as _clip, rowdot
+from .fast import _c_einsum, clip as _clip, dot, rowdot
 
 
 def closest_on_segments(p, a, b):
@@ -163,18 +163,14 @@ def _cross(u, v):
     return out
 
 
-def _dot(u, v):
-    return np.einsum("...i,...i->...", u, v)
-
-
 def closest_on_triangles(p, a, b, c):
     """Closest points on triangles abc to points p (all (..., 3)): (q, barycentric (..., 3))."""
     ab, ac = b - a, c - a
     n = _cross(ab, ac)
-    nn = np.maximum(_dot(n, n), 1e-30)
+    nn = np.maximum(dot(n, n), 1e-30)
     ap = p - a
-    beta = _dot(_cross(ap, ac), n) / nn
-    gamma = _dot(_cross(ab, ap), n) / nn
+    beta = dot(_cross(ap, ac), n) / nn
+    gamma = dot(_cross(ab, ap), n) / nn
     alpha = 1.0 - beta - gamma
     inside = (alpha >= 0.0) & (beta >= 0.0) & (gamma >= 0.0)
     q = a + beta[..., None] * ab + gamma[..., None] * ac
@@ -185,7 +181,7 @@ def closest_on_triangles(p, a, b, c):
     for start, end, i, j in ((a, b, 0, 1), (b, c, 1, 2), (c, a, 2, 0)):
         qe, t = closest_on_segments(p, start, end)
         pe = p - qe
-        de = _dot(pe, pe)
+        de = dot(pe, pe)
         take = ~inside & (de < best)
         best = np.where(take, de, best)
         q = np.where(take[..., None], qe, q)
@@ -241,7 +237,7 @@ class MeshBody:
         v = self.v0 + s * (self.v1 - self.v0)
         tri = v[self.triangles]
         fn = _cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        fn /= np.maximum(np.sqrt(_dot(fn, fn)), 1e-18)[:, None]
+        fn /= np.maximum(np.sqrt(dot(fn, fn)), 1e-18)[:, None]
         pv = v[self._part_verts]
         lo = np.minimum.reduceat(pv, self._part_starts, axis=0)
         hi = np.maximum.reduceat(pv, self._part_starts, axis=0)
@@ -329,7 +325,7 @@ class MeshBody:
         p = points[rows][:, None, :]
         q, bary = closest_on_triangles(p, tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
         d = p - q
-        dist = np.where(valid, np.sqrt(_dot(d, d)), np.inf)
+        dist = np.where(valid, np.sqrt(dot(d, d)), np.inf)
         fn = pose["fn"][ids]
         nearest = np.argmin(dist, axis=1)
         r = np.arange(len(rows))
@@ -339,7 +335,7 @@ class MeshBody:
         tie = valid & (dist <= best[:, None] + 1e-7 + 1e-4 * best[:, None])
         pseudo = np.einsum("ij,ijk->ik", tie.astype(float), fn)
         dk = d[r, nearest]
-        sign = np.where(_dot(dk, pseudo) < 0.0, -1.0, 1.0)
+        sign = np.where(dot(dk, pseudo) < 0.0, -1.0, 1.0)
         signed = sign * best
         # the smallest signed distance per point over its parts, if below max_distance
         order = np.lexsort((signed, rows))
@@ -351,7 +347,7 @@ class MeshBody:
         out = rows[pick]
         b = best[pick]
         phi[out] = signed[pick]
-        pk = pseudo[pick] / np.maximum(np.sqrt(_dot(pseudo[pick], pseudo[pick])), 1e-18)[:, None]
+        pk = pseudo[pick] / np.maximum(np.sqrt(dot(pseudo[pick], pseudo[pick])), 1e-18)[:, None]
         far = b[:, None] > 1e-9
         normal[out] = np.where(far, sign[pick][:, None] * dk[pick] / np.maximum(b, 1e-12)[:, None], pk)
         vel = (self.v1 - self.v0) / self.dt

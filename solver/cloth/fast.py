@@ -11,6 +11,11 @@ except ImportError:  # numpy < 1.26
         _c_einsum = np.einsum
 
 
+def dot(a, b):
+    """Dot products over the last axis of (..., k) arrays: np.einsum("...i,...i->...", a, b)."""
+    return _c_einsum("...i,...i->...", a, b)
+
+
 def rowdot(a, b):
     """Row-wise dot products of two (N, 3) arrays: np.einsum("ij,ij->i", a, b)."""
     return _c_einsum("ij,ij->i", a, b)

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fast import _c_einsum
+from .fast import _c_einsum, dot
+from .mesh import face_normals
 
 # Gauss-Legendre nodes and weights on [0, 1] for the length of a cubic curve
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
@@ -26,23 +27,7 @@ GL_T, GL_W = 0.5 * (_GL_X + 1.0), 0.5 * _GL_W
 # (numpy's Python front ends, np.einsum, np.linalg.norm, np.cross, cost more than the arithmetic
 # on these few hundred rows: the smoothing calls the compiled routines themselves)
 def _unit(v):
-    return v / np.maximum(np.sqrt(_c_einsum("...i,...i->...", v, v)), 1e-18)[..., None]
-
-
-def _dot(a, b):
-    return _c_einsum("...i,...i->...", a, b)
-
-
-def face_normals(x, faces):
-    """Unit normals (F, 3) and areas (F,) of the flat faces (as mesh.face_normals)."""
-    a = x[faces[:, 0]]
-    u, w = x[faces[:, 1]] - a, x[faces[:, 2]] - a
-    n = np.empty_like(u)
-    n[:, 0] = u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1]
-    n[:, 1] = u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2]
-    n[:, 2] = u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]
-    length = np.sqrt(_dot(n, n))
-    return n / np.maximum(length, 1e-12)[:, None], 0.5 * length
+    return v / np.maximum(np.sqrt(dot(v, v)), 1e-18)[..., None]
 
 
 # ---- particle normals -------------------------------------------------------------------------
@@ -105,8 +90,8 @@ def controlled_normals(mesh, x, k_elastic=1.0, control=True):
 def edge_controls(p0, n0, p1, n1):
     """Inner control points of the PN edge curve p0 -> p1 (depends on the edge alone)."""
     d = p1 - p0
-    c1 = (2.0 * p0 + p1 - _dot(d, n0)[..., None] * n0) / 3.0
-    c2 = (2.0 * p1 + p0 + _dot(d, n1)[..., None] * n1) / 3.0
+    c1 = (2.0 * p0 + p1 - dot(d, n0)[..., None] * n0) / 3.0
+    c2 = (2.0 * p1 + p0 + dot(d, n1)[..., None] * n1) / 3.0
     return c1, c2
 
 
@@ -134,7 +119,7 @@ def bernstein(bary):
 def pn_mid_normal(p0, n0, p1, n1):
     """The PN triangles' quadratic normal at the middle of edge p0-p1: (n0 + n1 + n110) / 4."""
     d = p1 - p0
-    vij = 2.0 * _dot(d, n0 + n1) / np.maximum(_dot(d, d), 1e-18)
+    vij = 2.0 * dot(d, n0 + n1) / np.maximum(dot(d, d), 1e-18)
     n110 = _unit(n0 + n1 - vij[..., None] * d)
     return _unit(n0 + n1 + n110)
 
@@ -184,10 +169,10 @@ def _split_speed(p0, n0, m, nm, p1, n1):
     k = len(m)
     # (halves, control points, M x 3): each half's B' at the nodes is one 2-D product
     ctrl = np.array((p0, c1, c2, m, m, c3, c4, p1)).reshape(2, 4, 3 * k)
-    inner = ((2.0 + _dot(nm, nm)) / 3.0)[:, None] * nm
+    inner = ((2.0 + dot(nm, nm)) / 3.0)[:, None] * nm
     zero = np.zeros_like(nm)
-    rate = np.array((zero, (nm - _dot(nm, n0)[:, None] * n0) / 3.0, inner, nm,
-                     nm, inner, (nm - _dot(nm, n1)[:, None] * n1) / 3.0, zero)).reshape(2, 4, 3 * k)
+    rate = np.array((zero, (nm - dot(nm, n0)[:, None] * n0) / 3.0, inner, nm,
+                     nm, inner, (nm - dot(nm, n1)[:, None] * n1) / 3.0, zero)).reshape(2, 4, 3 * k)
     return (DERIV @ ctrl).reshape(2, -1, k, 3), (DERIV @ rate).reshape(2, -1, k, 3)  # (2, T, M, 3) each
 
 
@@ -233,7 +218,7 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
         return s @ weights
 
     chord = a1 - a0
-    chord = np.sqrt(_dot(chord, chord))
+    chord = np.sqrt(dot(chord, chord))
     h0 = np.maximum(k_guess * (target - chord), 1e-6 * target)  # eq. 4.6
     # grow the bracket from h0, doubling, until the curve at hi is long enough: the first
     # GROW doublings evaluated at once, the rare longer searches one doubling at a time
