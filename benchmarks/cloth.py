@@ -147,6 +147,7 @@ import time
 os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="humananim-bench-"))
 
 import numpy as np  # noqa: E402
+from machine import numpy_op_us  # noqa: E402
 
 CLIP = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "humananim_addon", "data", "mocap",
                     "cmu_131_01.bvh")
@@ -155,14 +156,6 @@ CLIP = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "humananim
 # CPU time of this process (all its threads: Blender's cloth may use several): on a shared
 # machine wall-clock time counts the other processes' share too
 _clock = time.process_time
-
-
-def numpy_op_us():
-    a, b = np.random.rand(66, 3), np.random.rand(66, 3)
-    t = _clock()
-    for _ in range(20000):
-        a + b
-    return (_clock() - t) / 20000 * 1e6
 
 
 def scene_at_30fps(seconds):

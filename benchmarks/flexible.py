@@ -41,11 +41,11 @@ matrix itself: calling LAPACK through ctypes was measured no faster) and the rig
 plain Python (~100 float operations, ~7 us); half of each on a quiet machine. The floating-frame invariants (M(gamma) from
 constant sums over the points) replace the one product that gives M with another for 11 points;
 they pay off for many points, where they are used.
-The step's floor, printed beside the workload (floor_*, numpy_call_us), measured with the thesis
+The step's floor, printed beside the workload (floor_*, numpy_add_us), measured with the thesis
 workload in one run (2026-11-22, a quiet guest but 25-37 % of its CPU stolen by the host, so every
 figure about twice a quiet host's): the Cholesky solve 4.8 us and the rigid motion 3.9 us a step,
-one numpy call 1.09 us, against the aim's 16.7 us a step; the semi-implicit workload 91 ms
-(76 us a step).
+one numpy call 1.09 us (np.add on 33 floats), against the aim's 16.7 us a step; the
+semi-implicit workload 91 ms (76 us a step).
 """
 
 import argparse
@@ -53,6 +53,7 @@ import json
 import time
 
 import numpy as np
+from machine import numpy_op_us
 
 from humananim.solver.flexible import Ground, ModeGains, Settings, Simulator
 from humananim.solver.flexible.control import AnnealSettings, CostSpec, anneal
@@ -99,8 +100,8 @@ def thesis_workload():
 def step_floor(steps=1200):
     """What a step of the thesis table can't do without, per step (us): the Cholesky solve of its
     10 x 10 system (one LAPACK call, as the kernel makes it), the rigid motion of the floating frame
-    (plain Python floats, as the kernel does it), and one numpy call on arrays of the table's size
-    (the price of every other operation of the step, however small)."""
+    (plain Python floats, as the kernel does it), and one small numpy operation (the price of
+    every other operation of the step, however small)."""
     from humananim.solver.flexible.kernel import rigid_move
     from humananim.solver.flexible.lapack import CholeskySolver
     rng = np.random.default_rng(0)
@@ -121,15 +122,9 @@ def step_floor(steps=1200):
         for _ in range(steps):
             rigid_move(q, t, mv)
 
-    x, y, z = np.ones(33), np.ones(33), np.empty(33)
-
-    def calls():
-        for _ in range(steps):
-            np.add(x, y, out=z)
-
     per = lambda fn: cpu_ms(fn, repeat=5) * 1e3 / steps
     return {"floor_solve_us_per_step": per(solves), "floor_rigid_move_us_per_step": per(moves),
-            "numpy_call_us": per(calls), "aim_us_per_step": 20.0e3 / steps}
+            "numpy_add_us": numpy_op_us(), "aim_us_per_step": 20.0e3 / steps}
 
 
 def big_character():
