@@ -73,9 +73,19 @@ def quat_log(q):
     w = np.abs(q[..., :1])
     xyz = q[..., 1:] * np.where(q[..., :1] < 0.0, -1.0, 1.0)
     s = np.sqrt(np.einsum("...i,...i->...", xyz, xyz))[..., None]
+    return log_scale(s, w) * xyz
+
+
+def log_scale(s, aw):
+    """The factor taking a unit quaternion's vector part (norm s, |w| = aw) to its rotation vector:
+    2 atan2(s, aw) / s, and 2 / aw below s = 1e-8. np.where's arithmetic, bit for bit, with only
+    the branch computed when every entry takes the same one (the control loop calls it per step)."""
     small = s < 1e-8
-    scale = np.where(small, 2.0 / np.maximum(w, 1e-300), 2.0 * np.arctan2(s, w) / (s + small))
-    return scale * xyz
+    if not small.any():  # (s + small would add 0.0)
+        return 2.0 * np.arctan2(s, aw) / s
+    if small.all():
+        return 2.0 / np.maximum(aw, 1e-300)
+    return np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
 
 
 # quaternion product a * b = (a @ _QMUL).reshape(4, 4) @ b: the left-multiplication matrix of a

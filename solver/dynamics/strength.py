@@ -58,14 +58,7 @@ class StrengthModel:
         # np.minimum/np.maximum: np.clip's dispatch costs more than the arithmetic on a body's DOFs
         angle = np.maximum(0.3, np.cos(0.6 * np.minimum(np.maximum(np.asarray(angles, float), -np.pi), np.pi)))
         w = np.asarray(velocities, float) / self.max_velocity
-        top = self.scale * self.peak * angle
-        # the Hill torque-velocity factors of w and -w from |w| in one pass: one direction shortens
-        # (max((1 - w) / (1 + 4 w), 0.1)), the other lengthens (1.3 - 0.3 / (1 + 10 w)); both are 1 at rest
-        p = np.abs(w)
-        short = np.maximum((1.0 - p) / (1.0 + p / 0.25), 0.1)
-        long = 1.3 - 0.3 / (1.0 + 10.0 * p)
-        pos = w >= 0.0
-        return -top * np.where(pos, long, short), top * np.where(pos, short, long)
+        return torque_range(self.scale * self.peak * angle, w)
 
     def select(self, joints, axes):
         """The strength of single DOFs (bone, local axis), e.g. a model's actuated DOFs."""
@@ -76,6 +69,18 @@ class StrengthModel:
         low, high = self.limits(angles, velocities)
         usage = np.where(tau >= 0.0, tau / np.maximum(high, 1e-12), tau / np.minimum(low, -1e-12))
         return np.clip(tau, low, high), usage
+
+
+def torque_range(top, w):
+    """(tau_min, tau_max) of DOFs whose isometric strength at their angle is `top`, at normalised
+    velocities w: the Hill torque-velocity factors of w and -w from |w| in one pass. One direction
+    shortens (max((1 - w) / (1 + 4 w), 0.1)), the other lengthens (1.3 - 0.3 / (1 + 10 w)); both
+    are 1 at rest."""
+    p = np.abs(w)
+    short = np.maximum((1.0 - p) / (1.0 + p / 0.25), 0.1)
+    long = 1.3 - 0.3 / (1.0 + 10.0 * p)
+    pos = w >= 0.0
+    return -top * np.where(pos, long, short), top * np.where(pos, short, long)
 
 
 def default_strength(model, scale=1.0, gravity=9.81):

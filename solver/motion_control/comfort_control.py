@@ -28,7 +28,7 @@ from ..dynamics.ground_contact import default_contacts
 from ..dynamics.inertia_matrix import inertia_block
 from ..dynamics.inverse_dynamics import subtree_wrenches
 from ..dynamics.kinematics import motion_subspace, point_positions, segment_jacobian, update_frames
-from ..dynamics.strength import StrengthModel
+from ..dynamics.strength import StrengthModel, torque_range
 
 SIDES = ("L", "R")
 
@@ -203,36 +203,19 @@ def _fused_strength(model, strength):
 
 def _dof_limits(fused, q, v):
     """(tau_min, tau_max) (nv,) with the unbounded base: StrengthModel.limits of the selected DOFs
-    at the rotation-vector component of each DOF's body (spatial.quat_log, the short way round:
-    the sign of w on the angle, and 2 atan2(s, |w|) / s exact for the smallest s > 0) on fewer
-    numpy calls, bit for bit (the control decisions are that sensitive: a last-bit change of a
-    limit turned the metarig squat's 28 frames over strength with 15 kg into 64). quat_log's
-    components lie within [-pi, pi], so limits' clamp to it is omitted."""
+    at the rotation-vector component of each DOF's body (spatial.quat_log's, its sign left out:
+    the limits' cos is even) on fewer numpy calls, bit for bit (the control decisions are that
+    sensitive: a last-bit change of a limit turned the metarig squat's 28 frames over strength
+    with 15 kg into 64). quat_log's components lie within [-pi, pi], so limits' clamp to it is
+    omitted."""
     index, component, top0, vmax = fused
     quat = q[index]  # (n, 4)
     comp = quat.ravel()[component]  # quat[k, 1 + slot]: one flat index is cheaper than two
-    w = quat[:, 0]
-    aw = np.abs(w)
     xyz = quat[:, 1:]
     s = np.sqrt(np.einsum("ni,ni->n", xyz, xyz))
-    small = s < 1e-8
-    # np.where's two branches: only the one it would take when every DOF takes the same (a posed
-    # body has no near-identity rotation, a figure at rest only those), both otherwise
-    if not small.any():  # s + small would add 0.0
-        angle = 2.0 * np.arctan2(np.copysign(s, w), aw) / s * comp
-    elif small.all():
-        angle = 2.0 / np.maximum(aw, 1e-300) * np.where(w < 0.0, -comp, comp)
-    else:
-        scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(np.copysign(s, w), aw) / (s + small))
-        angle = scale * np.where(small & (w < 0.0), -comp, comp)
-    top = top0 * np.maximum(0.3, np.cos(0.6 * angle))
-    rate = v[6:] / vmax
-    p = np.abs(rate)
-    short = np.maximum((1.0 - p) / (1.0 + p / 0.25), 0.1)
-    long = 1.3 - 0.3 / (1.0 + 10.0 * p)
-    pos = rate >= 0.0
-    return (np.concatenate((_BASE_LOW, -top * np.where(pos, long, short))),
-            np.concatenate((_BASE_HIGH, top * np.where(pos, short, long))))
+    angle = spatial.log_scale(s, np.abs(quat[:, 0])) * comp  # (+-: the strength curve is even)
+    low, high = torque_range(top0 * np.maximum(0.3, np.cos(0.6 * angle)), v[6:] / vmax)
+    return np.concatenate((_BASE_LOW, low)), np.concatenate((_BASE_HIGH, high))
 
 
 def _dof_strength(model, strength):

@@ -210,15 +210,8 @@ class TrackingController:
         aw = np.abs(w)
         xyz = rel[:, 1:]
         s = np.sqrt(np.add.reduce(xyz * xyz, 1))
-        small = s < 1e-8
-        if not small.any():  # np.where's branch alone (s + small would add 0.0)
-            scale = 2.0 * np.arctan2(s, aw) / s
-        elif small.all():
-            scale = 2.0 / np.maximum(aw, 1e-300)
-        else:
-            scale = np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
         comp = rel.ravel()[self._rel_flat]  # rel[k, rel_axis]: one flat index is cheaper than two
-        error = scale * np.where(neg, -comp, comp)
+        error = spatial.log_scale(s, aw) * np.where(neg, -comp, comp)
         # target angular velocity carried into the current axes: R(rel)[axis, axis] * vel_t
         vel = np.add.reduce(rel * rel * self._diag_sign, 1) * target[2][f]
         if self._has_lin:
