@@ -46,11 +46,22 @@ workload in one run (2026-11-22, a quiet guest but 25-37 % of its CPU stolen by 
 figure about twice a quiet host's): the Cholesky solve 4.8 us and the rigid motion 3.9 us a step,
 one numpy call 1.09 us (np.add on 33 floats), against the aim's 16.7 us a step; the
 semi-implicit workload 91 ms (76 us a step).
+
+The floor of a whole step, printed as floor_minimal_step_us: minimal_step_floor() runs, on buffers
+of the table's sizes, only what no numpy step can do without (its docstring lists them: 17 numpy
+operations fused as far as one product allows, the LAPACK solve, the rigid motion in floats), and
+leaves out part of what the real step does. In one run (2026-11-22 evening, numpy a+b 1.17 us): the
+minimal step 48.5 us against the real semi-implicit step's 75.3 us, so 64 % of it. The real step's
+best figure on this machine (numpy a+b 0.50 us, the fastest this host has been) is 35.6 us, which
+puts the minimal step at about 23 us there: above the aim's 16.7 us before any of the work it
+leaves out. The 20 ms aim is out of reach of a numpy step on this machine, however fused; it needs
+compiled code (a loop in C, or numba), which the solver's numpy-and-scipy rule excludes.
 """
 
 import argparse
 import json
 import time
+from operator import mul
 
 import numpy as np
 from machine import numpy_op_us
@@ -124,7 +135,73 @@ def step_floor(steps=1200):
 
     per = lambda fn: cpu_ms(fn, repeat=5) * 1e3 / steps
     return {"floor_solve_us_per_step": per(solves), "floor_rigid_move_us_per_step": per(moves),
-            "numpy_add_us": numpy_op_us(), "aim_us_per_step": 20.0e3 / steps}
+            "floor_minimal_step_us": minimal_step_floor(steps), "numpy_add_us": numpy_op_us(),
+            "aim_us_per_step": 20.0e3 / steps}
+
+
+def minimal_step_floor(steps=1200, points=11, modes=4):
+    """A lower bound of a semi-implicit step of the thesis table on the ground (us): only what no
+    numpy step can do without, each fused as far as one product allows, on buffers of the real
+    sizes: the body points and their Jacobian from gamma, into the ground's frame, positions and
+    velocities, the penalty springs and dampers with the inertial terms (their rotation written
+    into the product's matrix from floats), the touching mask, the one-sided normal force, the
+    Coulomb cap (its magnitude, the sliding mask, the scale), the forces, the generalised forces
+    with the mode forces, the system matrix, the Cholesky solve, the consumed power, the state
+    update and the rigid motion. It leaves out what the real step also does (the anchors' sliding
+    and setting, the joint-limit and divergence checks, the controller's targets, the branches that
+    choose among them), so the real step costs more than this."""
+    from humananim.solver.flexible.kernel import rigid_move
+    from humananim.solver.flexible.lapack import CholeskySolver
+    P, n = points, 6 + modes
+    rng = np.random.default_rng(0)
+    GY = rng.normal(size=(1 + modes, 3 * P * (n + 1)))           # G and y, polynomials in gamma
+    c = np.ones(1 + modes)
+    Gb = np.empty(3 * P * (n + 1))
+    Gb2, Rq, Gq = Gb.reshape(3, -1), np.eye(3), np.empty((3, P * (n + 1)))
+    Gq2 = Gq.reshape(3 * P, n + 1)[:, :n]
+    U, VY = rng.normal(size=(3, n + 1)), np.empty((3, 3 * P))
+    FW, table, fB = rng.normal(size=(5, 9)), rng.normal(size=(9, P)), np.empty((5, P))
+    touch, ftn, F, W = np.empty(P), np.empty(P), np.empty((3, P)), rng.random((3, P))
+    slide, scale, cap = np.empty(P, bool), np.ones(P), np.full(P, 0.5)
+    FWflat = FW.reshape(-1)
+    WG, A, x = np.empty((3 * P, n)), np.empty((n, n)), np.empty(n)
+    spd = 10.0 * np.eye(n)
+    solver = CholeskySolver(A, x)
+    T, ZX, ZM = 1e-3 * rng.normal(size=(n + 6, 2 * n)), np.ones(2 * n), np.empty(n + 6)
+
+    GqT, Wc = Gq.reshape(3 * P, n + 1).T, W.reshape(-1, 1)     # views made once, as the kernel does
+    f, fn, s, fx, fy, Ff = fB[:3], fB[2], fB[4], fB[0], fB[1], F.reshape(-1)
+    mv = ZM[n:]
+
+    def run():
+        q, t = [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+        consumed = 0.0
+        for _ in range(steps):
+            c.dot(GY, out=Gb)
+            Rq.dot(Gb2, out=Gq)
+            U.dot(GqT, out=VY)
+            FWflat[13:45] = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, t[2], -t[1], 0.0, 0.0, 0.0, 0.0, 0.0, -t[2],
+                             0.0, t[0], 0.0, 0.0, 0.0, 0.0, 0.0, t[1], -t[0], 0.0, -t[0], -t[1],
+                             -t[2], -t[2], t[2], 0.0, 0.0, -9.81]
+            FW.dot(table, out=fB)
+            np.less(s, 0.0, out=touch)
+            np.maximum(fn, 0.0, out=fn)
+            np.multiply(f, touch, out=f)
+            np.hypot(fx, fy, out=ftn)
+            np.greater(ftn, cap, out=slide)
+            np.divide(cap, ftn, out=scale, where=slide)
+            np.multiply(f, scale, out=f)
+            np.multiply(f, W, out=F)
+            Ff.dot(Gq2, out=x)
+            np.multiply(Gq2, Wc, out=WG)
+            Gq2.T.dot(WG, out=A)
+            np.copyto(A, spd)                                  # keep it positive definite
+            consumed += sum(map(abs, map(mul, x.tolist()[6:], q)))
+            solver.solve()
+            T.dot(ZX, out=ZM)
+            rigid_move(q, t, mv.tolist())
+
+    return cpu_ms(run, repeat=7) * 1e3 / steps
 
 
 def big_character():
