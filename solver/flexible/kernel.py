@@ -125,20 +125,14 @@ class Kernel:
         self.GY = GY.reshape(1 + D, -1)
         self.G_const = GY[0].reshape(-1).copy()
         if self.big:
-            # M(gamma) = sum_ab c_a c_b M_ab, c = [1, gamma], M_ab = sum_p m G_a,p^T G_b,p; the
-            # gamma parts G_k of G have only the rotation columns -[B_k]x
-            mw = np.tile(sim.m, 3)[:, None]                      # rows: x of all points, y, z
-            G0 = GY[0, :, :, :n].reshape(3 * P, n)
-            G1 = GY[1:, :, :, 3:6].transpose(1, 2, 0, 3).reshape(3 * P, 3 * D)
-            Mab = np.zeros((1 + D, 1 + D, n, n))
-            Mab[0, 0] = G0.T.dot(mw * G0)
-            X = G0.T.dot(mw * G1).reshape(n, D, 3)
-            Y = G1.T.dot(mw * G1).reshape(D, 3, D, 3)
-            for a in range(D):
-                Mab[0, 1 + a, :, 3:6] = X[:, a]
-                Mab[1 + a, 0, 3:6, :] = X[:, a].T
-                for b in range(D):
-                    Mab[1 + a, 1 + b, 3:6, 3:6] = Y[a, :, b]
+            # M(gamma) = sum_ab c_a c_b M_ab with c = [1, gamma] (the monomials the step makes in one
+            # outer product): the Simulator's polynomial (rows 1, gamma, gamma gamma) with its
+            # gamma rows in the (0, a) places and zeros in the (a, 0) ones
+            M_poly = sim.M_poly
+            Mab = np.zeros((1 + D, 1 + D, n * n))
+            Mab[0, 0] = M_poly[0]
+            Mab[0, 1:] = M_poly[1:1 + D]
+            Mab[1:, 1:] = M_poly[1 + D:].reshape(D, D, n * n)
             self.M_cc = Mab.reshape((1 + D) ** 2, n * n)
         self.Yp = np.vstack([sim.X0.T.reshape(1, 3 * P), sim.B.transpose(0, 2, 1).reshape(D, 3 * P)])
         self.m = sim.m.copy()
