@@ -486,15 +486,17 @@ def _upstream(obj, name, depth=8):
     return seen
 
 
-def _switches(obj, bones):
-    """Custom properties of pose bones that drive the influence of the constraints of `bones`
-    (Rigify's IK_FK on the limb's parent bone)."""
+def _switch_drivers(obj):
+    """(constrained bone, switch) pairs in the order of the object's drivers: the custom
+    properties of pose bones that drive the influence of a bone's constraints (Rigify's IK_FK on
+    the limb's parent bone)."""
     ad = obj.animation_data
     out = []
     for d in (ad.drivers if ad else ()):
         m = _CON_PATH.match(d.data_path)
-        if not m or bpy.utils.unescape_identifier(m.group(1)) not in bones:
+        if not m:
             continue
+        bone = bpy.utils.unescape_identifier(m.group(1))
         for v in d.driver.variables:
             if v.type != "SINGLE_PROP" or v.targets[0].id != obj:
                 continue
@@ -502,10 +504,14 @@ def _switches(obj, bones):
             if not p:
                 continue
             key = (bpy.utils.unescape_identifier(p.group(1)), bpy.utils.unescape_identifier(p.group(2)))
-            if key[0] in obj.pose.bones and isinstance(obj.pose.bones[key[0]].get(key[1]), float) \
-                    and key not in out:
-                out.append(key)
+            if key[0] in obj.pose.bones and isinstance(obj.pose.bones[key[0]].get(key[1]), float):
+                out.append((bone, key))
     return out
+
+
+def _switches(drivers, bones):
+    """The switches (from `_switch_drivers`) of the constraints of `bones`, each once."""
+    return list(dict.fromkeys(key for bone, key in drivers if bone in bones))
 
 
 def _rest_m(obj, name, scale):
@@ -579,7 +585,8 @@ def map_controls(obj, skeleton, crig, joints):
     Raises HumanAnimError for a driven joint no control carries."""
     pbs = obj.pose.bones
     scale = skeleton.unit_scale
-    saved = {k: pbs[k[0]][k[1]] for k in _switches(obj, set(pbs.keys()))}
+    drivers = _switch_drivers(obj)
+    saved = {k: pbs[k[0]][k[1]] for k in _switches(drivers, set(pbs.keys()))}
     missing = []
     try:
         for k, v in crig.fixed.items():
@@ -591,7 +598,7 @@ def map_controls(obj, skeleton, crig, joints):
             if _is_control(obj, name):
                 crig.controls[j] = (name, np.eye(4))
                 continue
-            found = _find_control(obj, name, crig, scale, saved)
+            found = _find_control(obj, name, crig, scale, saved, drivers)
             if found is None:
                 missing.append(name)
             else:
@@ -607,7 +614,7 @@ def map_controls(obj, skeleton, crig, joints):
             "on them would be ignored; grasp with the metarig, or map the hand roles to the FK controls")
 
 
-def _find_control(obj, name, crig, scale, current):
+def _find_control(obj, name, crig, scale, current, drivers):
     import itertools
     pbs = obj.pose.bones
     up = _upstream(obj, name)
@@ -616,7 +623,7 @@ def _find_control(obj, name, crig, scale, current):
     candidates = sorted((d, i, c) for i, (c, d) in enumerate(up.items())
                         if d > 0 and _is_control(obj, c) and obj.data.bones[c].length >= 0.9 * length
                         and _same_rest(rest, _rest_m(obj, c, scale), length * scale))
-    free = [k for k in _switches(obj, set(up)) if k not in crig.fixed]
+    free = [k for k in _switches(drivers, set(up)) if k not in crig.fixed]
     # switch settings, the fewest changes first (the current one first): only what must change is keyed
     options = [tuple(dict.fromkeys((float(current[k]), 1.0, 0.0))) for k in free]
     combos = sorted(itertools.product(*options), key=lambda vs: sum(v != float(current[k]) for k, v in zip(free, vs)))
