@@ -7,7 +7,7 @@ import numpy as np
 from ...solver.progress import run_to_end
 from ...solver.sequence import key_reduction, pyramid_compression
 from .channels import Group, action_frames, sample_group, unrolled
-from .measures import _base_summary, _ms, _tail_measure, group_errors, tail_errors
+from .measures import _base_summary, _ms, _tail_measure, group_errors, source_motion, tail_errors
 from .writing import Output, set_keys
 
 
@@ -53,8 +53,10 @@ def iter_compress(obj, scene, source, sel, degrees=0.5, centimetres=0.5, value_t
 
     results = reduce(1.0)
     yield 0.5
-    if tail_cm > 0.0 and obj.type == "ARMATURE":
-        measure = _tail_measure(obj, scene, source, sel.groups, frames)
+    # the source's motion, read before anything is written (replace rewrites the source)
+    motion = source_motion(obj, scene, source, frames)
+    if tail_cm > 0.0 and motion is not None:
+        measure = _tail_measure(motion, sel.groups, frames)
         results, _, _ = key_reduction.fit_to_error(lambda scale: results if scale == 1.0 else reduce(scale),
                                                    measure, tail_cm)
     yield 0.9
@@ -77,10 +79,7 @@ def iter_compress(obj, scene, source, sel, degrees=0.5, centimetres=0.5, value_t
                    max_error_deg=round(errors["deg"][0], 4), max_error_deg_at=errors["deg"][1],
                    max_error_cm=round(errors["cm"][0], 4), max_error_cm_at=errors["cm"][1],
                    max_error_value=round(errors["value"][0], 6))
-    if not replace:
-        tail = tail_errors(obj, scene, source, action, frames)
-    else:
-        tail = None  # the source was rewritten: compare with the samples instead
+    tail = tail_errors(obj, scene, motion, action, frames)
     if tail is not None:
         summary.update(tail_error_cm=round(tail.tail_cm, 4), tail_error_bone=tail.tail_bone,
                        tail_10cm_error_cm=round(tail.point_cm, 4), tail_10cm_error_bone=tail.point_bone)

@@ -28,13 +28,21 @@ def group_errors(groups, a, b):
     return out
 
 
-def _tail_measure(obj, scene, source, groups, frames):
-    """keys per group -> largest error (cm) at any bone's tail and 10 cm beyond, against the
-    source, evaluated in numpy (no action is written)."""
+def source_motion(obj, scene, source, frames):
+    """(skeleton, the source action's trajectories over `frames`) of an armature, read once for the
+    tail measures (None when obj is no armature)."""
+    if obj.type != "ARMATURE":
+        return None
     from ..actions import read_action
     from ..armature import skeleton_from_armature
     skeleton = skeleton_from_armature(obj, scene, require=False)
-    base = read_action(obj, scene, skeleton, source, (frames[0], frames[-1]), exact=False)
+    return skeleton, read_action(obj, scene, skeleton, source, (frames[0], frames[-1]), exact=False)
+
+
+def _tail_measure(motion, groups, frames):
+    """keys per group -> largest error (cm) at any bone's tail and 10 cm beyond, against the
+    source `motion` (from source_motion), evaluated in numpy (no action is written)."""
+    skeleton, base = motion
 
     def measure(results):
         rot, trans = base.rotations.copy(), base.translations.copy()
@@ -55,17 +63,14 @@ def _tail_measure(obj, scene, source, groups, frames):
     return measure
 
 
-def tail_errors(obj, scene, source, result, frames, beyond=0.10):
-    """The largest tail and tail+`beyond` errors (cm) of every bone between two actions, as their
-    F-curves evaluate (None when obj is no armature)."""
-    if obj.type != "ARMATURE":
+def tail_errors(obj, scene, motion, result, frames, beyond=0.10):
+    """The largest tail and tail+`beyond` errors (cm) of every bone between the source `motion`
+    (from source_motion) and an action, as their F-curves evaluate (None without a motion)."""
+    if motion is None:
         return None
     from ..actions import read_action
-    from ..armature import skeleton_from_armature
-    skeleton = skeleton_from_armature(obj, scene, require=False)
-    rng = (frames[0], frames[-1])
-    a = read_action(obj, scene, skeleton, source, rng, exact=False)
-    b = read_action(obj, scene, skeleton, result, rng, exact=False)
+    skeleton, a = motion
+    b = read_action(obj, scene, skeleton, result, (frames[0], frames[-1]), exact=False)
     return error_measures.tail_error(skeleton, a, b, beyond)
 
 

@@ -207,6 +207,12 @@ def test_compression_on_quaternion_bones_of_the_metarig(metarig):
     assert s["keys_after"] < s["keys_before"]
     deg, cm = local_errors(metarig, reference, world_pose(metarig, scene, frames))
     assert deg <= 0.2 + 1e-3 and s["max_error_deg"] <= 0.2 and s["max_error_cm"] <= 0.2
+    # in place, to a bone-tail tolerance: the tails are measured against the source as it was
+    result = metarig.animation_data.action
+    s = sequence.compress(metarig, scene, result, sequence.select_channels(metarig, scene, result), 1.0, 1.0,
+                          replace=True, tail_cm=0.5)
+    assert s["replaced"] and metarig.animation_data.action == result and s["action"] == result.name
+    assert 0.0 < s["tail_error_cm"] <= 0.5 + 1e-3 and s["tail_10cm_error_cm"] <= 0.5 + 1e-3
 
 
 def test_blend_is_continuous_across_the_window(cmu_pair):
