@@ -18,6 +18,7 @@ forces applied from the upper body to each leg"), so that leg torques carry the 
 bpy-free: numpy only.
 """
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -447,7 +448,7 @@ def bounded(state, part, x):
     """A part's control acceleration scaled down to Settings.max_part_acceleration (rad/s^2, arms
     and back) or max_pelvis_acceleration (m/s^2, legs): the rest is left to the next part."""
     top = state.settings.max_pelvis_acceleration if part == "legs" else state.settings.max_part_acceleration
-    return x * min(1.0, top / max(np.linalg.norm(x), 1e-12))
+    return x * min(1.0, top / max(_norm(x), 1e-12))
 
 
 # ---- the heuristic order ------------------------------------------------------------------------
@@ -501,8 +502,13 @@ def largest_with_kind(state, part, criteria, active, current):
     if not len(getattr(state.parts, part, ())) and part != "legs":
         return None
     found = [(kind, c) for kind, f in criteria.items() for c in f(state, part, active, current)]
-    found = [(k, c) for k, c in found if c is not None and np.any(c)]
-    return max(found, key=lambda kc: np.linalg.norm(kc[1])) if found else None
+    found = [(k, c) for k, c in found if c is not None and np.count_nonzero(c)]
+    return max(found, key=lambda kc: _norm(kc[1])) if found else None
+
+
+def _norm(x):
+    """np.linalg.norm of a vector: its sqrt(x.dot(x)), without its dispatch (bit for bit)."""
+    return math.sqrt(x.dot(x))
 
 
 def comfort_criterion(state, part, active, current):

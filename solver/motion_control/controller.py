@@ -65,7 +65,7 @@ from scipy.ndimage import gaussian_filter1d
 from ..body_roles import SIDES
 from ..progress import run_to_end
 from ..trajectories import Trajectories
-from ..dynamics import kinematics
+from ..dynamics import kinematics, spatial
 from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories, motion_floor,
                                     weld_static_helpers)
 from ..dynamics.ground_contact import default_contacts, point_jacobians
@@ -240,6 +240,69 @@ class _Body:
         self.sole_bodies, self.sole_local = kinematics.points_on_bodies(
             model, np.concatenate(p.sole_joints), np.concatenate(p.sole_points))
         self.sole_split = len(p.sole_joints[0])
+        self.feet_chain = _FeetChain(model, self.foot_body, self.foot_offset, self.leg_cols)
+
+
+class _FeetChain:
+    """The feet's frames and their legs' own Jacobian columns (_Loop._leg_jacobians' `frame` and
+    `jac`) at a configuration, from the forward kinematics of the feet's ancestors alone: the
+    position re-solve's needs, without the other bodies' frames, motion transforms and Jacobian
+    columns. Bit for bit update_frames' and _leg_jacobians' values: the same products on the same
+    rows (pointer doubling restricted to a set closed under taking parents stays in it)."""
+
+    def __init__(self, model, foot_body, foot_offset, leg_cols):
+        nb = model.nb
+        chain = np.flatnonzero(model.ancestors[foot_body].any(axis=0))  # the feet and their ancestors
+        n = len(chain)
+        where = np.full(nb + 1, n)  # body -> row (nb, the identity above the base, -> n)
+        where[chain] = np.arange(n)
+        self.quat_index = (3 + 4 * chain[:, None] + np.arange(4)[None, :]).ravel()
+        self.q2r = model.tree_q2r[chain]
+        self.local = np.zeros((n + 1, 4, 4))
+        self.local[:n] = model.tree[chain]
+        self.local[n] = np.eye(4)
+        self.doubling = [where[a[np.append(chain, nb)]] for a in model.doubling]
+        self.feet = where[np.asarray(foot_body)]
+        self.offsets = np.array(foot_offset)
+        # per side, each leg DOF's motion subspace column (kinematics.motion_subspace's row) in the
+        # flat (n, 19) rotations and levers (update_frames' parts)
+        gather = model.motion_gather.reshape(6, 6)  # motion[b][i, j] = parts[b, gather[i, j]]
+        self.cols = [np.asarray(c, int) for c in leg_cols]
+        self.subspace = [19 * where[model.dof_body[c]][:, None] + gather[:, model.dof_slot[c]].T for c in self.cols]
+        self.zero = np.zeros((n, 1))
+        self.n = n
+
+    def legs(self, q, feet):
+        """Per side planted: (foot frame (4, 4), the leg's own Jacobian columns (6, l), its DOFs)."""
+        n = self.n
+        local = self.local
+        quats = q.take(self.quat_index).reshape(n, 4)
+        outer = (quats[:, :, None] * quats[:, None, :]).reshape(n, 1, 16)
+        local[:n, :3, :3] = (outer @ self.q2r).reshape(n, 3, 3)
+        local[0, :3, 3] = q[:3]
+        frames = local
+        for a in self.doubling:
+            frames = frames.take(a, axis=0) @ frames
+        frames = frames[:n]
+        rot = frames[:, :3, :3]
+        lever = (frames[:, :3, 3] @ spatial._SKEW_MAP).reshape(n, 3, 3) @ rot
+        parts = np.concatenate((rot.reshape(n, 9), lever.reshape(n, 9), self.zero), axis=1).ravel()
+        feet_frames = frames.take(self.feet, axis=0) @ self.offsets
+        out = [None, None]
+        for s in (0, 1):
+            if not feet[s]:
+                continue
+            frame = feet_frames[s]
+            x0, x1, x2 = frame[:3, 3].tolist()
+            cols = parts.take(self.subspace[s])  # (l, 6)
+            # column-major, as _leg_jacobians' fancy-indexed columns: the legs' damped least
+            # squares (_dls) then take BLAS's same path, so the same arithmetic
+            jac = np.empty((6, len(cols)), order="F")
+            jac[:3] = cols[:, :3].T
+            cross = np.array([[0.0, x2, -x1], [-x2, 0.0, x0], [x1, -x0, 0.0]])
+            jac[3:] = (cols[:, 3:] - cols[:, :3] @ cross).T
+            out[s] = (frame, jac, self.cols[s])
+        return out
 
 
 class _Loop:
@@ -834,10 +897,12 @@ class _Loop:
         m = body.model
         for _ in range(self.st.foot_iterations):
             step = np.zeros(m.nv)
-            for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
+            # the feet's frames and their legs' own Jacobian columns at q alone (_FeetChain: the
+            # forward kinematics of the feet's ancestors, the same products as update_frames')
+            for s, leg in enumerate(body.feet_chain.legs(q, feet)):
                 if leg is None:
                     continue
-                _, frame, _, jac, cols = leg
+                frame, jac, cols = leg
                 rot, pos = targets[s][0], targets[s][1]
                 error = np.concatenate((_rotation_log(rot @ frame[:3, :3].T), pos - frame[:3, 3]))
                 step[cols] = self._dls(jac, error)
