@@ -148,6 +148,12 @@ def zmp_of(wrench, ground_height=0.0):
     return np.array([(h * f0 - n1) / f2, (n0 + h * f1) / f2])
 
 
+def _on_ground(xy, height):
+    """The ground point (3,) below (x, y): np.append(xy, height) without its dispatch."""
+    x, y = np.asarray(xy, float).tolist()
+    return np.array((x, y, float(height)))
+
+
 def moment_about(wrench, point):
     """The wrench's torque (3,) about a world point."""
     (p0, p1, p2), (f0, f1, f2) = _xyz(point), _xyz(wrench[3:])  # np.cross on floats
@@ -229,7 +235,7 @@ def _subtree_mc(model, data, q):
 def zmp_jacobian(state, wrench, dofs=None):
     """Eq. 2.13-2.14 (Z up): d ZMP / d theta'' (2, k) at the ZMP of `wrench`."""
     rate = augmented_body(state, dofs).momentum_rate
-    p = np.append(zmp_of(wrench, state.ground_height), state.ground_height)
+    p = _on_ground(zmp_of(wrench, state.ground_height), state.ground_height)
     dn = rate[:3] - _skew(p) @ rate[3:]  # moment change about the ZMP
     return np.vstack((-dn[1], dn[0])) / wrench[5]
 
@@ -253,7 +259,7 @@ def balance_candidates(state, part, a):
     # the ZMP goes back just inside the tolerance: the MMP itself for a tolerance of ~0, the input's
     # own excursion for captured motion (controller's baseline)
     target = mmp + (p - mmp) * (0.9 * state.settings.zmp_tolerance / dist)
-    point = np.append(target, state.ground_height)
+    point = _on_ground(target, state.ground_height)
     rate = state.cached("momentum_rate", lambda: _momentum_rate(state.model, state.data, state.q))
     matrix = part_matrix(state, part)
     if part == "legs":  # horizontally: unloading the feet is no way to balance
@@ -285,7 +291,7 @@ class Falling:
 def falling(state, wrench, mmp):
     """Rotation about the MMP: the ground's missing horizontal moment about it, over the whole
     body's moment of inertia about that axis; None when the moment vanishes."""
-    point = np.append(mmp, state.ground_height)
+    point = _on_ground(mmp, state.ground_height)
     torque = moment_about(wrench, point)
     torque[2] = 0.0
     size = np.linalg.norm(torque)

@@ -402,9 +402,15 @@ def part_matrix(state, part):
     the selection matrices S_a, S_b of eq. 2.16, or J_p for the legs."""
     if part == "legs":
         return state.pelvis_jacobian()
-    cols = getattr(state.parts, part)
-    s = np.zeros((state.model.nv, len(cols)))
-    s[cols, np.arange(len(cols))] = 1.0
+    # constant per body parts: remembered on them (read-only)
+    known = state.parts.__dict__.setdefault("_selection", {})
+    s = known.get((part, state.model.nv))
+    if s is None:
+        cols = getattr(state.parts, part)
+        s = np.zeros((state.model.nv, len(cols)))
+        s[cols, np.arange(len(cols))] = 1.0
+        s.flags.writeable = False
+        known[(part, state.model.nv)] = s
     return s
 
 
@@ -470,7 +476,7 @@ class ControlLog:
 
     def record(self, part, kind, delta):
         moved = np.abs(delta) > 0.0
-        if moved.any():
+        if np.count_nonzero(moved):
             getattr(self, kind)[moved] = True
             self.actions.append((part, kind))
 
