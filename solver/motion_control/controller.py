@@ -755,11 +755,15 @@ class _Loop:
         return math.sqrt(dx * dx + dy * dy)
 
     def _foot_targets(self, body, feet, t):
-        key = (t, tuple(feet), tuple(None if p is None else p[0].tobytes() for p in self.planted), id(body))
-        if self._targets_cache is not None and self._targets_cache[0] == key:
-            return self._targets_cache[1]
+        # remembered for the same time, feet, plants and body (the plants are tuples made anew at
+        # each landing, _update_plants, and the cache holds them: identity is their key)
+        f0, f1 = bool(feet[0]), bool(feet[1])
+        p0, p1 = self.planted
+        c = self._targets_cache
+        if c is not None and c[0] == t and c[1] == f0 and c[2] == f1 and c[3] is p0 and c[4] is p1 and c[5] is body:
+            return c[6]
         out = self._foot_targets_at(body, feet, t)
-        self._targets_cache = (key, out)
+        self._targets_cache = (t, f0, f1, p0, p1, body, out)
         return out
 
     def _foot_targets_at(self, body, feet, t):
