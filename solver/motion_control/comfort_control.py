@@ -281,11 +281,14 @@ def _ground_wrenches(state, wrench):
     c = state._cache.get("sole_centres")
     if c is None:
         c = state._cache["sole_centres"] = _sole_centres(state, sides, h)
-    w = [1.0] if len(sides) == 1 else _split(c, px, py)
     # application points: the sole centres moved so that their weighted mean is the ZMP
-    mx = sum(wi * ci[0] for wi, ci in zip(w, c))
-    my = sum(wi * ci[1] for wi, ci in zip(w, c))
-    mz = sum(wi * ci[2] for wi, ci in zip(w, c))
+    if len(c) == 1:
+        w = [1.0]
+        mx, my, mz = c[0]  # (1.0 times each)
+    else:
+        w = _split(c, px, py)
+        (w0, w1), (c0, c1) = w, c
+        mx, my, mz = w0 * c0[0] + w1 * c1[0], w0 * c0[1] + w1 * c1[1], w0 * c0[2] + w1 * c1[2]
     dx, dy, dz = px - mx, py - my, h - mz
     # the moment about the ZMP (vertical only): n - p x f
     m0 = n0 - (py * f2 - h * f1)
@@ -470,9 +473,7 @@ class ControlLog:
     actions: list = field(default_factory=list)  # (part, "passive" | "comfort" | "balance")
 
     def __post_init__(self):
-        self.passive = np.zeros(self.nv, bool)
-        self.comfort = np.zeros(self.nv, bool)
-        self.balance = np.zeros(self.nv, bool)
+        self.passive, self.comfort, self.balance = np.zeros((3, self.nv), bool)  # (one allocation)
 
     def record(self, part, kind, delta):
         moved = np.abs(delta) > 0.0
