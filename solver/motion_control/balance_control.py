@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
-from ..dynamics.balance import _turn, closest_boundary_point, convex_hull, inside
+from ..dynamics.balance import _turn, closest_boundary_xy, convex_hull, inside_xy
 from ..dynamics.inertia_matrix import composite_inertias
 from ..dynamics.kinematics import body_com, motion_subspace, update_frames
 from .comfort_control import ControlLog, bounded, control_sequence, part_matrix, pinv, required_torques
@@ -186,14 +186,23 @@ def balance_error(state, wrench, polygon=None):
 
 
 def _balance_error(state, wrench, polygon):
-    if len(polygon) == 0 or wrench[5] <= MIN_SUPPORT * state.cached("weight", lambda: _weight(state.model)):
+    weight = state._cache.get("weight")
+    if weight is None:
+        weight = state._cache["weight"] = _weight(state.model)
+    if len(polygon) == 0 or wrench[5] <= MIN_SUPPORT * weight:
         return None, None, 0.0
-    p = zmp_of(wrench, state.ground_height)
-    if len(polygon) >= 3 and inside(polygon, p):
+    # zmp_of, inside and closest_boundary_point (minimum_moment_point for a ZMP known to lie
+    # outside) on plain floats: the same arithmetic without their conversions
+    n0, n1, _, f0, f1, f2 = np.asarray(wrench, float).tolist()
+    h = float(state.ground_height)
+    px, py = (h * f0 - n1) / f2, (n0 + h * f1) / f2
+    p = np.array([px, py])
+    pts = polygon.tolist()
+    if len(pts) >= 3 and inside_xy(pts, px, py):
         return p, p.copy(), 0.0
-    mmp = closest_boundary_point(polygon, p)  # minimum_moment_point, p known to lie outside
-    dx, dy = float(mmp[0] - p[0]), float(mmp[1] - p[1])
-    return p, mmp, math.sqrt(dx * dx + dy * dy)
+    mx, my = closest_boundary_xy(pts, px, py)
+    dx, dy = mx - px, my - py
+    return p, np.array((mx, my)), math.sqrt(dx * dx + dy * dy)
 
 
 # ---- the augmented body (fig. 2.5, eq. 2.13-2.14) ---------------------------------------------
