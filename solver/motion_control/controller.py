@@ -901,9 +901,15 @@ class _Loop:
         m = body.model
         for _ in range(self.st.foot_iterations):
             step = np.zeros(m.nv)
-            # the feet's frames and their legs' own Jacobian columns at q alone (_FeetChain: the
-            # forward kinematics of the feet's ancestors, the same products as update_frames')
-            for s, leg in enumerate(body.feet_chain.legs(q, feet)):
+            # the feet's frames and their legs' own Jacobian columns at q: the step's own when q
+            # has not moved (a figure at rest), else _FeetChain's (the forward kinematics of the
+            # feet's ancestors alone, the same products as update_frames')
+            key = (q.tobytes(), bool(feet[0]), bool(feet[1]), id(body))
+            if self._legs_cache is not None and self._legs_cache[0] == key:
+                legs = [None if leg is None else (leg[1], leg[3], leg[4]) for leg in self._legs_cache[1]]
+            else:
+                legs = body.feet_chain.legs(q, feet)
+            for s, leg in enumerate(legs):
                 if leg is None:
                     continue
                 frame, jac, cols = leg
