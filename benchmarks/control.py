@@ -139,6 +139,52 @@ re-solve keeps them at 1.1 mm): the foot's position is second order in the leg's
 a step, which only a forward kinematics at the new configuration can correct. It also changes the
 outputs beyond rounding. Reaching 0.5 ms on CMU still needs the two forward kinematics per step
 merged or compiled code (see the second round).
+
+Fourth round (branch controlspeed-4), against main (commit e3d4e54) in the same minutes. Callgrind
+now counts only the frames' own work (collection toggled on itertools.starmap_next driving the
+bake's loop, PYTHONHASHSEED=0; load-independent); CPU ms are the best of 4 bakes per process, main
+and this branch alternated 4 times, OPENBLAS_NUM_THREADS=1, under a load average of 3-4 on the 2
+CPUs (other sessions), so ~1.7x the quiet host's figures and only the paired ratios mean much:
+
+                                   main             now                          issue's aim
+  instructions per step (callgrind)
+    figure standing                2.20 M           2.05 M (-6.6 %)
+    CMU 131_01                     4.40 M           3.94 M (-10.5 %)
+  CPU ms, best of 4 bakes, per process (4 pairs, loaded host)
+    CMU 131_01, median             1.26-1.44 ms     1.14-1.18 ms (paired x0.87)    < 0.5 ms
+    CMU 131_01, mean               1.37-1.56 ms     1.21-1.32 ms (paired x0.88)    < 0.667 ms
+
+Scaled to the quiet host where main printed a CMU median of 0.705 ms and a mean of 0.814 ms (real-time
+factor 41), that is about 0.62 ms and 0.72 ms, a real-time factor near 46: the CMU rig still misses
+the issue's aim (median < 0.5 ms, factor > 50); the figure keeps meeting it.
+
+Every output stays bit for bit main's (the reference cases, the CMU clip with default settings and
+with 12 kg in the hands, the figure with 15 kg; numpy 1.26 and 2.4). What was removed: the feet's
+position re-solve no longer runs a full forward kinematics, motion subspace and both legs' whole
+Jacobians at the integrated configuration: _FeetChain runs update_frames' pointer doubling on the
+feet's ancestors alone (a set closed under taking parents: the same products on the same rows) and
+gathers the legs' own Jacobian columns from their rotations and levers (built column-major, like
+the fancy-indexed columns before: BLAS's small-matrix kernels differ by transposition, and a
+row-major copy changed the last bits of the damped least squares, which the control decisions do
+not absorb); the support hull is reused while the monotone chain takes the same path (its sort
+order and the turn tests it actually made, re-evaluated on plain floats) instead of comparing every
+pair's and triple's order (half the polygon's cost, fewer hulls rebuilt); the ZMP, its inside
+test and the MMP on plain floats with one conversion of the polygon; numpy 1's error mask set
+directly instead of np.errstate (whose enter and exit cost 3-4x as much); one count_nonzero for each .any()/.all() pair
+(integration, quaternion log scale, dynamic control's exit test); a joints-only integration
+step skips the root's translation; the feet's targets cached on the plants' identity; the arms'
+and back's selection matrices, norms, ground points and the ground wrenches' application point
+without numpy's dispatch.
+
+Not done, measured first: the two forward kinematics per step cannot be merged bit for bit: the
+re-solve's integration renormalises every quaternion, which moves bodies the re-solve does not
+turn by an ulp, and restricting forward kinematics to the bodies that changed saves no numpy calls
+(the step is bound by their count, ~1.5-2 us each, not by the 23 bodies' arithmetic: a full
+update_frames is ~20 calls). The acting steps (a quarter of the CMU steps, a third of its time)
+spend theirs in the inverse-dynamics passes of the candidates and pseudo-inverses the thesis's
+order asks for. Reaching the CMU aim needs either an arithmetic change the control decisions
+must then be shown to survive (the thesis experiments' assertions, 2 mm of foot slide, the
+reference re-recorded) or compiled code.
 """
 
 import argparse

@@ -73,7 +73,12 @@ def inside(polygon, point):
     if len(polygon) < 3:
         return len(polygon) > 0 and np.allclose(minimum_moment_point(polygon, point), point)
     px, py = np.asarray(point, float).ravel()[:2].tolist()
-    pts = polygon.tolist()
+    return inside_xy(polygon.tolist(), px, py)
+
+
+def inside_xy(pts, px, py):
+    """inside() on plain floats: a counter-clockwise convex polygon as a list of at least three
+    [x, y] vertices and the point's coordinates."""
     x0, y0 = pts[-1]
     for x1, y1 in pts:  # edge from the previous vertex: cross(edge, point - previous) >= 0
         if (x1 - x0) * (py - y0) - (y1 - y0) * (px - x0) < -1e-10:
@@ -97,9 +102,14 @@ def minimum_moment_point(polygon, zmp_point):
 def closest_boundary_point(polygon, point):
     """The point of a polygon's boundary (m, 2) closest to a point (2,) (minimum_moment_point for
     a point known to lie outside, without testing it again)."""
-    # the closest point of each edge (vertex to next vertex), on plain floats
     px, py = np.asarray(point, float).ravel()[:2].tolist()
-    pts = np.asarray(polygon, float).reshape(-1, 2).tolist()
+    return np.array(closest_boundary_xy(np.asarray(polygon, float).reshape(-1, 2).tolist(), px, py))
+
+
+def closest_boundary_xy(pts, px, py):
+    """closest_boundary_point() on plain floats: the polygon as a list of [x, y] vertices, the
+    point's coordinates; returns (x, y)."""
+    # the closest point of each edge (vertex to next vertex)
     best, out = None, None
     for i, (ax, ay) in enumerate(pts):
         bx, by = pts[(i + 1) % len(pts)] if len(pts) > 1 else (ax, ay)
@@ -111,4 +121,4 @@ def closest_boundary_point(polygon, point):
         dist = math.sqrt((cx - px) * (cx - px) + (cy - py) * (cy - py))
         if best is None or dist < best:
             best, out = dist, (cx, cy)
-    return np.array(out)
+    return out

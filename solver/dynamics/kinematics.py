@@ -196,12 +196,15 @@ def integrate(model, q, v, dt=1.0):
     out = np.empty_like(q)
     quats = q[3:].reshape(model.nb, 4)
     # the root's translation along its own axes (quat_to_matrix(quats[0]) @ step, on floats)
-    w, x, y, z = quats[0].tolist()
     s0, s1, s2 = full[0, 3:].tolist()
-    out[:3] = q[:3] + np.array((
-        (w * w + x * x - y * y - z * z) * s0 + 2.0 * (x * y - w * z) * s1 + 2.0 * (x * z + w * y) * s2,
-        2.0 * (x * y + w * z) * s0 + (w * w - x * x + y * y - z * z) * s1 + 2.0 * (y * z - w * x) * s2,
-        2.0 * (x * z - w * y) * s0 + 2.0 * (y * z + w * x) * s1 + (w * w - x * x - y * y + z * z) * s2))
+    if not (s0 or s1 or s2):  # the root stays (a step of the joints alone): q + 0.0 is q
+        out[:3] = q[:3]
+    else:
+        w, x, y, z = quats[0].tolist()
+        out[:3] = q[:3] + np.array((
+            (w * w + x * x - y * y - z * z) * s0 + 2.0 * (x * y - w * z) * s1 + 2.0 * (x * z + w * y) * s2,
+            2.0 * (x * y + w * z) * s0 + (w * w - x * x + y * y - z * z) * s1 + 2.0 * (y * z - w * x) * s2,
+            2.0 * (x * z - w * y) * s0 + 2.0 * (y * z + w * x) * s1 + (w * w - x * x - y * y + z * z) * s2))
     # quats * exp(w / 2): the left-multiplication matrices of quats times the turns, exp inlined
     # (spatial.quat_exp's arithmetic, bit for bit, in fewer numpy calls)
     turn = full[:, :3]
@@ -210,9 +213,10 @@ def integrate(model, q, v, dt=1.0):
     small = angle < 1e-6
     exp = np.empty((model.nb, 4))
     exp[:, 0] = np.cos(half)
-    if small.all():  # np.where's branch alone (a figure at rest: no body turns)
+    n_small = np.count_nonzero(small)  # (one call where .all() and .any() each cost two)
+    if n_small == model.nb:  # np.where's branch alone (a figure at rest: no body turns)
         exp[:, 1:] = (0.5 - angle * angle / 48.0)[:, None] * turn
-    elif not small.any():  # (angle + small would add 0.0)
+    elif not n_small:  # (angle + small would add 0.0)
         exp[:, 1:] = (np.sin(half) / angle)[:, None] * turn
     else:
         exp[:, 1:] = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / (angle + small))[:, None] * turn

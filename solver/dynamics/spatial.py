@@ -81,9 +81,10 @@ def log_scale(s, aw):
     2 atan2(s, aw) / s, and 2 / aw below s = 1e-8. np.where's arithmetic, bit for bit, with only
     the branch computed when every entry takes the same one (the control loop calls it per step)."""
     small = s < 1e-8
-    if not small.any():  # (s + small would add 0.0)
+    n_small = np.count_nonzero(small)  # (one call where .all() and .any() each cost two)
+    if not n_small:  # (s + small would add 0.0)
         return 2.0 * np.arctan2(s, aw) / s
-    if small.all():
+    if n_small == small.size:
         return 2.0 / np.maximum(aw, 1e-300)
     return np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
-from ..dynamics.balance import closest_boundary_point, convex_hull, inside
+from ..dynamics.balance import _turn, closest_boundary_xy, convex_hull, inside_xy
 from ..dynamics.inertia_matrix import composite_inertias
 from ..dynamics.kinematics import body_com, motion_subspace, update_frames
 from .comfort_control import ControlLog, bounded, control_sequence, part_matrix, pinv, required_torques
@@ -38,8 +38,8 @@ def support_polygon(state):
     The hull's vertex indices are remembered per body parts and contact set: while the feet stay
     (every sole point within _HULL_REUSE of where the hull was built; planted feet do not move)
     the polygon is those points at their current positions, without a new hull; beyond that, while
-    the points keep the order the hull's construction depends on (_hull_order), the same
-    vertices. Once per state."""
+    the monotone chain would take the same path on the moved points, the same
+    vertices (_same_path). Once per state."""
     polygon = state._cache.get("polygon")
     if polygon is None:
         polygon = state._cache["polygon"] = _support_polygon(state)
@@ -54,35 +54,74 @@ def _support_polygon(state):
     pts = np.concatenate(pts)
     key = (id(state.parts), tuple(state.feet))
     cached = _hull_cache.get(key)
-    if cached is not None and cached[0].shape == pts.shape and np.abs(cached[0] - pts).max() < _HULL_REUSE:
+    same_shape = cached is not None and cached[0].shape == pts.shape
+    if same_shape and np.abs(cached[0] - pts).max() < _HULL_REUSE:
         return pts[cached[1]]
-    order = _hull_order(pts)
-    if cached is not None and order is not None and cached[2] == order:
+    plist = pts.tolist()
+    path = cached[2] if same_shape else None
+    if path is not None and _same_path(plist, path):
         idx = cached[1]  # the monotone chain would take the same path to the same vertices
     else:
-        hull = convex_hull(pts)
-        first = {}
-        for i, p in enumerate(map(tuple, pts.tolist())):
-            first.setdefault(p, i)
-        idx = np.array([first[p] for p in map(tuple, hull.tolist())], int)
-        if len(first) < len(pts):  # duplicates: set() in convex_hull merges them, no order is kept
-            order = None
+        found = _hull_path(plist)
+        if found is not None:
+            idx, path = np.array(found[0], int), found[1]
+        else:  # duplicates: set() in convex_hull merges them, no path is kept
+            hull = convex_hull(pts)
+            first = {}
+            for i, p in enumerate(map(tuple, plist)):
+                first.setdefault(p, i)
+            idx = np.array([first[p] for p in map(tuple, hull.tolist())], int)
+            path = None
     if len(_hull_cache) > 16:
         _hull_cache.clear()
-    _hull_cache[key] = (pts, idx, order)
+    _hull_cache[key] = (pts, idx, path)
     return pts[idx]
 
 
-def _hull_order(pts):
-    """What decides convex_hull's (Andrew's monotone chain's) path on points (k, 2): the signs of
-    every pair's coordinate differences (its sort and its duplicates) and, for every triple, its
-    turn test (turn <= 1e-14: the same products on the same floats). Two point sets with the same
-    order get the same vertex indices, so the rolling feet's hull, whose points move every step
-    but keep their order, is built once per contact set (bit for bit the hull's own result)."""
-    d = pts[None, :, :] - pts[:, None, :]  # d[o, a] = pts[a] - pts[o]
-    dx, dy = d[:, :, 0], d[:, :, 1]
-    turn = dx[:, :, None] * dy[:, None, :] - dy[:, :, None] * dx[:, None, :]  # turn(o, a, b)
-    return np.sign(d).tobytes() + (turn <= 1e-14).tobytes()
+def _hull_path(pts):
+    """dynamics.balance.convex_hull (Andrew's monotone chain) on the indices of points (a list of
+    [x, y]): its vertex indices and its path, the sort permutation and every turn test it made
+    [(o, a, b, outcome)]; None when two points coincide (convex_hull's set() merges them)."""
+    tup = [tuple(p) for p in pts]
+    perm = sorted(range(len(tup)), key=tup.__getitem__)
+    for i, j in zip(perm, perm[1:]):
+        if tup[i] == tup[j]:
+            return None
+    if len(perm) <= 2:
+        return list(perm), (perm, ())
+    tests = []
+
+    def half(seq):
+        out = []
+        for p in seq:
+            while len(out) >= 2:
+                turned = _turn(tup[out[-2]], tup[out[-1]], tup[p]) <= 1e-14
+                tests.append((out[-2], out[-1], p, turned))
+                if not turned:
+                    break
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(perm), half(perm[::-1])
+    return lower[:-1] + upper[:-1], (perm, tuple(tests))
+
+
+def _same_path(pts, path):
+    """Whether the monotone chain takes `path` (_hull_path's) on points (a list of [x, y]): the
+    same sort order (strictly increasing, so no duplicates) and every turn test with the same
+    outcome (the same products on the same floats). Then it finds the same vertex indices: the
+    rolling feet's hull, whose points move every step but keep that path, is built once per
+    contact set (bit for bit convex_hull's own result)."""
+    perm, tests = path
+    tup = [tuple(p) for p in pts]
+    for i, j in zip(perm, perm[1:]):
+        if not tup[i] < tup[j]:
+            return False
+    for o, a, b, turned in tests:
+        if (_turn(tup[o], tup[a], tup[b]) <= 1e-14) != turned:
+            return False
+    return True
 
 
 _HULL_REUSE = 1e-4  # m
@@ -107,6 +146,12 @@ def zmp_of(wrench, ground_height=0.0):
     n0, n1, _, f0, f1, f2 = np.asarray(wrench, float).tolist()
     h = float(ground_height)
     return np.array([(h * f0 - n1) / f2, (n0 + h * f1) / f2])
+
+
+def _on_ground(xy, height):
+    """The ground point (3,) below (x, y): np.append(xy, height) without its dispatch."""
+    x, y = np.asarray(xy, float).tolist()
+    return np.array((x, y, float(height)))
 
 
 def moment_about(wrench, point):
@@ -141,14 +186,23 @@ def balance_error(state, wrench, polygon=None):
 
 
 def _balance_error(state, wrench, polygon):
-    if len(polygon) == 0 or wrench[5] <= MIN_SUPPORT * state.cached("weight", lambda: _weight(state.model)):
+    weight = state._cache.get("weight")
+    if weight is None:
+        weight = state._cache["weight"] = _weight(state.model)
+    if len(polygon) == 0 or wrench[5] <= MIN_SUPPORT * weight:
         return None, None, 0.0
-    p = zmp_of(wrench, state.ground_height)
-    if len(polygon) >= 3 and inside(polygon, p):
+    # zmp_of, inside and closest_boundary_point (minimum_moment_point for a ZMP known to lie
+    # outside) on plain floats: the same arithmetic without their conversions
+    n0, n1, _, f0, f1, f2 = np.asarray(wrench, float).tolist()
+    h = float(state.ground_height)
+    px, py = (h * f0 - n1) / f2, (n0 + h * f1) / f2
+    p = np.array([px, py])
+    pts = polygon.tolist()
+    if len(pts) >= 3 and inside_xy(pts, px, py):
         return p, p.copy(), 0.0
-    mmp = closest_boundary_point(polygon, p)  # minimum_moment_point, p known to lie outside
-    dx, dy = float(mmp[0] - p[0]), float(mmp[1] - p[1])
-    return p, mmp, math.sqrt(dx * dx + dy * dy)
+    mx, my = closest_boundary_xy(pts, px, py)
+    dx, dy = mx - px, my - py
+    return p, np.array((mx, my)), math.sqrt(dx * dx + dy * dy)
 
 
 # ---- the augmented body (fig. 2.5, eq. 2.13-2.14) ---------------------------------------------
@@ -190,7 +244,7 @@ def _subtree_mc(model, data, q):
 def zmp_jacobian(state, wrench, dofs=None):
     """Eq. 2.13-2.14 (Z up): d ZMP / d theta'' (2, k) at the ZMP of `wrench`."""
     rate = augmented_body(state, dofs).momentum_rate
-    p = np.append(zmp_of(wrench, state.ground_height), state.ground_height)
+    p = _on_ground(zmp_of(wrench, state.ground_height), state.ground_height)
     dn = rate[:3] - _skew(p) @ rate[3:]  # moment change about the ZMP
     return np.vstack((-dn[1], dn[0])) / wrench[5]
 
@@ -214,7 +268,7 @@ def balance_candidates(state, part, a):
     # the ZMP goes back just inside the tolerance: the MMP itself for a tolerance of ~0, the input's
     # own excursion for captured motion (controller's baseline)
     target = mmp + (p - mmp) * (0.9 * state.settings.zmp_tolerance / dist)
-    point = np.append(target, state.ground_height)
+    point = _on_ground(target, state.ground_height)
     rate = state.cached("momentum_rate", lambda: _momentum_rate(state.model, state.data, state.q))
     matrix = part_matrix(state, part)
     if part == "legs":  # horizontally: unloading the feet is no way to balance
@@ -246,7 +300,7 @@ class Falling:
 def falling(state, wrench, mmp):
     """Rotation about the MMP: the ground's missing horizontal moment about it, over the whole
     body's moment of inertia about that axis; None when the moment vanishes."""
-    point = np.append(mmp, state.ground_height)
+    point = _on_ground(mmp, state.ground_height)
     torque = moment_about(wrench, point)
     torque[2] = 0.0
     size = np.linalg.norm(torque)

@@ -18,6 +18,7 @@ forces applied from the upper body to each leg"), so that leg torques carry the 
 bpy-free: numpy only.
 """
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -280,11 +281,14 @@ def _ground_wrenches(state, wrench):
     c = state._cache.get("sole_centres")
     if c is None:
         c = state._cache["sole_centres"] = _sole_centres(state, sides, h)
-    w = [1.0] if len(sides) == 1 else _split(c, px, py)
     # application points: the sole centres moved so that their weighted mean is the ZMP
-    mx = sum(wi * ci[0] for wi, ci in zip(w, c))
-    my = sum(wi * ci[1] for wi, ci in zip(w, c))
-    mz = sum(wi * ci[2] for wi, ci in zip(w, c))
+    if len(c) == 1:
+        w = [1.0]
+        mx, my, mz = c[0]  # (1.0 times each)
+    else:
+        w = _split(c, px, py)
+        (w0, w1), (c0, c1) = w, c
+        mx, my, mz = w0 * c0[0] + w1 * c1[0], w0 * c0[1] + w1 * c1[1], w0 * c0[2] + w1 * c1[2]
     dx, dy, dz = px - mx, py - my, h - mz
     # the moment about the ZMP (vertical only): n - p x f
     m0 = n0 - (py * f2 - h * f1)
@@ -401,9 +405,15 @@ def part_matrix(state, part):
     the selection matrices S_a, S_b of eq. 2.16, or J_p for the legs."""
     if part == "legs":
         return state.pelvis_jacobian()
-    cols = getattr(state.parts, part)
-    s = np.zeros((state.model.nv, len(cols)))
-    s[cols, np.arange(len(cols))] = 1.0
+    # constant per body parts: remembered on them (read-only)
+    known = state.parts.__dict__.setdefault("_selection", {})
+    s = known.get((part, state.model.nv))
+    if s is None:
+        cols = getattr(state.parts, part)
+        s = np.zeros((state.model.nv, len(cols)))
+        s[cols, np.arange(len(cols))] = 1.0
+        s.flags.writeable = False
+        known[(part, state.model.nv)] = s
     return s
 
 
@@ -447,7 +457,7 @@ def bounded(state, part, x):
     """A part's control acceleration scaled down to Settings.max_part_acceleration (rad/s^2, arms
     and back) or max_pelvis_acceleration (m/s^2, legs): the rest is left to the next part."""
     top = state.settings.max_pelvis_acceleration if part == "legs" else state.settings.max_part_acceleration
-    return x * min(1.0, top / max(np.linalg.norm(x), 1e-12))
+    return x * min(1.0, top / max(_norm(x), 1e-12))
 
 
 # ---- the heuristic order ------------------------------------------------------------------------
@@ -463,13 +473,11 @@ class ControlLog:
     actions: list = field(default_factory=list)  # (part, "passive" | "comfort" | "balance")
 
     def __post_init__(self):
-        self.passive = np.zeros(self.nv, bool)
-        self.comfort = np.zeros(self.nv, bool)
-        self.balance = np.zeros(self.nv, bool)
+        self.passive, self.comfort, self.balance = np.zeros((3, self.nv), bool)  # (one allocation)
 
     def record(self, part, kind, delta):
         moved = np.abs(delta) > 0.0
-        if moved.any():
+        if np.count_nonzero(moved):
             getattr(self, kind)[moved] = True
             self.actions.append((part, kind))
 
@@ -501,8 +509,13 @@ def largest_with_kind(state, part, criteria, active, current):
     if not len(getattr(state.parts, part, ())) and part != "legs":
         return None
     found = [(kind, c) for kind, f in criteria.items() for c in f(state, part, active, current)]
-    found = [(k, c) for k, c in found if c is not None and np.any(c)]
-    return max(found, key=lambda kc: np.linalg.norm(kc[1])) if found else None
+    found = [(k, c) for k, c in found if c is not None and np.count_nonzero(c)]
+    return max(found, key=lambda kc: _norm(kc[1])) if found else None
+
+
+def _norm(x):
+    """np.linalg.norm of a vector: its sqrt(x.dot(x)), without its dispatch (bit for bit)."""
+    return math.sqrt(x.dot(x))
 
 
 def comfort_criterion(state, part, active, current):

@@ -65,7 +65,7 @@ from scipy.ndimage import gaussian_filter1d
 from ..body_roles import SIDES
 from ..progress import run_to_end
 from ..trajectories import Trajectories
-from ..dynamics import kinematics
+from ..dynamics import kinematics, spatial
 from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories, motion_floor,
                                     weld_static_helpers)
 from ..dynamics.ground_contact import default_contacts, point_jacobians
@@ -240,6 +240,69 @@ class _Body:
         self.sole_bodies, self.sole_local = kinematics.points_on_bodies(
             model, np.concatenate(p.sole_joints), np.concatenate(p.sole_points))
         self.sole_split = len(p.sole_joints[0])
+        self.feet_chain = _FeetChain(model, self.foot_body, self.foot_offset, self.leg_cols)
+
+
+class _FeetChain:
+    """The feet's frames and their legs' own Jacobian columns (_Loop._leg_jacobians' `frame` and
+    `jac`) at a configuration, from the forward kinematics of the feet's ancestors alone: the
+    position re-solve's needs, without the other bodies' frames, motion transforms and Jacobian
+    columns. Bit for bit update_frames' and _leg_jacobians' values: the same products on the same
+    rows (pointer doubling restricted to a set closed under taking parents stays in it)."""
+
+    def __init__(self, model, foot_body, foot_offset, leg_cols):
+        nb = model.nb
+        chain = np.flatnonzero(model.ancestors[foot_body].any(axis=0))  # the feet and their ancestors
+        n = len(chain)
+        where = np.full(nb + 1, n)  # body -> row (nb, the identity above the base, -> n)
+        where[chain] = np.arange(n)
+        self.quat_index = (3 + 4 * chain[:, None] + np.arange(4)[None, :]).ravel()
+        self.q2r = model.tree_q2r[chain]
+        self.local = np.zeros((n + 1, 4, 4))
+        self.local[:n] = model.tree[chain]
+        self.local[n] = np.eye(4)
+        self.doubling = [where[a[np.append(chain, nb)]] for a in model.doubling]
+        self.feet = where[np.asarray(foot_body)]
+        self.offsets = np.array(foot_offset)
+        # per side, each leg DOF's motion subspace column (kinematics.motion_subspace's row) in the
+        # flat (n, 19) rotations and levers (update_frames' parts)
+        gather = model.motion_gather.reshape(6, 6)  # motion[b][i, j] = parts[b, gather[i, j]]
+        self.cols = [np.asarray(c, int) for c in leg_cols]
+        self.subspace = [19 * where[model.dof_body[c]][:, None] + gather[:, model.dof_slot[c]].T for c in self.cols]
+        self.zero = np.zeros((n, 1))
+        self.n = n
+
+    def legs(self, q, feet):
+        """Per side planted: (foot frame (4, 4), the leg's own Jacobian columns (6, l), its DOFs)."""
+        n = self.n
+        local = self.local
+        quats = q.take(self.quat_index).reshape(n, 4)
+        outer = (quats[:, :, None] * quats[:, None, :]).reshape(n, 1, 16)
+        local[:n, :3, :3] = (outer @ self.q2r).reshape(n, 3, 3)
+        local[0, :3, 3] = q[:3]
+        frames = local
+        for a in self.doubling:
+            frames = frames.take(a, axis=0) @ frames
+        frames = frames[:n]
+        rot = frames[:, :3, :3]
+        lever = (frames[:, :3, 3] @ spatial._SKEW_MAP).reshape(n, 3, 3) @ rot
+        parts = np.concatenate((rot.reshape(n, 9), lever.reshape(n, 9), self.zero), axis=1).ravel()
+        feet_frames = frames.take(self.feet, axis=0) @ self.offsets
+        out = [None, None]
+        for s in (0, 1):
+            if not feet[s]:
+                continue
+            frame = feet_frames[s]
+            x0, x1, x2 = frame[:3, 3].tolist()
+            cols = parts.take(self.subspace[s])  # (l, 6)
+            # column-major, as _leg_jacobians' fancy-indexed columns: the legs' damped least
+            # squares (_dls) then take BLAS's same path, so the same arithmetic
+            jac = np.empty((6, len(cols)), order="F")
+            jac[:3] = cols[:, :3].T
+            cross = np.array([[0.0, x2, -x1], [-x2, 0.0, x0], [x1, -x0, 0.0]])
+            jac[3:] = (cols[:, 3:] - cols[:, :3] @ cross).T
+            out[s] = (frame, jac, self.cols[s])
+        return out
 
 
 class _Loop:
@@ -296,6 +359,9 @@ class _Loop:
         nf, J = tr.frame_count, sk.joint_count
         self.out_q = np.zeros((nf, m.nq))
         self.stress = np.zeros((nf, J, 3))
+        # stress_by_bone's entries (bone, axis) of the actuated DOFs in a frame's flat (J * 3) row
+        # (every body of the loop has the same DOFs, _body)
+        self._stress_index = 3 * m.dof_joint[6:] + m.dof_slot[6:]
         self.err = np.zeros(nf)
         self.zmp = np.full((nf, 2), np.nan)
         self.mmp = np.full((nf, 2), np.nan)
@@ -480,7 +546,7 @@ class _Loop:
         if not integrate:
             return
         try:
-            with np.errstate(over="raise", invalid="raise"):
+            with _raising():
                 if self.fallen:
                     v = self._ragdoll_velocity(body, q, v, dt, f_ext)
                 else:
@@ -508,7 +574,9 @@ class _Loop:
                     q = self._project_position(body, q, feet, targets)
         except (np.linalg.LinAlgError, FloatingPointError) as exc:
             raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}: {exc}") from None
-        if not (np.isfinite(q).all() and np.isfinite(v).all()):
+        # (a sum of q and v is finite when both are: one overflowing sum would take values of
+        # 1e306, which no body reaches without diverging first)
+        if not math.isfinite(float(np.add.reduce(q)) + float(np.add.reduce(v))):
             raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}")
         self.q, self.v = q, v
 
@@ -535,7 +603,7 @@ class _Loop:
     def _record_result(self, f, cs, res, feet):
         m = cs.model
         # stress_by_bone into the frame's (zero) row
-        self.stress[f, m.dof_joint[6:], m.dof_slot[6:]] = res.stress_after[6:]
+        self.stress[f].put(self._stress_index, res.stress_after[6:])
         self.polygon[f] = res.polygon
         if res.zmp is not None:
             self.zmp[f] = res.zmp
@@ -687,11 +755,15 @@ class _Loop:
         return math.sqrt(dx * dx + dy * dy)
 
     def _foot_targets(self, body, feet, t):
-        key = (t, tuple(feet), tuple(None if p is None else p[0].tobytes() for p in self.planted), id(body))
-        if self._targets_cache is not None and self._targets_cache[0] == key:
-            return self._targets_cache[1]
+        # remembered for the same time, feet, plants and body (the plants are tuples made anew at
+        # each landing, _update_plants, and the cache holds them: identity is their key)
+        f0, f1 = bool(feet[0]), bool(feet[1])
+        p0, p1 = self.planted
+        c = self._targets_cache
+        if c is not None and c[0] == t and c[1] == f0 and c[2] == f1 and c[3] is p0 and c[4] is p1 and c[5] is body:
+            return c[6]
         out = self._foot_targets_at(body, feet, t)
-        self._targets_cache = (key, out)
+        self._targets_cache = (t, f0, f1, p0, p1, body, out)
         return out
 
     def _foot_targets_at(self, body, feet, t):
@@ -829,10 +901,18 @@ class _Loop:
         m = body.model
         for _ in range(self.st.foot_iterations):
             step = np.zeros(m.nv)
-            for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
+            # the feet's frames and their legs' own Jacobian columns at q: the step's own when q
+            # has not moved (a figure at rest), else _FeetChain's (the forward kinematics of the
+            # feet's ancestors alone, the same products as update_frames')
+            key = (q.tobytes(), bool(feet[0]), bool(feet[1]), id(body))
+            if self._legs_cache is not None and self._legs_cache[0] == key:
+                legs = [None if leg is None else (leg[1], leg[3], leg[4]) for leg in self._legs_cache[1]]
+            else:
+                legs = body.feet_chain.legs(q, feet)
+            for s, leg in enumerate(legs):
                 if leg is None:
                     continue
-                _, frame, _, jac, cols = leg
+                frame, jac, cols = leg
                 rot, pos = targets[s][0], targets[s][1]
                 error = np.concatenate((_rotation_log(rot @ frame[:3, :3].T), pos - frame[:3, 3]))
                 step[cols] = self._dls(jac, error)
@@ -1022,6 +1102,28 @@ class _Loop:
         return (1 - w) * pos[f0] + w * pos[f1], (1 - w) * vel[f0] + w * vel[f1]
 
 
+
+
+if hasattr(np, "seterrobj"):  # numpy 1: np.errstate's error mask set directly (np.errstate: ~10 us a step)
+    from numpy.core import umath as _umath
+
+    _RAISE_MASK = ((_umath.ERR_RAISE << _umath.SHIFT_OVERFLOW) | (_umath.ERR_RAISE << _umath.SHIFT_INVALID))
+    _KEEP_MASK = ~((7 << _umath.SHIFT_OVERFLOW) | (7 << _umath.SHIFT_INVALID))
+
+    class _raising:
+        """np.errstate(over="raise", invalid="raise")."""
+
+        __slots__ = ("old",)
+
+        def __enter__(self):
+            old = self.old = np.geterrobj()
+            np.seterrobj([old[0], (old[1] & _KEEP_MASK) | _RAISE_MASK, old[2]])
+
+        def __exit__(self, *exc):
+            np.seterrobj(self.old)
+else:
+    def _raising():
+        return np.errstate(over="raise", invalid="raise")
 
 
 def _cross3(a, b):

@@ -121,24 +121,30 @@ def _hull_indices(pts):
 
 
 def test_support_hull_reuse_gives_the_hull_of_the_moved_points():
-    """The support polygon reuses a hull's vertex indices when the sole points keep the order the
-    monotone chain depends on (_hull_order): wherever it does, they are exactly the vertices
-    convex_hull finds for the moved points; a move that changes the hull changes the order."""
-    from humananim.solver.motion_control.balance_control import _hull_order
+    """The support polygon reuses a hull's vertex indices when the monotone chain takes the same
+    path on the moved sole points (_same_path: the sort order and every turn test it made):
+    wherever it does, they are exactly the vertices convex_hull finds for the moved points; a move
+    that changes the hull changes the path."""
+    from humananim.solver.motion_control.balance_control import _hull_path, _same_path
     rng = np.random.default_rng(4)
     reused = rebuilt = 0
     for _ in range(300):
         # two feet's sole points (6 each, heel to toe), rolling and sliding a little
         pts = np.concatenate([rng.normal(c, (0.05, 0.12), (6, 2)) for c in ((0.1, 0.0), (-0.1, 0.05))])
         moved = pts + rng.normal(0.0, rng.choice([1e-4, 1e-3, 1e-2]), pts.shape)
-        if _hull_order(moved) == _hull_order(pts):
-            assert _hull_indices(moved) == _hull_indices(pts)
+        idx, path = _hull_path(pts.tolist())
+        assert idx == _hull_indices(pts)
+        if _same_path(moved.tolist(), path):
+            assert _hull_indices(moved) == idx
             reused += 1
         else:
             rebuilt += 1
     assert reused > 30 and rebuilt > 30  # both paths are exercised
-    # a point moved out past the hull changes both the hull and the order
+    # a point moved out past the hull changes both the hull and the path
     pts = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5]])
     out = pts.copy()
     out[4] = (0.5, 1.5)
-    assert _hull_indices(out) != _hull_indices(pts) and _hull_order(out) != _hull_order(pts)
+    path = _hull_path(pts.tolist())[1]
+    assert _hull_indices(out) != _hull_indices(pts) and not _same_path(out.tolist(), path)
+    # coinciding points: no path (convex_hull merges them)
+    assert _hull_path([[0.0, 0.0], [1.0, 0.0], [0.0, 0.0]]) is None
