@@ -42,17 +42,29 @@ def convex_hull(points):
     pts = sorted(set(map(tuple, np.asarray(points, dtype=float).reshape(-1, 2).tolist())))
     if len(pts) <= 2:
         return np.array(pts, dtype=float).reshape(-1, 2)
+    return np.array([pts[i] for i in monotone_chain(pts, range(len(pts)))])
 
+
+def monotone_chain(points, order, tests=None):
+    """Andrew's monotone chain: the counter-clockwise hull's indices into `points` (a list of
+    (x, y), at least three) visited in `order` (their indices sorted by (x, y), no two points
+    equal). With a `tests` list, every turn test it makes is appended as (o, a, b, outcome)."""
     def half(seq):
         out = []
         for p in seq:
-            while len(out) >= 2 and _turn(out[-2], out[-1], p) <= 1e-14:
+            while len(out) >= 2:
+                turned = _turn(points[out[-2]], points[out[-1]], points[p]) <= 1e-14
+                if tests is not None:
+                    tests.append((out[-2], out[-1], p, turned))
+                if not turned:
+                    break
                 out.pop()
             out.append(p)
         return out
 
-    lower, upper = half(pts), half(pts[::-1])
-    return np.array(lower[:-1] + upper[:-1])
+    order = list(order)
+    lower, upper = half(order), half(order[::-1])
+    return lower[:-1] + upper[:-1]
 
 
 def _turn(o, a, b):

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
-from ..dynamics.balance import _turn, closest_boundary_xy, convex_hull, inside_xy
+from ..dynamics.balance import _turn, closest_boundary_xy, convex_hull, inside_xy, monotone_chain
 from ..dynamics.inertia_matrix import composite_inertias
 from ..dynamics.kinematics import body_com, motion_subspace, update_frames
 from .comfort_control import ControlLog, bounded, control_sequence, part_matrix, pinv, required_torques
@@ -90,21 +90,7 @@ def _hull_path(pts):
     if len(perm) <= 2:
         return list(perm), (perm, ())
     tests = []
-
-    def half(seq):
-        out = []
-        for p in seq:
-            while len(out) >= 2:
-                turned = _turn(tup[out[-2]], tup[out[-1]], tup[p]) <= 1e-14
-                tests.append((out[-2], out[-1], p, turned))
-                if not turned:
-                    break
-                out.pop()
-            out.append(p)
-        return out
-
-    lower, upper = half(perm), half(perm[::-1])
-    return lower[:-1] + upper[:-1], (perm, tuple(tests))
+    return monotone_chain(tup, perm, tests), (perm, tuple(tests))
 
 
 def _same_path(pts, path):
