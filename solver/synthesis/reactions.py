@@ -90,7 +90,8 @@ def root_rates(skeleton, out, target, skate=None):
 
 
 def detect(skeleton, action, result, settings):
-    """(kind, frame) of the first reaction the controlled motion calls for."""
+    """(kind, frame, root velocity (F, 3), root acceleration (F,)) of the first reaction the
+    controlled motion calls for, with the root rates it was decided on (root_rates)."""
     s = settings
     out = result.trajectories
     v, a = root_rates(skeleton, out, action.trajectories, result.foot_skate)
@@ -103,9 +104,9 @@ def detect(skeleton, action, result, settings):
     nf = len(speed)
     for f in range(1, nf):
         if falls[f] or (f + 1 < nf and falls[f + 1] and a[f] > s.fall_acceleration):
-            return "fall", f, v
+            return "fall", f, v, a
         if steps[f]:
-            return "step", f, v
+            return "step", f, v, a
         if result.falling[f]:
             # the controller's own criterion: balance lost and the capture point beyond the feet,
             # so the body cannot stop without a step. Slower than eq. 3.9's fall speed, that step
@@ -114,8 +115,8 @@ def detect(skeleton, action, result, settings):
             while f0 > 1 and result.balance_error[f0 - 1] > 0.0 and not result.falling[f0 - 1]:
                 f0 -= 1
             if speed[f] < s.fall_speed and both[f0]:
-                return "step", f0, v
-            return "fall", f0, v
+                return "step", f0, v, a
+            return "fall", f0, v, a
     err = _tracking_error(out, action.trajectories, skeleton)
     run = int(round(s.recovery_time * out.fps))
     over = err > s.recovery_angle
@@ -123,8 +124,8 @@ def detect(skeleton, action, result, settings):
     for f in range(nf):
         count = count + 1 if over[f] else 0
         if count > run:
-            return "recovery", f, v
-    return "none", -1, v
+            return "recovery", f, v, a
+    return "none", -1, v, a
 
 
 def _tracking_error(out, target, skeleton):
@@ -145,9 +146,8 @@ def react(action, control_settings=None, settings=None, fall_actions=None):
     cs = control_settings or ControlSettings()
     states = []
     res = control(sk, action.trajectories, cs, on_frame=lambda f, q, v: states.append((q, v)))
-    kind, f, v = detect(sk, action, res, s)
+    kind, f, v, acc = detect(sk, action, res, s)
     speed = np.linalg.norm(v, axis=-1)
-    _, acc = root_rates(sk, res.trajectories, action.trajectories, res.foot_skate)
     floor = float(res.ground_height)
     support = {side: res.support[:, i] for i, side in enumerate("LR")}
     if kind == "none":
@@ -164,7 +164,8 @@ def react(action, control_settings=None, settings=None, fall_actions=None):
                        else max(n_total, tr.frame_count))
     info["trigger_speed"] = float(speed[f])
     info["trigger_acceleration"] = float(acc[f])
-    target = tr
+    target, tracked = tr, None
+    info["retracked"] = False
     if s.retrack:
         # a fall is tracked without balance control: balance would hold the hips up over the feet
         tracked = retrack(sk, tr, replace(cs, tracking_only=True) if kind == "fall" else cs, floor, states, f)
@@ -173,13 +174,7 @@ def react(action, control_settings=None, settings=None, fall_actions=None):
             info["fell_while_reacting"] = bool(tracked.falling[f + 1:].any())
             tr = _above_ground(sk, tracked.trajectories, floor, start=f) if kind == "fall" else tracked.trajectories
             sup = {side: tracked.support[:, i] for i, side in enumerate("LR")}
-            out = ReactionResult(kind, f, tr, res, speed, acc, sup, info)
-            out.reaction_control, out.target = tracked, target
-            return out
-    info["retracked"] = False
-    out = ReactionResult(kind, f, tr, res, speed, acc, sup, info)
-    out.target = target
-    return out
+    return ReactionResult(kind, f, tr, res, speed, acc, sup, info, target=target, reaction_control=tracked)
 
 
 def retrack(sk, target, cs, floor, states, f):
