@@ -297,8 +297,9 @@ def falling(state, wrench, mmp):
     m, d = state.model, state.data
     base = np.zeros(m.nv)
     # np.linalg.solve's LU (gesv) without numpy.linalg's per-call overhead
-    _, _, x, info = lapack.dgesv(d.motion[0], np.concatenate((alpha, np.cross(point, alpha))))
-    base[:6] = x if info == 0 else np.linalg.solve(d.motion[0], np.concatenate((alpha, np.cross(point, alpha))))
+    rhs = np.concatenate((alpha, np.cross(point, alpha)))
+    _, _, x, info = lapack.dgesv(d.motion[0], rhs)
+    base[:6] = x if info == 0 else np.linalg.solve(d.motion[0], rhs)
     return Falling(np.asarray(mmp, float), _supporting_foot(state, mmp), alpha, base)
 
 
