@@ -7,6 +7,7 @@ from scipy import sparse
 
 from .fast import Product, clip as _clip, difference_matrix, rowdot
 from .materials import AIR_DENSITY, as_vector
+from .mesh import face_cross
 
 # explicit RK4 is stable for |lambda dt| up to about 2.8 on the imaginary axis: keep a margin
 STABLE_OMEGA_DT = 2.2
@@ -212,11 +213,7 @@ class ClothDynamics:
         return out
 
     def particle_normals(self, x):
-        f = self.mesh.faces
-        a = x[f[:, 0]]
-        u, w = x[f[:, 1]] - a, x[f[:, 2]] - a
-        n = np.column_stack([u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1], u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2],
-                             u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]])  # area-weighted face normals
+        n = face_cross(x, self.mesh.faces)  # area-weighted face normals
         out = np.bincount(self._face_idx, np.repeat(n, 3, axis=0).ravel(), minlength=self._p3).reshape(-1, 3)
         return out / np.maximum(np.sqrt(rowdot(out, out)), 1e-12)[:, None]
 
