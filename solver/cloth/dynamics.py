@@ -5,7 +5,7 @@ substeps; Provot-style correction of elongated edges (§4.4.3); particles pinned
 import numpy as np
 from scipy import sparse
 
-from .fast import Product, clip as _clip, difference_matrix, rowdot
+from .fast import CornerSum, Product, clip as _clip, difference_matrix, rowdot
 from .materials import AIR_DENSITY, as_vector
 from .mesh import face_cross
 
@@ -101,8 +101,7 @@ class ClothDynamics:
         self._sweep_scale, self._sweep_step = np.empty((p_count, 1)), np.empty((p_count, 3))
         self._rows_d, self._rows_off = self._sweep_rows[:, :3], self._sweep_rows[:, 3]
         self._tether_data = self._tethers()
-        self._face_idx = _flat3(mesh.faces.ravel())  # coordinates of every face corner
-        self._p3 = 3 * p_count
+        self._corner_sum = CornerSum(mesh.faces, p_count)
         self._prepare()
 
     def unit_stiffness_eigenvalue(self, pairs, rest_length):
@@ -214,7 +213,7 @@ class ClothDynamics:
 
     def particle_normals(self, x):
         n = face_cross(x, self.mesh.faces)  # area-weighted face normals
-        out = np.bincount(self._face_idx, np.repeat(n, 3, axis=0).ravel(), minlength=self._p3).reshape(-1, 3)
+        out = self._corner_sum @ np.repeat(n, 3, axis=0)
         return out / np.maximum(np.sqrt(rowdot(out, out)), 1e-12)[:, None]
 
     # ---- integration ----------------------------------------------------------------------

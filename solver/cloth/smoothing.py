@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fast import _c_einsum, dot
+from .fast import CornerSum, _c_einsum, dot
 from .mesh import face_normals
 
 # Gauss-Legendre nodes and weights on [0, 1] for the length of a cubic curve
@@ -40,22 +40,10 @@ def _corner_tables(mesh):
         f = mesh.faces
         la = mesh.rest_length[mesh.face_edges]  # side (corner, next)
         lc = np.roll(la, 1, axis=1)  # side (previous, corner)
-        gather = _CornerSum(f, len(mesh.rest))
+        gather = CornerSum(f, len(mesh.rest))
         tables = (f, np.roll(f, -1, axis=1), np.roll(f, 1, axis=1), la, lc, gather)
         mesh._corner_tables = tables
     return tables
-
-
-class _CornerSum:
-    """`gather @ values` for values (3F, 3) per face corner: the sum at each particle, as one
-    np.bincount (corners in ascending order per particle, as the sparse product it replaces)."""
-
-    def __init__(self, faces, particles):
-        self.idx = (3 * faces.ravel()[:, None] + np.arange(3)).ravel()
-        self.size = 3 * particles
-
-    def __matmul__(self, values):
-        return np.bincount(self.idx, values.ravel(), minlength=self.size).reshape(-1, 3)
 
 
 def elastic_face_forces(mesh, x, k_elastic):
