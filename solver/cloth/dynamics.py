@@ -73,13 +73,11 @@ class ClothDynamics:
         wsum = np.where(self._movable_edge, self.inv_mass[e0] + self.inv_mass[e1], 1.0)
         self._share0, self._share1 = self.inv_mass[e0] / wsum, self.inv_mass[e1] / wsum
         # a correction along each edge, shared by the inverse masses: +share0 at the first
-        # particle, -share1 at the second; `reach` counts the edges that move a particle
+        # particle, -share1 at the second
         # (numpy's per-call cost dominates at tens of particles, so sums over edges into particles
         # are single calls: np.bincount over precomputed flat indices, or scipy's compiled sparse
         # product on a matrix whose entries are in the same order)
         self._spread_plan = _scatter_plan(e0, e1, self._share0, -self._share1)
-        self._reach_idx = np.r_[e0, e1]
-        self._reach_w = (np.r_[self._share0, self._share1] > 0).astype(float)
         # a sweep's moves and counts in one sparse product of the (E, 4) rows [correction x y z,
         # edge off]: rows 0..P-1 of the matrix spread the corrections by the shares, rows
         # P..2P-1 count the off edges that move each particle (entries per row in edge order)
@@ -92,7 +90,8 @@ class ClothDynamics:
              (np.r_[particle[keep], p_count + particle[keep]], np.r_[item[keep], item[keep]])),
             shape=(2 * p_count, len(e0)))
         self._sweep_matrix.sort_indices()
-        self._spread_matrix = _plan_matrix(self._spread_plan, p_count)
+        # its two halves alone: the velocity sweeps' spread, and how many given edges move a particle
+        self._spread_matrix, self._reach_matrix = self._sweep_matrix[:p_count], self._sweep_matrix[p_count:]
         # the sweeps' products with their outputs kept (a sweep is ~20 numpy calls: each counts)
         self._edge_diff = Product(difference_matrix(e0, e1, p_count), 3)
         self._sweep = Product(self._sweep_matrix, 4)
@@ -251,7 +250,7 @@ class ClothDynamics:
 
     def _reach(self, edges):
         """Per particle, how many of the given edges (bool (E,)) move it."""
-        return np.bincount(self._reach_idx, np.concatenate((edges, edges)) * self._reach_w, minlength=len(self.mass))
+        return self._reach_matrix @ edges.astype(float)
 
     def limit_elongation(self, x, v, iterations=None):
         """Provot's correction (§4.4.3): the particles of an edge longer than (1 + limit) L are
