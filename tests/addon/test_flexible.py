@@ -129,6 +129,21 @@ def test_bake_writes_new_actions_and_leaves_the_source(empty_scene):
     assert -0.03 < summary["end_lowest_point_m"] < 0.0    # the simulated mass points are on the ground
 
 
+def test_lattice_points_as_the_masses(empty_scene):
+    """The Masses choice 'Lattice Points': the lattice's own points carry the mass (from the
+    lattice's volume), not samples of the mesh."""
+    obj, lat = make_character(empty_scene)
+    props = obj.humananim_flexible
+    flexible.sync_modes(obj)
+    props.frame_start, props.frame_end, props.handover_frame = 1, 12, 1
+    props.use_control = False
+    props.points = "LATTICE"
+    summary = run_to_end(flexible.run(obj, empty_scene))
+    assert summary["points"] == int(np.prod(summary["lattice_points"])) != props.sample_count
+    assert summary["mass_kg"] == pytest.approx(0.6 ** 3 * props.density, rel=1e-3)  # the 0.6 m lattice
+    assert bpy.data.actions[summary["lattice_action"]] == lat.animation_data.action
+
+
 def _curves_any(action):
     if not action_api.SLOTTED:
         return {(fc.data_path, fc.array_index): fc for fc in action.fcurves}
