@@ -93,7 +93,8 @@ class ClothDynamics:
         # its two halves alone: the velocity sweeps' spread, and how many given edges move a particle
         self._spread_matrix, self._reach_matrix = self._sweep_matrix[:p_count], self._sweep_matrix[p_count:]
         # the sweeps' products with their outputs kept (a sweep is ~20 numpy calls: each counts)
-        self._edge_diff = Product(difference_matrix(e0, e1, p_count), 3)
+        edge_difference = difference_matrix(e0, e1, p_count)
+        self._edge_diff = Product(edge_difference, 3)
         self._sweep = Product(self._sweep_matrix, 4)
         self._spread = Product(self._spread_matrix, 3)
         self._sweep_moves, self._sweep_count = self._sweep.out[:p_count, :3], self._sweep.out[p_count:, 3]
@@ -101,7 +102,7 @@ class ClothDynamics:
         self._rows_d, self._rows_off = self._sweep_rows[:, :3], self._sweep_rows[:, 3]
         self._tether_data = self._tethers()
         self._corner_sum = CornerSum(mesh.faces, p_count)
-        self._prepare()
+        self._prepare(edge_difference)
 
     def unit_stiffness_eigenvalue(self, pairs, rest_length):
         """Largest eigenvalue of M^-1/2 K M^-1/2 for springs of unit stiffness on `pairs` at rest
@@ -144,18 +145,17 @@ class ClothDynamics:
         self.stretch, self.bend = p.stretch * scale, p.bend * scale
         self.damping = min(p.damping, STABLE_DAMPING_DT / (dt * lam_e))
         self.capped = scale < 1.0 or self.damping < p.damping
-        self._prepare()
+        self._scale_springs()
         return self.capped
 
     # ---- forces -------------------------------------------------------------------------
-    def _prepare(self):
+    def _prepare(self, edge_difference):
         """Edges and bending pairs as one set of springs, scaled by the inverse masses, so an
-        evaluation is a handful of vectorised operations and one bincount."""
+        evaluation is a handful of vectorised operations and one bincount (the stiffness apart:
+        _scale_springs)."""
         mesh, p = self.mesh, self.params
-        e, b = len(self._e0), len(self._b0)
         self._s0, self._s1 = np.r_[self._e0, self._b0], np.r_[self._e1, self._b1]
         self._srest = np.r_[mesh.rest_length, mesh.bend_rest]
-        self._sk = np.r_[np.full(e, self.stretch), np.full(b, self.bend)] / self._srest  # k / L of eq. 4.1
         # a spring's force (on its first particle) goes +f to the first, -f to the second, each
         # divided by its mass (pinned ones: 0); one bincount over the flat coordinates
         self._acc_plan = _scatter_plan(self._s0, self._s1, self.inv_mass[self._s0], -self.inv_mass[self._s1],
@@ -167,12 +167,16 @@ class ClothDynamics:
         self._air_f = self._free_f * p.air_damping
         self._windy = bool(np.any(self.wind != 0.0))
         self._pin_idx = np.flatnonzero(self.pinned)
-        p_count = len(self.mass)
-        self._spring_diff = Product(difference_matrix(self._s0, self._s1, p_count), 3)
-        self._edge_rate = Product(difference_matrix(self._e0, self._e1, p_count), 3)
+        self._spring_diff = Product(difference_matrix(self._s0, self._s1, len(self.mass)), 3)
+        self._edge_rate = Product(edge_difference, 3)
         self._acc = Product(self._acc_matrix, 3)
         self._drag_of = 0.5 * AIR_DENSITY * p.drag * mesh.area * self.inv_mass
-        self._edges = e
+        self._edges = len(self._e0)
+        self._scale_springs()
+
+    def _scale_springs(self):
+        """k / L of eq. 4.1 per spring (edges, then bending pairs) at the current stiffness."""
+        self._sk = np.r_[np.full(len(self._e0), self.stretch), np.full(len(self._b0), self.bend)] / self._srest
 
     def spring_forces(self, x, v):
         """Per-edge forces on the first particle, eq. 4.1 with a dashpot: (E, 3)."""

@@ -27,16 +27,6 @@ except ImportError:
     _csr_matvecs = None
 
 
-def sparse_product(matrix, dense):
-    """matrix (CSR, float64) @ dense (C-contiguous (N, K) float64): (M, K)."""
-    if _csr_matvecs is None:
-        return matrix @ dense
-    m, n = matrix.shape
-    out = np.zeros((m, dense.shape[1]))
-    _csr_matvecs(m, n, dense.shape[1], matrix.indptr, matrix.indices, matrix.data, dense.ravel(), out.ravel())
-    return out
-
-
 try:  # the clip ufunc itself: np.clip's Python front end costs more than the clip
     from numpy._core.umath import clip as clip
 except ImportError:  # numpy < 2
@@ -49,8 +39,8 @@ except ImportError:  # numpy < 2
 class Product:
     """`matrix @ dense` for one fixed CSR matrix and (N, cols) C-contiguous float64 operands, into
     an output kept between calls (overwritten by the next call: use it before calling again).
-    The hot loops call a few such products tens of times a frame: what sparse_product looks up
-    per call is bound once here."""
+    The hot loops call a few such products tens of times a frame: what a sparse product looks
+    up per call (shapes, index arrays, scipy's dispatch) is bound once here."""
 
     def __init__(self, matrix, cols):
         matrix = matrix.tocsr()

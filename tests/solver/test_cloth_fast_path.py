@@ -104,20 +104,6 @@ def test_the_frames_last_phi_is_reused_only_while_nothing_moved():
     assert moved.max() > 0.01 and np.allclose(sim.depth_inside(), moved)
 
 
-def test_the_compiled_sparse_product_equals_scipys_and_its_fallback(monkeypatch):
-    from scipy import sparse
-    from humananim.solver.cloth import fast
-    rng = np.random.default_rng(11)
-    m = sparse.random(40, 25, density=0.2, random_state=3, format="csr")
-    dense = rng.normal(size=(25, 4))
-    direct = fast.sparse_product(m, dense)
-    assert np.allclose(direct, m @ dense, atol=1e-14)
-    assert np.allclose(fast.sparse_product(m, np.asfortranarray(dense)[:, :3]), m @ dense[:, :3], atol=1e-14)
-    monkeypatch.setattr(fast, "_csr_matvecs", None)
-    assert np.allclose(fast.sparse_product(m, dense), direct, atol=1e-14)
-    assert np.allclose(fast.rowdot(dense, dense), (dense * dense).sum(axis=1))
-
-
 def test_kept_output_products_and_edge_differences_equal_scipys(monkeypatch):
     """The hot loops' products into kept outputs equal scipy's, with or without the compiled
     kernel; the difference matrix gives x[second] - x[first] bit for bit (what the springs, the
@@ -142,3 +128,4 @@ def test_kept_output_products_and_edge_differences_equal_scipys(monkeypatch):
     lo, hi = rng.uniform(0, 0.5, 50), rng.uniform(0.5, 1.0, 50)
     values = rng.uniform(-1, 2, 50)
     assert np.array_equal(fast.clip(values, lo, hi), np.minimum(np.maximum(values, lo), hi))
+    assert np.allclose(fast.rowdot(dense, dense), (dense * dense).sum(axis=1))
