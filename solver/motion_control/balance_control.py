@@ -129,9 +129,14 @@ def _weight(model):
 
 def zmp_of(wrench, ground_height=0.0):
     """ZMP (2,) of a ground wrench (world, about the origin: torque, force)."""
+    return np.array(zmp_xy(wrench, ground_height))
+
+
+def zmp_xy(wrench, ground_height=0.0):
+    """zmp_of as two floats (x, y)."""
     n0, n1, _, f0, f1, f2 = np.asarray(wrench, float).tolist()
     h = float(ground_height)
-    return np.array([(h * f0 - n1) / f2, (n0 + h * f1) / f2])
+    return (h * f0 - n1) / f2, (n0 + h * f1) / f2
 
 
 def _on_ground(xy, height):
@@ -177,11 +182,9 @@ def _balance_error(state, wrench, polygon):
         weight = state._cache["weight"] = _weight(state.model)
     if len(polygon) == 0 or wrench[5] <= MIN_SUPPORT * weight:
         return None, None, 0.0
-    # zmp_of, inside and closest_boundary_point (minimum_moment_point for a ZMP known to lie
+    # the ZMP, inside and closest_boundary_point (minimum_moment_point for a ZMP known to lie
     # outside) on plain floats: the same arithmetic without their conversions
-    n0, n1, _, f0, f1, f2 = np.asarray(wrench, float).tolist()
-    h = float(state.ground_height)
-    px, py = (h * f0 - n1) / f2, (n0 + h * f1) / f2
+    px, py = zmp_xy(wrench, state.ground_height)
     p = np.array([px, py])
     pts = polygon.tolist()
     if len(pts) >= 3 and inside_xy(pts, px, py):
@@ -230,7 +233,7 @@ def _subtree_mc(model, data, q):
 def zmp_jacobian(state, wrench, dofs=None):
     """Eq. 2.13-2.14 (Z up): d ZMP / d theta'' (2, k) at the ZMP of `wrench`."""
     rate = augmented_body(state, dofs).momentum_rate
-    p = _on_ground(zmp_of(wrench, state.ground_height), state.ground_height)
+    p = np.array((*zmp_xy(wrench, state.ground_height), float(state.ground_height)))  # on the ground
     dn = rate[:3] - _skew(p) @ rate[3:]  # moment change about the ZMP
     return np.vstack((-dn[1], dn[0])) / wrench[5]
 
