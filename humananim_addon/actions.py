@@ -72,13 +72,18 @@ def iter_read_action(obj, scene, skeleton, action=None, frame_range=None, on_key
                         trans * skeleton.unit_scale, armature_to_world(obj, scene))
 
 
+def bone_channel(data_path):
+    """(bone name, transform property) an F-curve's path keys, or None for anything else."""
+    m = _BONE_PATH.match(data_path)
+    return (bpy.utils.unescape_identifier(m.group(1)), m.group(2)) if m else None
+
+
 def _fcurve_basis(obj, skeleton, action, frames):
     channels = {}
     for fc in action_api.fcurves_of(action, obj):
-        m = _BONE_PATH.match(fc.data_path)
-        if m and not fc.mute:
-            name = bpy.utils.unescape_identifier(m.group(1))
-            channels[(name, m.group(2), fc.array_index)] = fc
+        channel = bone_channel(fc.data_path)
+        if channel and not fc.mute:
+            channels[(*channel, fc.array_index)] = fc
     n_frames, n = len(frames), skeleton.joint_count
     trans, quats = np.zeros((n_frames, n, 3)), np.zeros((n_frames, n, 4))
     for j, name in enumerate(skeleton.names):

@@ -402,8 +402,8 @@ def copy_channels(source, obj, bones, name, key_rest=False):
 
 
 def _bone_of(data_path):
-    m = actions._BONE_PATH.match(data_path)
-    return bpy.utils.unescape_identifier(m.group(1)) if m else None
+    channel = actions.bone_channel(data_path)
+    return channel[0] if channel else None
 
 
 def _generator_of(action, obj, bones_of_scope):
