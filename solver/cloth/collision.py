@@ -65,11 +65,12 @@ class CapsuleBody:
 
     def _pose(self, s):
         """What the queries at time s share (a frame's queries come at a few times only), packed
-        in one array per capsule so a query takes the capsules near it in one call: columns
-        a (3), ab (3), 1/|ab|^2, a.ab, a.a, radius, velocity of a (3), of b minus a's (3); the
-        capsules' boxes (lo | hi, (C, 6)); [2 ab | -2 a] (3, 2C) and [-2 a.ab | a.a] (2C,) for
-        one product and one sum giving [2 (p - a).ab | |p - a|^2 - |p|^2]; and the rows
-        1 / (2 |ab|^2), |ab|^2, radius (3, C)."""
+        in one array per capsule so a query takes the nearest capsule's data in one call:
+        columns a (3), velocity of a (3), ab (3), velocity of b minus a's (3), radius (so [a |
+        va] + t [ab | dv] is the closest point and its velocity in one product); the capsules'
+        boxes (lo | hi, (C, 6)); [2 ab | -2 a] (3, 2C) and [-2 a.ab | a.a] (2C,) for one product
+        and one sum giving [2 (p - a).ab | |p - a|^2 - |p|^2]; and the rows 1 / (2 |ab|^2),
+        |ab|^2, radius (3, C)."""
         pose = self._at.get(s)
         if pose is None:
             a = self.a0 + s * (self.a1 - self.a0)
@@ -78,9 +79,9 @@ class CapsuleBody:
             r = self.radius[:, None]
             va, dv = self._velocity
             ab2 = np.maximum(rowdot(ab, ab), 1e-18)
-            packed = np.column_stack([a, ab, 1.0 / ab2, rowdot(a, ab), rowdot(a, a), self.radius, va, dv])
+            packed = np.column_stack([a, va, ab, dv, self.radius])
             axes = np.concatenate((2.0 * ab, -2.0 * a)).T.copy()
-            bias = np.concatenate((-2.0 * packed[:, 7], packed[:, 8]))
+            bias = np.concatenate((-2.0 * rowdot(a, ab), rowdot(a, a)))
             rows = np.array([0.5 / ab2, ab2, self.radius])
             pose = (packed, np.minimum(a, b) - r, np.maximum(a, b) + r, axes, bias, rows)
             if len(self._at) > 8:
@@ -123,35 +124,55 @@ class CapsuleBody:
         w = t * rows[1]
         w -= two_s
         w *= t
-        dist2 = prod[:, c:]
-        dist2 += w
-        dist2 += rowdot(points, points)[:, None]
-        np.maximum(dist2, 0.0, out=dist2)
-        np.sqrt(dist2, out=dist2)
-        dist2 -= rows[2]
-        k = dist2.argmin(axis=1)
-        flat = k + c * np.arange(n)
-        tk = t.take(flat)
+        dist = prod[:, c:]
+        dist += w
+        dist += rowdot(points, points)[:, None]
+        np.maximum(dist, 0.0, out=dist)
+        np.sqrt(dist, out=dist)  # to the axes
+        gap = dist - rows[2]  # to the surfaces
+        k = gap.argmin(axis=1)
+        flat = k + _row_starts(n, c)
+        phi = gap.take(flat)
         if second:  # (the expanded form's rounding is far below a micrometre)
             if c > 1:
-                prod.put(flat + c * np.arange(1, n + 1), np.inf)  # the nearest out of dist2 (a view)
-                other = dist2.min(axis=1) - 1e-6
+                gap.put(flat, np.inf)
+                other = gap.min(axis=1)
+                other -= 1e-6
+                np.minimum(other, md, out=other)
             else:
                 other = np.full(n, float(md))
+        # the nearest axis point and its velocity: [a | va] + t [ab | dv] of the nearest capsule
         pk = packed.take(k, axis=0)
-        dk = points - pk[:, 0:3]
-        dk -= tk[:, None] * pk[:, 3:6]
-        distk = np.sqrt(rowdot(dk, dk))
-        normal = dk / np.maximum(distk, 1e-12)[:, None]
-        if distk.min() <= 1e-9:  # a point on the axis: any direction across it
-            on_axis = distk <= 1e-9
-            across = np.cross(pk[on_axis, 3:6], [0.0, 0.0, 1.0])
+        near_point = pk[:, 6:12] * t.take(flat)[:, None]
+        near_point += pk[:, 0:6]
+        normal = points - near_point[:, :3]
+        axis_distance = dist.take(flat)
+        if axis_distance.min() > 1e-4:  # (the expanded distance is exact to ~1e-12 relative here)
+            normal /= axis_distance[:, None]
+        else:  # near the axis, the direct length; a point on the axis: any direction across it
+            axis_distance = np.sqrt(rowdot(normal, normal))
+            normal /= np.maximum(axis_distance, 1e-12)[:, None]
+            on_axis = axis_distance <= 1e-9
+            across = np.cross(pk[on_axis, 6:9], [0.0, 0.0, 1.0])
             across[np.linalg.norm(across, axis=1) < 1e-9] = (1.0, 0.0, 0.0)
             normal[on_axis] = across / np.linalg.norm(across, axis=1)[:, None]
-        velocity = pk[:, 10:13] + tk[:, None] * pk[:, 13:16]
-        distk -= pk[:, 9]
-        np.minimum(distk, md, out=distk)
-        return (distk, normal, velocity, np.minimum(other, md)) if second else (distk, normal, velocity)
+        np.minimum(phi, md, out=phi)
+        velocity = near_point[:, 3:]
+        return (phi, normal, velocity, other) if second else (phi, normal, velocity)
+
+
+_STARTS = {}
+
+
+def _row_starts(n, c):
+    """c * arange(n): the flat index of each row's first entry in an (n, c) array (cached)."""
+    key = (n, c)
+    out = _STARTS.get(key)
+    if out is None:
+        if len(_STARTS) > 256:
+            _STARTS.clear()
+        out = _STARTS[key] = c * np.arange(n)
+    return out
 
 
 def _cross(u, v):
@@ -381,9 +402,14 @@ FACE_SAMPLES = np.array([
 
 
 def _keep_tangential(v, hit, normal, surface_velocity, friction):
-    rel = v[hit] - surface_velocity
+    vh = v[hit]
+    rel = vh - surface_velocity
     rel_n = rowdot(rel, normal)[:, None] * normal
-    v[hit] = surface_velocity + (1.0 - friction) * (rel - rel_n)
+    if friction == 0.0:  # (the same, without the tangential part's round trip)
+        vh -= rel_n
+        v[hit] = vh
+    else:
+        v[hit] = surface_velocity + (1.0 - friction) * (rel - rel_n)
 
 
 def resolve_particles(x, v, bodies, s, thickness, movable, friction=0.0, passes=4, rows=None, phi=None):

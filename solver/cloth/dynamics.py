@@ -85,8 +85,10 @@ class ClothDynamics:
         particle, share = idx[::3] // 3, w[:, 0]
         keep = share != 0.0
         self._sweep_rows = np.empty((len(e0), 4))
+        # (the over-relaxation RELAX is in the moves' entries: a particle's move is their sum
+        # over the count)
         self._sweep_matrix = sparse.csr_matrix(
-            (np.r_[share[keep], np.ones(keep.sum())],
+            (np.r_[RELAX * share[keep], np.ones(keep.sum())],
              (np.r_[particle[keep], p_count + particle[keep]], np.r_[item[keep], item[keep]])),
             shape=(2 * p_count, len(e0)))
         self._sweep_matrix.sort_indices()
@@ -97,6 +99,10 @@ class ClothDynamics:
         self._edge_diff = Product(edge_difference, 3)
         self._sweep = Product(self._sweep_matrix, 4)
         self._spread = Product(self._spread_matrix, 3)
+        self._reach = Product(self._reach_matrix, 1)  # how many of given edges (E, 1) move a particle
+        self._times_off = np.zeros(len(e0))  # per edge, the sweeps in which it was off
+        self._floor_off = self._floor_m * (1.0 - SLACK)
+        self._limit_off = self._limit_m * (1.0 + SLACK)
         self._sweep_moves, self._sweep_count = self._sweep.out[:p_count, :3], self._sweep.out[p_count:, 3]
         self._sweep_scale, self._sweep_step = np.empty((p_count, 1)), np.empty((p_count, 3))
         self._rows_d, self._rows_off = self._sweep_rows[:, :3], self._sweep_rows[:, 3]
@@ -167,8 +173,13 @@ class ClothDynamics:
         self._air_f = self._free_f * p.air_damping
         self._windy = bool(np.any(self.wind != 0.0))
         self._pin_idx = np.flatnonzero(self.pinned)
-        self._spring_diff = Product(difference_matrix(self._s0, self._s1, len(self.mass)), 3)
-        self._edge_rate = Product(edge_difference, 3)
+        # the springs' vectors (rows of x) and the edges' relative velocities (rows of v) from
+        # the stacked state [x; v] (2P, 3) in one product (the same rows, so the same sums)
+        state_diff = sparse.block_diag((difference_matrix(self._s0, self._s1, len(self.mass)), edge_difference),
+                                       format="csr")
+        state_diff.sort_indices()
+        self._state_diff = Product(state_diff, 3)
+        self._springs = len(self._s0)
         self._acc = Product(self._acc_matrix, 3)
         self._drag_of = 0.5 * AIR_DENSITY * p.drag * mesh.area * self.inv_mass
         self._edges = len(self._e0)
@@ -194,17 +205,17 @@ class ClothDynamics:
         arrays throughout: numpy's strided in-place operations cost several times more)."""
         p = self.params
         x, v = y[0], y[1]
-        d = self._spring_diff(x)
+        both = self._state_diff(y.reshape(-1, 3))
+        d = both[:self._springs]
         length = np.sqrt(rowdot(d, d))
         coef = self._sk * (length - self._srest)  # eq. 4.1 (bending springs alike)
         e = self._edges
         if self.damping > 0.0:
             le = length[:e]
-            coef[:e] += self.damping * rowdot(self._edge_rate(v), d[:e]) / (le * le + 1e-18)
+            coef[:e] += self.damping * rowdot(both[self._springs:], d[:e]) / (le * le + 1e-18)
         out = np.empty_like(y)
         out[0] = v
-        acc = out[1]
-        acc[...] = self._acc(d * coef[:, None])
+        acc = self._acc.into(d * coef[:, None], out[1])
         acc += self._gravity_f - self._air_f * v
         if p.drag > 0.0:  # air pushes against the motion across the cloth: 1/2 rho Cd A |vn| vn
             n = self.particle_normals(x) if normals is None else normals
@@ -252,10 +263,6 @@ class ClothDynamics:
         k2[1, pins] = pin_v
         return k2[0], k2[1]
 
-    def _reach(self, edges):
-        """Per particle, how many of the given edges (bool (E,)) move it."""
-        return self._reach_matrix @ edges.astype(float)
-
     def limit_elongation(self, x, v, iterations=None):
         """Provot's correction (§4.4.3): the particles of an edge longer than (1 + limit) L are
         moved towards each other (inverse-mass weighted, pinned ones stay) back to that length,
@@ -269,52 +276,51 @@ class ClothDynamics:
         number of edges corrected)."""
         p = self.params
         x, v = x.copy(), v.copy()
-        floor, limit = self._floor_m, self._limit_m
-        corrected = None
+        floor, limit, low_off, high_off = self._floor_m, self._limit_m, self._floor_off, self._limit_off
         self._tether(x, v)
         rows_d, rows_off, sweep, diff = self._rows_d, self._rows_off, self._sweep, self._edge_diff
         moves, count, scale, step = self._sweep_moves, self._sweep_count, self._sweep_scale, self._sweep_step
-        rows = self._sweep_rows
-        for _ in range(max(1, iterations or p.constraint_iterations)):
+        rows, times_off = self._sweep_rows, self._times_off
+        times_off.fill(0.0)
+        for k in range(max(1, iterations or p.constraint_iterations)):
             d = diff(x)
             length = np.sqrt(rowdot(d, d))
-            target = _clip(length, floor, limit)
-            over = length - target
-            target *= SLACK
-            off = np.abs(over) > target
-            if not off.any():
+            over = length - _clip(length, floor, limit)
+            # off: beyond a limit by more than SLACK of it (|over| > SLACK clip(length)), i.e.
+            # outside [floor (1 - SLACK), limit (1 + SLACK)]; 1.0 / 0.0 in the sweep's 4th column
+            np.not_equal(_clip(length, low_off, high_off), length, out=rows_off)
+            # (tested every 4th sweep only: a sweep with no edge off moves nothing)
+            if not k & 3 and not rows_off.any():
+                if k == 0:
+                    return x, v, 0
                 break
-            if corrected is None:
-                corrected = off
-            else:
-                corrected |= off
+            times_off += rows_off
             over /= length
-            over *= off
+            over *= rows_off
             np.multiply(d, over[:, None], out=rows_d)
-            rows_off[...] = off
-            sweep(rows)
+            sweep(rows)  # each particle's summed moves (RELAX included) and its edges off
             np.maximum(count, 1.0, out=scale[:, 0])
-            np.divide(RELAX, scale, out=scale)
-            np.multiply(scale, moves, out=step)
+            np.divide(moves, scale, out=step)
             x += step
-        if corrected is None:
-            return x, v, 0
+        corrected = times_off > 0.0
         # corrected edges stop stretching (squeezed ones stop shortening)
         d = diff(x)
         length = np.sqrt(rowdot(d, d))
         u = d / np.maximum(length, 1e-12)[:, None]
-        longer = length > self.mesh.rest_length
-        scale = (RELAX / np.maximum(self._reach(corrected), 1.0))[:, None]
-        # a stretching edge's rate may only go down to 0, a squeezed one's up to 0: clip bounds
-        low = np.where(corrected & longer, 0.0, -np.inf)
-        low[~corrected] = 0.0
-        high = np.where(corrected & ~longer, 0.0, np.inf)
-        high[~corrected] = 0.0
+        stretched = length > self.mesh.rest_length
+        stretched &= corrected
+        squeezed = corrected ^ stretched
+        # a stretching edge's rate may only go down to 0, a squeezed one's up to 0, the others
+        # stay: the clip bounds
+        low = np.where(squeezed, -np.inf, 0.0)
+        high = np.where(stretched, np.inf, 0.0)
+        reach = self._reach(corrected[:, None].astype(float))
+        np.maximum(reach, 1.0, out=reach)
         spread = self._spread
         for _ in range(VELOCITY_SWEEPS):
             rate = _clip(rowdot(diff(v), u), low, high)  # (low <= high everywhere)
-            v += scale * spread(rate[:, None] * u)
-        return x, v, int(corrected.sum())
+            v += spread(rate[:, None] * u) / reach
+        return x, v, int(np.count_nonzero(corrected))
 
     def _tethers(self):
         """Each free particle's nearest pin along the mesh and the rest length of that path

@@ -58,6 +58,16 @@ class Product:
         _csr_matvecs(*self._args, dense.ravel(), self._flat)
         return self.out
 
+    def into(self, dense, out):
+        """The product written into `out` (a C-contiguous (rows, cols) array) instead."""
+        if _csr_matvecs is None:
+            out[...] = self.matrix @ dense
+            return out
+        flat = out.reshape(-1)
+        flat.fill(0.0)
+        _csr_matvecs(*self._args, dense.ravel(), flat)
+        return out
+
 
 def difference_matrix(first, second, count):
     """(S, count) CSR: row s is -1 at first[s], +1 at second[s], so `D @ x` is x[second] - x[first]

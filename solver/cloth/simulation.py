@@ -13,6 +13,10 @@ from .smoothing import Smoother, _grid
 # the per-phase timings are CPU time of this process: on a shared machine wall-clock time counts
 # the other processes' share too (the simulation runs on one thread)
 _clock = time.process_time
+# pushes of the frame's last collision pass (and the fine surface's) per particle: a particle
+# wedged where two capsules meet can be pushed from one into the other a few times before it is
+# out of both (only such particles are queried again)
+FRAME_END_PASSES = 16
 
 
 class ClothSimulation:
@@ -77,7 +81,7 @@ class ClothSimulation:
         t1 = _clock()
         if self.bodies:
             phi = resolve_particles(x, v, self.bodies, 1.0, self.params.thickness, self._everyone,
-                                    self.params.friction)[1]
+                                    self.params.friction, passes=FRAME_END_PASSES)[1]
             self._phi_end = (x.copy(), self._motions(), phi)
         self.timing["integration"] += t1 - t0
         self.timing["collision"] += _clock() - t1
@@ -127,7 +131,7 @@ class ClothSimulation:
         idx += p  # the particles are already out
         pts = fine[idx]
         pushed, _ = resolve_particles(pts, np.zeros_like(pts), self.bodies, 1.0, self.params.thickness,
-                                      np.ones(len(idx), dtype=bool))
+                                      np.ones(len(idx), dtype=bool), passes=FRAME_END_PASSES)
         fine[idx] = pts
         self.surface_pushed += pushed
 

@@ -167,8 +167,10 @@ def _split_speed(p0, n0, m, nm, p1, n1):
 # ---- edge length control ------------------------------------------------------------------
 
 GROW = 8  # bracket doublings evaluated together
-HALVING_BITS = 3  # bisection halvings done in one pass (2^bits - 1 lengths per edge)
+HALVING_BITS = 4  # bisection halvings done in one pass (2^bits - 1 lengths per edge)
 _DOUBLINGS = 2.0 ** np.arange(GROW)
+_FRACTIONS = {b: (np.arange(1, 1 << b) / (1 << b))[:, None] for b in range(1, HALVING_BITS + 1)}
+_GL_BOTH = np.concatenate([GL_W, GL_W])  # the quadrature weights of both halves' nodes
 
 def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
     """Midpoints (E, 3), their normals, h (E,) and whether each edge was shortened: §4.3.3.
@@ -189,41 +191,44 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
     i = np.flatnonzero(short)
     a0, b0, a1, b1, m, n, target = p0[i], n0[i], p1[i], n1[i], mid[i], nm[i], rest[i]
     v0, v1 = _split_speed(a0, b0, m, n, a1, b1)
-    # |v0 + h v1|^2 = A + h (B + h C) at every quadrature node: each bisection step is one pass
-    qa, qb, qc = (_c_einsum("htaj,htaj->aht", v0, v0), 2.0 * _c_einsum("htaj,htaj->aht", v0, v1),
-                  _c_einsum("htaj,htaj->aht", v1, v1))
-    weights = np.concatenate([GL_W, GL_W])
-    qa, qb, qc = qa.reshape(len(i), 1, -1), qb.reshape(len(i), 1, -1), qc.reshape(len(i), 1, -1)
+    # |v0 + h v1|^2 = A + h (B + h C) at every quadrature node: each bisection step is one pass.
+    # Laid out (nodes of both halves, edges): a pass over K trial h per edge works on (K, nodes,
+    # edges) arrays whose rows are long and contiguous (numpy's inner loops run over the edges)
+    count = len(i)
+    qa = _c_einsum("htaj,htaj->hta", v0, v0).reshape(-1, count)
+    qb = _c_einsum("htaj,htaj->hta", v0, v1).reshape(-1, count)
+    qb *= 2.0
+    qc = _c_einsum("htaj,htaj->hta", v1, v1).reshape(-1, count)
 
-    def lengths(hh):  # hh (M, K) -> the split curves' lengths (M, K)
-        hh = hh[:, :, None]
+    def lengths(hh):  # hh (K, M) -> the split curves' lengths (K, M)
+        hh = hh[:, None, :]
         s = hh * qc
         s += qb
         s *= hh
         s += qa  # A + h (B + h C)
         np.maximum(s, 0.0, out=s)
         np.sqrt(s, out=s)
-        return s @ weights
+        return _GL_BOTH @ s
 
     chord = a1 - a0
     chord = np.sqrt(dot(chord, chord))
     h0 = np.maximum(k_guess * (target - chord), 1e-6 * target)  # eq. 4.6
     # grow the bracket from h0, doubling, until the curve at hi is long enough: the first
     # GROW doublings evaluated at once, the rare longer searches one doubling at a time
-    cand = h0[:, None] * _DOUBLINGS  # (M, GROW)
-    long_enough = lengths(cand) >= target[:, None]
-    j = np.where(long_enough.any(axis=1), long_enough.argmax(axis=1), GROW)
-    rows = np.arange(len(i))
-    hi = np.where(j < GROW, cand[rows, np.minimum(j, GROW - 1)], 2.0 * cand[:, -1])
-    lo = np.where(j > 0, cand[rows, np.maximum(j - 1, 0)], 0.0)
-    lo = np.where(j == GROW, cand[:, -1], lo)
+    cand = _DOUBLINGS[:, None] * h0  # (GROW, M)
+    long_enough = lengths(cand) >= target
+    j = np.where(long_enough.any(axis=0), long_enough.argmax(axis=0), GROW)
+    cols = np.arange(count)
+    hi = np.where(j < GROW, cand[np.minimum(j, GROW - 1), cols], 2.0 * cand[-1])
+    lo = np.where(j > 0, cand[np.maximum(j - 1, 0), cols], 0.0)
+    lo = np.where(j == GROW, cand[-1], lo)
     for _ in range(40 - GROW if j.max() == GROW else 0):  # (the others' hi is long enough)
-        low = lengths(hi[:, None])[:, 0] < target
+        low = lengths(hi[None])[0] < target
         if not low.any():
             break
         lo = np.where(low, hi, lo)
         hi = np.where(low, 2.0 * hi, hi)
-    # the halvings, HALVING_BITS at a time: the length grows with h, so `bits` halvings of [lo, hi]
+    # the halvings, several at a time: the length grows with h, so `bits` halvings of [lo, hi]
     # end in the one of its 2^bits equal parts where the length crosses the target, found by
     # evaluating all their inner ends at once (one pass instead of `bits` passes)
     done = 0
@@ -231,8 +236,9 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
         bits = min(HALVING_BITS, iterations - done)
         parts = 1 << bits
         width = hi - lo
-        hh = lo[:, None] + width[:, None] * (np.arange(1, parts) / parts)  # (M, parts - 1)
-        below = (lengths(hh) < target[:, None]).sum(axis=1)
+        hh = _FRACTIONS[bits] * width
+        hh += lo  # (parts - 1, M)
+        below = (lengths(hh) < target).sum(axis=0)
         lo, hi = lo + width * (below / parts), lo + width * ((below + 1) / parts)
         done += bits
     h[i] = 0.5 * (lo + hi)

@@ -123,6 +123,8 @@ def test_kept_output_products_and_edge_differences_equal_scipys(monkeypatch):
         product = fast.Product(m, 4)
         assert np.allclose(product(dense), m @ dense, atol=1e-14)
         assert np.allclose(product(2.0 * dense), 2.0 * (m @ dense), atol=1e-14)  # the output is reused
+        target = np.full((30, 4), 7.0)
+        assert product.into(dense, target) is target and np.allclose(target, m @ dense, atol=1e-14)
         diff = fast.Product(fast.difference_matrix(first, second, 20), 3)
         assert np.array_equal(diff(x), x[second] - x[first])
     lo, hi = rng.uniform(0, 0.5, 50), rng.uniform(0.5, 1.0, 50)
