@@ -138,6 +138,22 @@ def test_c_15kg_the_back_bends_and_recovers(squat, runs):
           f"back bends {bent:.1f} deg; end error {worst[-1]:.2f} deg")
 
 
+@pytest.mark.xfail(strict=True, reason="known defect (issue 4): experiment (c) passes or fails with "
+                   "the last bits (balance control's saturated ZMP corrections amplify them)")
+def test_c_15kg_recovery_does_not_hang_on_rounding(squat):
+    """(c) must hold on any machine, so it may not depend on rounding: gravity scaled by
+    (1 + eps), eps far below any physical meaning, must give the same outcome (back bent and
+    recovered, no fall, feet planted). Measured: 6 of these 8 runs fail with numpy 1.26, 4 with
+    numpy 2 (module docstring). Remove the xfail when balance control is made stable."""
+    sk, tr = squat
+    for eps in (1e-14, -1e-14, 1e-13, -1e-13, 3e-12, -3e-12, 1e-11, -1e-11):
+        res = control(sk, tr, ControlSettings(loads=hand_loads(sk, 15.0), gravity=(0.0, 0.0, -9.81 * (1 + eps))))
+        worst = deviation(tr, res)[:, sk.mass > 0].max(axis=1)
+        assert not res.falling.any(), f"falls with gravity scaled by 1 + {eps:g}"
+        assert res.foot_slide.max() < 0.002, f"feet slide with gravity scaled by 1 + {eps:g}"
+        assert worst[-1] < 2.0, f"{worst[-1]:.0f} deg from the input at the end with gravity scaled by 1 + {eps:g}"
+
+
 CLIP = Path(__file__).resolve().parents[2] / "humananim_addon" / "data" / "mocap" / "cmu_131_01.bvh"
 
 
