@@ -51,19 +51,16 @@ class Product:
         self._args = (m, n, cols, matrix.indptr, matrix.indices, matrix.data)
 
     def __call__(self, dense):
-        if _csr_matvecs is None:
-            self.out[...] = self.matrix @ dense
-            return self.out
-        self._flat.fill(0.0)
-        _csr_matvecs(*self._args, dense.ravel(), self._flat)
-        return self.out
+        return self._product(dense, self.out, self._flat)
 
     def into(self, dense, out):
         """The product written into `out` (a C-contiguous (rows, cols) array) instead."""
+        return self._product(dense, out, out.reshape(-1))
+
+    def _product(self, dense, out, flat):  # flat: out's data as one row
         if _csr_matvecs is None:
             out[...] = self.matrix @ dense
             return out
-        flat = out.reshape(-1)
         flat.fill(0.0)
         _csr_matvecs(*self._args, dense.ravel(), flat)
         return out

@@ -233,7 +233,7 @@ def _subtree_mc(model, data, q):
 def zmp_jacobian(state, wrench, dofs=None):
     """Eq. 2.13-2.14 (Z up): d ZMP / d theta'' (2, k) at the ZMP of `wrench`."""
     rate = augmented_body(state, dofs).momentum_rate
-    p = np.array((*zmp_xy(wrench, state.ground_height), float(state.ground_height)))  # on the ground
+    p = _on_ground(zmp_xy(wrench, state.ground_height), state.ground_height)
     dn = rate[:3] - _skew(p) @ rate[3:]  # moment change about the ZMP
     return np.vstack((-dn[1], dn[0])) / wrench[5]
 
