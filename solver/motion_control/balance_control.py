@@ -266,7 +266,7 @@ def balance_candidates(state, part, a):
     if np.abs(rows).max() < 1e-9:
         return []
     x = pinv(rows, rcond=state.settings.rcond) @ -moment_about(wrench, point)[:2]
-    return [bounded(state, part, x)]
+    return [x]
 
 
 def balance_criterion(state, part, active, current):

@@ -449,8 +449,7 @@ def comfort_candidates(state, part, a):
     reach = np.abs(sens).max(axis=1) > 1e-9
     if not reach.any():
         return []
-    return [bounded(state, part, pinv(sens[reach], rcond=state.settings.rcond)
-                    @ -stress[rows[reach]])]
+    return [pinv(sens[reach], rcond=state.settings.rcond) @ -stress[rows[reach]]]
 
 
 def bounded(state, part, x):
@@ -499,7 +498,7 @@ def control_sequence(state, a0, criteria, passive=True, log=None):
         if best is None:
             continue
         kind, x = best
-        delta = part_matrix(state, part) @ x
+        delta = part_matrix(state, part) @ bounded(state, part, x)
         active = active + delta
         log.record(part, kind, delta)
     return active + stress, log
