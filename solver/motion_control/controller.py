@@ -1046,7 +1046,7 @@ class _Loop:
         fr = d.frames.take(bodies, axis=0)
         centres = np.einsum("kij,kj->ki", fr[:, :3, :3], local) + fr[:, :3, 3]
         rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
-        if ground or self.st.colliders:
+        if ground or self.st.colliders or self.st.foot_iterations:
             vel = kinematics.body_velocities(m, d, q, v).take(bodies, axis=0)
         else:  # (the velocity terms: the planted legs' predicted re-solve then finds them computed)
             vel = velocity_terms(m, d, q, v)[0].take(bodies, axis=0)
