@@ -185,6 +185,53 @@ spend theirs in the inverse-dynamics passes of the candidates and pseudo-inverse
 order asks for. Reaching the CMU aim needs either an arithmetic change the control decisions
 must then be shown to survive (the thesis experiments' assertions, 2 mm of foot slide, the
 reference re-recorded) or compiled code.
+
+Fifth round (branch controlspeed5), last-bit changes allowed if every thesis experiment still
+passes. Against main (commit 82653c5's solver) in the same minutes; callgrind instructions inside
+the bake's loop (load-independent) and CPU ms (best of 4 bakes per process, 3 alternations, under a
+load average of 2-3.6 on the 2 CPUs from other sessions: ~2x the quiet host, only ratios mean much):
+
+                                      main          default (kept)   cmu_predicted_resolve
+  instructions per CMU step           3.94 M        3.93 M (-0.2 %)  3.57 M (-9.4 %)
+  CMU median, numpy 1.26 (loaded)     1.16-1.32 ms  1.23-1.32 ms     1.11-1.18 ms (x0.89)
+  CMU median, numpy 2 (loaded)        1.27-1.39 ms  1.25-1.32 ms     1.07-1.12 ms (x0.86)
+  with also the measured-not-kept cuts below: 3.31 M instructions (-15.8 %), CPU x0.81-0.87
+
+The CMU aim (median < 0.5 ms, factor > 50) still does not hold on the default settings: quiet-host
+figures stay ~0.6 ms median, factor ~46 on numpy 1.26 (numpy 2: ~0.56 ms, ~52).
+
+New: ControlSettings.foot_iterations = 0 (benchmark case cmu_predicted_resolve) replaces the
+planted legs' position re-solve after the step (a forward kinematics of the feet's chain at the
+integrated configuration, a Gauss-Newton step and a second integration) by its prediction from the
+step's own frames: each planted foot's pose at q (+) v dt to second order (its velocity and the
+velocity-product acceleration of integrate's constant-velocity step, with the root's straight-line
+translation), the error to the target corrected by the legs' damped least squares at q and added to
+the step's single integration; a step where a leg joint turns more than LANDING_TURN (0.1 rad) or a
+foot lifts (its target jumps as the rolling anchor ends) re-solves after the step as before. Feet
+land within 0.4 um (median) of their targets on CMU (exact re-solve: 0.01 um), slide 1.14 mm (1.13),
+the CMU walk with 8 / 15 kg bends the back 9.5 / 32.2 deg (main 7.3 / 25; numpy 1.26). With the
+other last-bit cuts below it passed every thesis experiment on numpy 1.26 but not the metarig squat
+with 15 kg (test_c) on numpy 2 (71 frames over strength against 66 under pure tracking; the test
+asks < 49.5); as committed (main's arithmetic elsewhere) that squat falls on numpy 1.26 and slides
+291 mm on numpy 2. So it stays an option, the default keeps main's arithmetic bit for bit (63
+arrays, numpy 1.26 and 2) and the reference was not re-recorded.
+
+Why not the default: the 15 kg squat is chaotic in the last bit on main itself. main's own loop with
+gravity scaled by (1 + eps): eps = 0 passes; 1e-12: the feet slide 49.6 mm; 1e-10: it falls;
+1e-8: slide 13.6 mm; 3e-9: 2.0 deg left at the end (the test asks < 2). Thirteen physically
+equivalent variants of the fast path (quat_log's factor without its small-angle branch, fused
+strength limits, plain-float root tracking error, a leaner integrate, one or two integrations,
+the sole centres as one product, LANDING_TURN 0.05-0.2) each passed that experiment on one numpy
+and failed it on the other (over strength 16-89 frames, back bend 25-164 deg, slide 0.01-700 mm).
+Which numpy passes is a coin toss per variant, not a property of the method.
+
+Measured, not kept: the legs' velocities that land the feet on their targets (the position error
+over dt in the velocity projection, no re-solve at all): the CMU walk's back bent 10-19 deg with
+8 kg (main 7.3) so test_c on the walk failed, and without a step bound it diverged in violent
+steps (the second-order term grows with the square of the joint speeds); the cuts above that change
+last bits (fused strength limits and tracking error, lean integrate, sole centres): -6.4 % of the
+instructions on top of the predicted re-solve, dropped with it because they reshuffle the same
+coin toss on the default path (with them main's exact re-solve made the 15 kg squat fall).
 """
 
 import argparse
@@ -240,6 +287,9 @@ def measure(repeats=3):
         from test_dynamics_closed_loop_rigs import load
         sk, cmu = load("cmu_131_01")
         cases.append(("cmu", sk, cmu, ctl.ControlSettings()))
+        # the planted legs' predicted position re-solve (no forward kinematics at the integrated
+        # configuration; see the fifth round below)
+        cases.append(("cmu_predicted_resolve", sk, cmu, ctl.ControlSettings(foot_iterations=0)))
     except Exception as exc:  # the fixture is in the repository's tests
         out["cmu_error"] = str(exc)
     for name, sk, motion, settings in cases:
