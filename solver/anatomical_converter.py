@@ -20,6 +20,7 @@ import numpy as np
 from . import rotations
 from .body_roles import SIDES, sided
 from .errors import HumanAnimError
+from .vectors import cross
 
 # Ascension transmitter frame (X forward, Y right, Z down) to Z-up world: a half turn about X
 TRACKER_Z_DOWN = np.diag([1.0, -1.0, -1.0])
@@ -34,20 +35,15 @@ def _rot(q):
     return rotations.to_matrix(np.asarray(q, float))
 
 
-def _cross(a, b):
-    # np.cross costs ~20 us on 3-vectors; this is a few
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
 def _swing(a, b):
     """The smallest rotation matrix taking direction a to direction b."""
     a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
-    v, c = _cross(a, b), float(np.dot(a, b))
+    v, c = cross(a, b), float(np.dot(a, b))
     s = np.linalg.norm(v)
     if s < 1e-12:
         if c > 0:
             return np.eye(3)
-        perp = _cross(a, [1.0, 0, 0] if abs(a[0]) < 0.9 else [0, 1.0, 0])
+        perp = cross(a, [1.0, 0, 0] if abs(a[0]) < 0.9 else [0, 1.0, 0])
         perp /= np.linalg.norm(perp)
         return 2 * np.outer(perp, perp) - np.eye(3)
     k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
@@ -193,9 +189,9 @@ class AnatomicalConverter:
         d_vec = goal - a
         d = np.clip(np.linalg.norm(d_vec), abs(l1 - l2) + 1e-6, l1 + l2 - 1e-6)
         u = d_vec / max(np.linalg.norm(d_vec), 1e-9)
-        bend = _cross(b - a, c - b)
+        bend = cross(b - a, c - b)
         n = bend / np.linalg.norm(bend) if np.linalg.norm(bend) > 1e-6 * l1 * l2 else world[upper, :3, 0]
-        side = _cross(n, u)
+        side = cross(n, u)
         side /= max(np.linalg.norm(side), 1e-9)
         cos_a = np.clip((l1 ** 2 + d ** 2 - l2 ** 2) / (2 * l1 * d), -1, 1)
         elbow = a + l1 * (cos_a * u + np.sqrt(1 - cos_a ** 2) * side)

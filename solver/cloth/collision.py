@@ -24,6 +24,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from ..vectors import cross
 from .fast import _c_einsum, clip as _clip, dot, rowdot
 
 
@@ -175,23 +176,14 @@ def _row_starts(n, c):
     return out
 
 
-def _cross(u, v):
-    """np.cross for (..., 3) arrays without its axis bookkeeping (a hot path here)."""
-    out = np.empty(np.broadcast_shapes(u.shape, v.shape))
-    out[..., 0] = u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1]
-    out[..., 1] = u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2]
-    out[..., 2] = u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
-    return out
-
-
 def closest_on_triangles(p, a, b, c):
     """Closest points on triangles abc to points p (all (..., 3)): (q, barycentric (..., 3))."""
     ab, ac = b - a, c - a
-    n = _cross(ab, ac)
+    n = cross(ab, ac)
     nn = np.maximum(dot(n, n), 1e-30)
     ap = p - a
-    beta = dot(_cross(ap, ac), n) / nn
-    gamma = dot(_cross(ab, ap), n) / nn
+    beta = dot(cross(ap, ac), n) / nn
+    gamma = dot(cross(ab, ap), n) / nn
     alpha = 1.0 - beta - gamma
     inside = (alpha >= 0.0) & (beta >= 0.0) & (gamma >= 0.0)
     q = a + beta[..., None] * ab + gamma[..., None] * ac
@@ -257,7 +249,7 @@ class MeshBody:
             return self._pose
         v = self.v0 + s * (self.v1 - self.v0)
         tri = v[self.triangles]
-        fn = _cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        fn = cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         fn /= np.maximum(np.sqrt(dot(fn, fn)), 1e-18)[:, None]
         pv = v[self._part_verts]
         lo = np.minimum.reduceat(pv, self._part_starts, axis=0)

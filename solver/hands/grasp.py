@@ -11,6 +11,7 @@ import numpy as np
 
 from ..body_roles import FINGERS, sided
 from ..errors import HumanAnimError
+from ..vectors import cross
 from . import ik
 from .primitives import Box, Sphere, dimensions, kind, shape_frame
 from .self_collision import remove_self_collisions
@@ -64,7 +65,7 @@ def hand_geometry(skeleton, side, world):
     across = root["pinky"] - root["index"]
     across -= along * (across @ along)
     across /= np.linalg.norm(across)
-    normal = ik.cross(along, across)
+    normal = cross(along, across)
     # the palm is the side the thumb's tip lies on
     if normal @ (tip["thumb"] - palm) < 0:
         normal = -normal
@@ -154,8 +155,8 @@ def builtin_pattern(skeleton, side, world, geom, gtype, centre_local, unused_cur
     joints = np.array(joints)
     p = world[joints, :3, 3]
     tips = np.array(tips)
-    to_palm = ik.cross(tips - p, normal_w)
-    axis = np.where(np.array(uses)[:, None], ik.cross(tips - p, np.array(aims) - p), to_palm)
+    to_palm = cross(tips - p, normal_w)
+    axis = np.where(np.array(uses)[:, None], cross(tips - p, np.array(aims) - p), to_palm)
     axis = np.where((np.linalg.norm(axis, axis=1) < 1e-9)[:, None], to_palm, axis)
     axis /= np.linalg.norm(axis, axis=1)[:, None]
     local_axis = (np.swapaxes(world[joints, :3, :3], 1, 2) @ axis[:, :, None])[..., 0]
@@ -181,7 +182,7 @@ APPROACH = 0.06  # metres the palm backs off along its normal before the final a
 
 def _flexion_axis(skeleton, j, world, normal_w, tip):
     """The bone's local axis closest to its flexion axis (the one that curls the tip palmward)."""
-    axis = ik.cross(tip - world[j][:3, 3], normal_w)
+    axis = cross(tip - world[j][:3, 3], normal_w)
     local = world[j][:3, :3].T @ axis
     return int(np.argmax(np.abs(local)))
 
@@ -533,9 +534,9 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
                                    np.linspace(0, 2 * np.pi, 7)[:-1], indexing="ij")
         th, ph, roll = th.ravel(), ph.ravel(), roll.ravel()
         n = np.stack((np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)), axis=-1)
-        t1 = ik.cross(n, [0, 0, 1.0])
+        t1 = cross(n, [0, 0, 1.0])
         t1 /= np.linalg.norm(t1, axis=1)[:, None]
-        t2 = ik.cross(n, t1)
+        t2 = cross(n, t1)
         dirs = list(zip(n, np.cos(roll)[:, None] * t1 + np.sin(roll)[:, None] * t2))
     elif isinstance(shape, Box):
         for a in range(3):
@@ -566,7 +567,7 @@ def candidates(shape, gtype, geom, current_hand, eye, body_centre, sensors_local
     keep = np.linalg.norm(a, axis=1) >= 1e-6
     n, a = n[keep], a[keep] / np.linalg.norm(a[keep], axis=1)[:, None]
     local_axes = np.column_stack((geom.normal, geom.across, geom.along))
-    along_w = np.sign(np.linalg.det(local_axes)) * ik.cross(n, a)
+    along_w = np.sign(np.linalg.det(local_axes)) * cross(n, a)
     rot = np.stack((n, a, along_w), axis=-1) @ local_axes.T  # (D, 3, 3)
     anchor_l = geom.palm if anchor is None else anchor
     off0 = 0.0 if anchor is not None else max(0.0, float(-shape.distance(f[:3, 3]))) + geom.palm_radius

@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from ..body_roles import sided
 from ..errors import RigError
+from ..vectors import cross
 
 
 def rodrigues(v):
@@ -82,16 +83,6 @@ def _matrix_xyz(u):
 def matrix_xyz(e):
     """Rotations (..., 3, 3) of intrinsic X-Y-Z angles (..., 3)."""
     return _matrix_xyz(_unit_trig(np.asarray(e, float)))
-
-
-def cross(a, b):
-    """np.cross of (..., 3) arrays without its axis bookkeeping (a hot spot on small arrays)."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    out = np.empty(np.broadcast(a, b).shape)
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
 
 
 def rot_angle(r):

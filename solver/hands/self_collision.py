@@ -25,6 +25,7 @@ import numpy as np
 
 from ..body_roles import sided
 from ..errors import RigError
+from ..vectors import cross
 from . import ik
 from .body import Capsule, body_sensors, body_volumes, own_volume, sensor_points
 
@@ -205,7 +206,7 @@ class _ChainCorrector:
         ch = self.chain
         w = axes[:, ch._k, ch._a]  # (B, n, 3)
         o = frames[:, ch._k][..., :3, 3]
-        jac = ik.cross(w[:, None], pts[:, :, None, :] - o[:, None]) * sub[:, :, None]  # (B, S, n, 3) = J'^T
+        jac = cross(w[:, None], pts[:, :, None, :] - o[:, None]) * sub[:, :, None]  # (B, S, n, 3) = J'^T
         m = np.einsum("bsni,bsnj->bsij", jac, jac)  # J' J'^T (B, S, 3, 3)
         tr = np.trace(m, axis1=2, axis2=3)
         good = np.linalg.det(m) > 1e-9 * np.maximum(tr, 1e-30) ** 3
@@ -285,7 +286,7 @@ class _ChainCorrector:
             dz = self.gain * self.secondary(frames, axes, pts[:, ~self.ends], inner, push[go][:, ~self.ends],
                                                  self.sub[~self.ends]) if inner.any() else np.zeros((len(live), chain.n))
             w = axes[:, chain._k, chain._a]
-            lin = np.swapaxes(ik.cross(w, x[:, None] - frames[:, chain._k][..., :3, 3]), 1, 2)
+            lin = np.swapaxes(cross(w, x[:, None] - frames[:, chain._k][..., :3, 3]), 1, 2)
             ep = np.minimum(np.maximum(ep, -0.05), 0.05)
             if target_rot is not None:
                 wt = 0.15
