@@ -424,14 +424,16 @@ class ClothPreview:
 
     def stop(self):
         """Remove the preview object and its mesh; the scene frame as it was."""
-        self.steps.close()  # restores the frame if it was simulating
+        playing = not self.simulating
+        self.steps.close()  # a simulating job puts its frame back itself (ClothJob's finally)
         if self.obj is not None:
             mesh = self.obj.data
             bpy.data.objects.remove(self.obj, do_unlink=True)
             if mesh.users == 0:
                 bpy.data.meshes.remove(mesh)
             self.obj = None
-        self.scene.frame_set(self.frame_before[0], subframe=self.frame_before[1])
+        if playing:  # the playback moved the frame
+            self.scene.frame_set(self.frame_before[0], subframe=self.frame_before[1])
 
     def message(self):
         t = self.job.sim.ms_per_frame() if self.job.sim is not None else {"total_ms": 0.0}
