@@ -247,9 +247,8 @@ def moment_rows(rate, point):
 
 def balance_candidates(state, part, a):
     """The part's acceleration of least norm that moves the ZMP of `a` to its MMP (eq. 2.13-2.14
-    as the linear condition 'no horizontal moment about the MMP'); the legs' is limited to
-    Settings.max_pelvis_acceleration, the arms' and back's to Settings.max_part_acceleration (what is
-    left goes to the next part). Empty when balanced."""
+    as the linear condition 'no horizontal moment about the MMP'), uncapped (control_sequence caps
+    the one that acts: comfort_control.bounded). Empty when balanced."""
     wrench = required_torques(state, a)[1]
     p, mmp, dist = balance_error(state, wrench)
     if mmp is None or dist <= state.settings.zmp_tolerance:

@@ -432,7 +432,8 @@ def torque_sensitivity(state, part, rows, a):
 def comfort_candidates(state, part, a):
     """Eq. 2.19-2.21: the part's acceleration of least norm that removes the stress of the
     stressed composite joints (bones) it can reach, all at once (least squares when they cannot
-    all be relieved); an empty list when none is stressed."""
+    all be relieved), uncapped (control_sequence caps the one that acts); an empty list when none
+    is stressed."""
     if part == "legs" and not state.feet.all():
         # the legs are controlled through the pelvis for a figure "in a standing double-support
         # phase" (Oshita sec. 2.5.2); in single support "the motion needs to be controlled ... in
@@ -505,6 +506,9 @@ def control_sequence(state, a0, criteria, passive=True, log=None):
 
 
 def largest_with_kind(state, part, criteria, active, current):
+    """The part's candidate of the largest demand, with its kind, or None. The demands are compared
+    before the cap (bounded): capped first, two saturated candidates would tie at the cap and the
+    last bit would choose (the 15 kg squat parted from itself under gravity x (1 + 1e-14))."""
     if not len(getattr(state.parts, part, ())) and part != "legs":
         return None
     found = [(kind, c) for kind, f in criteria.items() for c in f(state, part, active, current)]
