@@ -65,6 +65,7 @@ from scipy.ndimage import gaussian_filter1d
 from ..body_roles import SIDES
 from ..progress import run_to_end
 from ..trajectories import Trajectories
+from ..vectors import cross as cross_rows
 from ..dynamics import kinematics, spatial
 from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories, motion_floor,
                                     weld_static_helpers)
@@ -1228,12 +1229,7 @@ def _cross(a, b):
     b = np.asarray(b, float)
     if a.shape == (3,) and b.shape == (3,):  # plain floats: a tenth of the numpy calls' cost
         return np.array(_cross3(a.tolist(), b.tolist()))
-    a, b = np.broadcast_arrays(a, b)
-    out = np.empty(a.shape)
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
+    return cross_rows(a, b)
 
 
 def _swing_spheres(body, planted):
