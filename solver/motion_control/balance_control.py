@@ -27,7 +27,7 @@ from scipy.linalg import lapack
 from ..dynamics.balance import _turn, closest_boundary_xy, convex_hull, inside_xy, monotone_chain
 from ..dynamics.inertia_matrix import composite_inertias
 from ..dynamics.kinematics import body_com, motion_subspace, update_frames
-from .comfort_control import ControlLog, bounded, control_sequence, part_matrix, pinv, required_torques
+from .comfort_control import ControlLog, control_sequence, part_matrix, pinv, required_torques
 
 
 # ---- support polygon, ZMP, MMP ---------------------------------------------------------------

@@ -577,27 +577,16 @@ class _Loop:
                     # feet could stop it; planted feet would take that momentum back (their
                     # projection acts as an unbounded ground) and spin the upper body instead
                     fall = KNOCKED_OVER
-                ground = self.fallen or fall is KNOCKED_OVER
-                # the feet's velocity over the step: the targets' at its end. Standing without
-                # colliders, before the swing foot's ground test: that acts on the swing leg alone
-                # and reads the root's and that leg's velocities, which the planted legs'
-                # projection does not change (nor the other way round), and it then finds the
-                # step's velocity terms computed (_collide, _predicted_resolve share them)
-                early = planted and fall is None and not ground and not st.colliders
-                if early:
-                    targets = self._foot_targets(body, feet, t + dt)
-                    v = self._project_velocity(body, q, v, feet, targets)
-                v = self._collide(body, q, v, t, dt, ground=ground)
+                v = self._collide(body, q, v, t, dt, ground=self.fallen or fall is KNOCKED_OVER)
                 if fall is not None:
                     self.fallen = True
                     self.planted = [None, None]
                     feet[:] = False
                 planted = planted and fall is None  # a fall releases the feet (above)
                 resolve = correction = None
-                if planted:
-                    if not early:
-                        targets = self._foot_targets(body, feet, t + dt)
-                        v = self._project_velocity(body, q, v, feet, targets)
+                if planted:  # the feet's velocity over the step: the targets' at its end
+                    targets = self._foot_targets(body, feet, t + dt)
+                    v = self._project_velocity(body, q, v, feet, targets)
                     # the positions' re-solve: predicted from the frames at q (_predicted_resolve),
                     # or after the step (a violent step, a foot lifting, foot_iterations)
                     if st.foot_iterations == 0:
@@ -1049,10 +1038,7 @@ class _Loop:
         fr = d.frames.take(bodies, axis=0)
         centres = np.einsum("kij,kj->ki", fr[:, :3, :3], local) + fr[:, :3, 3]
         rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
-        if ground or self.st.colliders or self.st.foot_iterations:
-            vel = kinematics.body_velocities(m, d, q, v).take(bodies, axis=0)
-        else:  # (the velocity terms: the planted legs' predicted re-solve then finds them computed)
-            vel = velocity_terms(m, d, q, v)[0].take(bodies, axis=0)
+        vel = kinematics.body_velocities(m, d, q, v).take(bodies, axis=0)
         if ground or self.st.colliders:
             sphere_vel = vel[:, 3:] + _cross(vel[:, :3], centres)
             vz = sphere_vel[:, 2]
