@@ -95,6 +95,11 @@ for _r, _row in enumerate(((0, 1, 2, 3), (1, 0, 3, 2), (2, 3, 0, 1), (3, 2, 1, 0
     for _c, _k in enumerate(_row):
         _QMUL[_k, 4 * _r + _c] = ((1, -1, -1, -1), (1, 1, -1, 1), (1, 1, 1, -1), (1, -1, 1, 1))[_r][_c]
 del _r, _row, _c, _k
+# ... and a * b = outer(a, b).reshape(16) @ _QMUL_OUTER (outer's entry 4 j + l = a_j b_l), for
+# stacks one 2-D product (a reduction over a small last axis costs ~4x as much); conj(a) * b
+# = outer(a, b).reshape(16) @ _CONJ_QMUL_OUTER
+_QMUL_OUTER = np.ascontiguousarray(_QMUL.reshape(4, 4, 4).transpose(0, 2, 1).reshape(16, 4))
+_CONJ_QMUL_OUTER = _QMUL_OUTER * np.repeat([1.0, -1.0, -1.0, -1.0], 4)[:, None]
 
 
 def quat_multiply(a, b):

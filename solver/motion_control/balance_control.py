@@ -55,7 +55,7 @@ def _support_polygon(state):
     key = (id(state.parts), tuple(state.feet))
     cached = _hull_cache.get(key)
     same_shape = cached is not None and cached[0].shape == pts.shape
-    if same_shape and np.abs(cached[0] - pts).max() < _HULL_REUSE:
+    if same_shape and np.maximum.reduce(np.abs(cached[0] - pts), None) < _HULL_REUSE:  # (.max() goes through Python)
         return pts[cached[1]]
     plist = pts.tolist()
     path = cached[2] if same_shape else None
