@@ -33,7 +33,7 @@ def update_frames(model: Model, data: Data, q):
     frames = frames[:nb]
     data.frames = frames
     rot = frames[:, :3, :3]
-    lever = (frames[:, :3, 3] @ spatial._SKEW_MAP).reshape(nb, 3, 3) @ rot
+    lever = frames[:, :3, 3].dot(spatial._SKEW_MAP).reshape(nb, 3, 3) @ rot
     parts = np.concatenate((rot.reshape(nb, 9), lever.reshape(nb, 9), data.zero_column), axis=1)
     # parts[:, motion_gather] (whose result is laid out column by column: the products on it keep
     # their arithmetic only on that layout) by take, a third of fancy indexing's cost
@@ -53,7 +53,7 @@ def joint_contributions(model, data, v):
 def body_velocities(model, data, q, v):
     """World spatial velocities (nb, 6) of every body."""
     update_frames(model, data, q)
-    return model.ancestors @ joint_contributions(model, data, v)
+    return model.ancestors.dot(joint_contributions(model, data, v))
 
 
 def body_accelerations(model, data, q, v, a):

@@ -347,7 +347,7 @@ def pinv(a, rcond):
     large = s > rcond * s.max()
     inv = np.zeros_like(s)
     inv[large] = 1.0 / s[large]
-    return vt.T @ (inv[:, None] * u.T)
+    return vt.T.dot(inv[:, None] * u.T)
 
 
 # ---- eq. 2.17-2.18: passive control -------------------------------------------------------------
@@ -502,7 +502,7 @@ def control_sequence(state, a0, criteria, passive=True, log=None):
         if best is None:
             continue
         kind, x = best
-        delta = part_matrix(state, part) @ bounded(state, part, x)
+        delta = part_matrix(state, part).dot(bounded(state, part, x))
         active = active + delta
         log.record(part, kind, delta)
     return active + stress, log

@@ -794,11 +794,13 @@ class _Loop:
         """Horizontal travel (m) of the planted foot's contact point since landing: the sole points'
         steps weighted by the input's contact weights (a roll about the contact is no travel)."""
         pts = self._soles(body, q)[s]
-        drift = np.zeros(2) if self._drift[s] is None else self._drift[s][0]
-        if self._drift[s] is not None:
-            drift = drift + self.roll_weights[s][f].dot(pts[:, :2] - self._drift[s][1][:, :2])
-        self._drift[s] = (drift, pts)
-        dx, dy = drift.tolist()
+        last = self._drift[s]
+        if last is None:  # (plain floats: 0.0 + d is d)
+            dx = dy = 0.0
+        else:
+            ex, ey = self.roll_weights[s][f].dot(pts[:, :2] - last[1][:, :2]).tolist()
+            dx, dy = last[0][0] + ex, last[0][1] + ey
+        self._drift[s] = ((dx, dy), pts)
         return math.sqrt(dx * dx + dy * dy)
 
     def _foot_targets(self, body, feet, t):
@@ -876,7 +878,7 @@ class _Loop:
             jac[:3] = cols[:, :3].T
             # head velocity v_O + omega x x = v_O - x x omega; rows @ K = x x row
             cross = np.array([[0.0, x2, -x1], [-x2, 0.0, x0], [x1, -x0, 0.0]])
-            jac[3:] = (cols[:, 3:] - cols[:, :3] @ cross).T
+            jac[3:] = (cols[:, 3:] - cols[:, :3].dot(cross)).T
             out[s] = (jac, frame, dofs, jac[:, body.leg_pos[s]], body.leg_cols[s])
         self._legs_cache = (key, out)
         return out
