@@ -234,6 +234,9 @@ class _Body:
         # ancestors (its Jacobian's columns), and where the leg's own DOFs lie among them
         p = self.parts
         self.foot_body = [int(model.joint_body[f]) for f in p.feet]
+        # the feet's bodies, and the root's and theirs, as index arrays (take converts a list per call)
+        self.feet_rows = np.array(self.foot_body, np.intp)
+        self.root_feet_rows = np.array([0] + self.foot_body, np.intp)
         self.foot_offset = [model.joint_offset[f] for f in p.feet]
         self.leg_cols = [np.asarray(c, int) for c in p.legs]
         self.leg_dofs = [np.flatnonzero(model.ancestors[b][model.dof_body] != 0) for b in self.foot_body]
@@ -926,8 +929,7 @@ class _Loop:
         # DOFs (2-D products, no per-body stack)
         sub = kinematics.motion_subspace(m, d, q)
         acc = ((body.feet_dof_mask * a).dot(sub) + body.feet_ancestors.dot(product)).tolist()
-        feet_bodies = body.foot_body
-        vel = vel.take(feet_bodies, axis=0).tolist()
+        vel = vel.take(body.feet_rows, axis=0).tolist()
         a = a.copy()
         for s, leg in enumerate(legs):
             if leg is None:
@@ -969,9 +971,8 @@ class _Loop:
         m, d = body.model, body.data
         legs = self._leg_jacobians(body, q, feet)  # the frames at q
         vel, _, product = velocity_terms(m, d, q, v)  # the step's velocities
-        feet_bodies = body.foot_body
         acc = body.feet_ancestors.dot(product).tolist()
-        vb = vel.take([0] + feet_bodies, axis=0).tolist()
+        vb = vel.take(body.root_feet_rows, axis=0).tolist()
         # integrate moves the root's origin along a straight line (its world velocity p' fixed over
         # the step), not on the screw of a constant spatial velocity: every body's spatial
         # acceleration then gets the root's (0, -omega x p')
