@@ -87,8 +87,8 @@ NONE, PASSIVE, COMFORT, BALANCE = 0, 1, 2, 3
 
 @dataclass
 class Load:
-    """`mass` kg carried at the tail of bone `bone` from `start_time` (seconds from the clip's
-    start)."""
+    """`mass` kg carried at the centre of mass of bone `bone` (dynamics.model.build_model) from
+    `start_time` (seconds from the clip's start)."""
 
     bone: str
     mass: float
