@@ -143,13 +143,11 @@ class ControlSettings:
     limit_stiffness: float = 300.0  # N m/rad, ragdoll joint limits
     limit_damping: float = 10.0
     contact_iterations: int = 30  # projected Gauss-Seidel sweeps
-    # Gauss-Newton iterations of the planted legs' position re-solve after the step; 0: one,
-    # predicted from the step's own frames instead (_Loop._predicted_resolve: no forward
+    # Gauss-Newton iterations of the planted legs' position re-solve after the step; 0 (default):
+    # one, predicted from the step's own frames instead (_Loop._predicted_resolve: no forward
     # kinematics at the integrated configuration, ~9 % fewer instructions per CMU step; the feet
-    # land within ~1e-6 m of the exact re-solve's, every thesis experiment gives the same outcome).
-    # Not the default: on Blender 4.2's import of the demo clip its 1e-5 rad difference moved the
-    # demo skirt's mean stretch from 1.85 % to 2.22 % (the cloth's 2 % limit)
-    foot_iterations: int = 1
+    # land within ~1e-6 m of the exact re-solve's, every thesis experiment gives the same outcome)
+    foot_iterations: int = 0
     foot_damping: float = 1e-3  # damped least squares of the legs' IK (a straight knee is singular)
     kinematic_fraction: float = 0.0015  # as closed_loop.Settings: fingers follow the input
     # joint armature as a share of each DOF's own inertia H_ii in the first frame (closed_loop's
