@@ -706,9 +706,23 @@ class _Loop:
                 now = kinematics.point_positions(m, body.data, self.q, [foot], [np.zeros(3)])[0]
                 qd = self.tracking.desired_state(t)[0]
                 want = kinematics.point_positions(m, self.desired_data, qd, [foot], [np.zeros(3)])[0]
-                offset, roll = now - want, self._roll_offset(s, t)[0]
+                offset, roll = now - want + self._landing_pivot(body, s, t), self._roll_offset(s, t)[0]
                 self.planted[s] = (offset, roll, offset - roll)
                 self._drift[s] = None
+
+    def _landing_pivot(self, body, s, t):
+        """A foot that lands turned from the input's (a push changed its swing) is turned to the
+        input's rotation by its first target at once; about the ankle, that slid its contact 2.4 mm
+        (the demo's push). The head's offset that makes the turn one about the contact point
+        instead (the input's contact weights at t). Call with body.data at self.q and the desired
+        data at the input's configuration at t (_update_plants)."""
+        m, foot = body.model, body.parts.feet[s]
+        b = m.joint_body[foot]
+        now = body.data.frames[b] @ m.joint_offset[foot]
+        want = self.desired_data.frames[b] @ m.joint_offset[foot]
+        f = min(int(round(t / self.tracking.dt)), len(self.roll_weights[s]) - 1)
+        arm = self.roll_weights[s][f] @ self._soles(body, self.q)[s] - now[:3, 3]
+        return arm - want[:3, :3] @ (now[:3, :3].T @ arm)
 
     def _foot_skate(self, tr):
         """The input's foot skate as a root offset (F, 2): what moves the whole motion so that the
