@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .body_roles import FINGERS, SIDES, sided
+from .skeleton import reach_of_made_up_tail
 
 # segment: (mass %, com % from proximal, r_sagittal %, r_transverse %, r_longitudinal %)
 DE_LEVA = {
@@ -163,7 +164,7 @@ def _limb_parts(skeleton, table, side, clavicle_share, head, tail):
     if hand:
         middle = roles.chain(sided("middle", side))
         distal = (
-            skeleton.rest[skeleton.index(middle[0]), :3, 3] if middle else _finger_base(skeleton, hand, tail))
+            skeleton.rest[skeleton.index(middle[0]), :3, 3] if middle else _reach(skeleton, hand, tail))
         yield hand, table["hand"], 1.0 - (FINGER_SHARE_OF_HAND if fingers else 0.0), \
             head(sided("hand", side)), distal
     for bone in fingers:
@@ -179,21 +180,10 @@ def _limb_parts(skeleton, table, side, clavicle_share, head, tail):
         yield toe, rod, TOE_SHARE_OF_FOOT, head(sided("toe", side)), tail(toe)
 
 
-def _finger_base(skeleton, hand, tail, tolerance=0.005):
-    """The hand's distal end on a rig without finger roles: the heads of the nearest descendants
-    that start away from the wrist (e.g. CMU's wrist > hand > fingers, whose first two start at
-    the wrist). The file defines those heads; the tail of a bone whose children all start at its
-    head is the importer's guess (Blender 4.2 and 5.0 place it 29 cm apart on the CMU wrists)."""
-    j = skeleton.index(hand)
-    wrist = skeleton.rest[j, :3, 3]
-    level = list(skeleton.children(j))
-    while level:
-        heads = skeleton.rest[level, :3, 3]
-        away = np.linalg.norm(heads - wrist, axis=1) > tolerance
-        if away.any():
-            return heads[away].mean(axis=0)
-        level = [c for k in level for c in skeleton.children(k)]
-    return tail(hand)
+def _reach(skeleton, bone, tail):
+    """The bone's distal end: its tail, unless an importer made that up (CMU's wrists)."""
+    reach = reach_of_made_up_tail(skeleton.parents, skeleton.rest[:, :3, 3], skeleton.index(bone))
+    return tail(bone) if reach is None else reach
 
 
 def _length_share(skeleton, bones, bone):

@@ -9,6 +9,7 @@ import pytest
 from humananim.solver import bvh
 from humananim.solver.anthropometry import DE_LEVA, anthropometric_model
 from humananim.solver.dynamics.figures import bone_frame
+from humananim.solver.skeleton import reach_of_made_up_tail
 
 CMU = Path(__file__).resolve().parents[2] / "humananim_addon" / "data" / "mocap" / "cmu_131_01.bvh"
 
@@ -48,3 +49,18 @@ def test_cmu_hand_centre_does_not_depend_on_the_importers_wrist_tail(side):
     along = (centres[0] - wrist) @ (fingers - wrist) / np.sum((fingers - wrist) ** 2)
     assert along == pytest.approx(DE_LEVA["male"]["hand"][1] / 100.0)  # wrist to finger base
     assert np.linalg.norm(np.cross(centres[0] - wrist, fingers - wrist)) < 1e-9
+
+
+def test_reach_of_made_up_tail_only_where_every_child_starts_at_the_head():
+    sk = bvh.skeleton(bvh.read(CMU))
+    heads = sk.rest[:, :3, 3]
+    for side in "LR":
+        wrist = sk.index(f"{side.replace('L', 'Left').replace('R', 'Right')}Wrist")
+        reach = reach_of_made_up_tail(sk.parents, heads, wrist)
+        assert np.allclose(reach, heads[sk.index(f"{side}Fingers")])  # past hand and thumb at the wrist
+    for bone in ("LeftElbow", "LFingers", "LThumb", "LHipJoint", "LeftHip"):
+        # a child away from the head (the elbow, the hip joint), a leaf (an End Site's tail)
+        assert reach_of_made_up_tail(sk.parents, heads, sk.index(bone)) is None, bone
+    # the hips' three children start at its head too: the hip joints and the lower back beyond
+    grand = [sk.index(n) for n in ("LeftHip", "RightHip", "Chest")]
+    assert np.allclose(reach_of_made_up_tail(sk.parents, heads, sk.index("Hips")), heads[grand].mean(axis=0))
