@@ -363,9 +363,9 @@ def measure(repeats=3):
         from test_dynamics_closed_loop_rigs import load
         sk, cmu = load("cmu_131_01")
         cases.append(("cmu", sk, cmu, ctl.ControlSettings()))
-        # the planted legs' predicted position re-solve (no forward kinematics at the integrated
-        # configuration; see the fifth and sixth rounds below)
-        cases.append(("cmu_predicted_resolve", sk, cmu, ctl.ControlSettings(foot_iterations=0)))
+        # the planted legs' exact position re-solve after the step (the default predicts it: see
+        # the fifth and sixth rounds below)
+        cases.append(("cmu_exact_resolve", sk, cmu, ctl.ControlSettings(foot_iterations=1)))
     except Exception as exc:  # the fixture is in the repository's tests
         out["cmu_error"] = str(exc)
     for name, sk, motion, settings in cases:

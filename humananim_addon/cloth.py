@@ -17,6 +17,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProp
 from ..solver.cloth import (CapsuleBody, ClothParams, ClothSimulation, MeshBody, PRESETS, build_mesh, capsule_ends,
                             capsule_mesh, capsules_from_roles, fit_radii, fit_skirt, write_pc2)
 from ..solver.cloth.mesh import ClothError
+from ..solver.skeleton import reach_of_made_up_tail
 from .actions import scene_fps
 from .armature import detect
 from .properties import role_overrides, settings_registration
@@ -215,13 +216,28 @@ def roles_of(arm):
     return detect(arm).roles.with_overrides(role_overrides(arm.data.humananim))
 
 
+def reach_ends(arm, tolerance):
+    """{bone index: the point it reaches, in its own frame} for bones whose tail the importer made
+    up (skeleton.reach_of_made_up_tail; tolerance in armature units)."""
+    bones = arm.data.bones
+    heads = np.array([b.head_local for b in bones])
+    parents = np.array([bones.find(b.parent.name) if b.parent else -1 for b in bones])
+    ends = {}
+    for j, bone in enumerate(bones):
+        reach = reach_of_made_up_tail(parents, heads, j, tolerance)
+        if reach is not None:
+            m = np.array(bone.matrix_local)
+            ends[j] = m[:3, :3].T @ (reach - m[:3, 3])
+    return ends
+
+
 def body_capsules(arm, scene, world, body=None, depsgraph=None):
     """Capsule specs for the armature's body roles; radii from proportions, or fitted to the body
     mesh's vertex groups (named after the bones) when a body mesh is given."""
     names = [b.name for b in arm.data.bones]
     lengths = np.array([b.length for b in arm.data.bones])
     unit = float(np.mean(arm.matrix_world.to_scale())) * _metres(scene)
-    specs = capsules_from_roles(names, lengths, roles_of(arm), unit)
+    specs = capsules_from_roles(names, lengths, roles_of(arm), unit, reach_ends(arm, 0.005 / unit))
     if body is not None and body.type == "MESH" and body.vertex_groups:
         points, _ = body_mesh_positions(body, depsgraph or bpy.context.evaluated_depsgraph_get(), scene)
         weights = group_weights(body, names)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .body_roles import FINGERS, SIDES, sided
+from .skeleton import reach_of_made_up_tail
 
 # segment: (mass %, com % from proximal, r_sagittal %, r_transverse %, r_longitudinal %)
 DE_LEVA = {
@@ -163,7 +164,7 @@ def _limb_parts(skeleton, table, side, clavicle_share, head, tail):
     if hand:
         middle = roles.chain(sided("middle", side))
         distal = (
-            skeleton.rest[skeleton.index(middle[0]), :3, 3] if middle else tail(hand))
+            skeleton.rest[skeleton.index(middle[0]), :3, 3] if middle else _reach(skeleton, hand, tail))
         yield hand, table["hand"], 1.0 - (FINGER_SHARE_OF_HAND if fingers else 0.0), \
             head(sided("hand", side)), distal
     for bone in fingers:
@@ -177,6 +178,12 @@ def _limb_parts(skeleton, table, side, clavicle_share, head, tail):
     if toe:
         rod = (table["foot"][0], 50.0, 30.0, 30.0, 15.0)
         yield toe, rod, TOE_SHARE_OF_FOOT, head(sided("toe", side)), tail(toe)
+
+
+def _reach(skeleton, bone, tail):
+    """The bone's distal end: its tail, unless an importer made that up (CMU's wrists)."""
+    reach = reach_of_made_up_tail(skeleton.parents, skeleton.rest[:, :3, 3], skeleton.index(bone))
+    return tail(bone) if reach is None else reach
 
 
 def _length_share(skeleton, bones, bone):

@@ -118,6 +118,26 @@ class Skeleton:
         return world
 
 
+def reach_of_made_up_tail(parents, heads, j, tolerance=0.005):
+    """Where bone j reaches when its tail is an importer's guess, else None.
+
+    A bone whose children all start at its own head (CMU's wrist: hand and thumb at the wrist,
+    the fingers 3.7 cm further) gets a tail the file does not define: Blender 4.2's BVH importer
+    continues the parent's line, 5.0's points it up (29 cm apart on the CMU wrists). The bone then
+    reaches to the mean head of its nearest descendants that start away from its head (breadth
+    first). parents (J,), heads (J, 3) in one frame; tolerance in the heads' units."""
+    parents = np.asarray(parents)
+    level = np.flatnonzero(parents == j)
+    if len(level) == 0 or np.any(np.linalg.norm(heads[level] - heads[j], axis=1) > tolerance):
+        return None  # a leaf's tail (an End Site) or one on its children: the file's
+    while len(level):
+        level = np.flatnonzero(np.isin(parents, level))
+        away = np.linalg.norm(heads[level] - heads[j], axis=1) > tolerance
+        if away.any():
+            return heads[level[away]].mean(axis=0)
+    return None
+
+
 def compose(translation, quaternion):
     """Homogeneous transforms (..., 4, 4) from translations (..., 3) and quaternions (..., 4)."""
     translation = np.asarray(translation, dtype=float)

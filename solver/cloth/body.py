@@ -27,14 +27,17 @@ class CapsuleSpec:
     owner: int  # the bone whose skin the capsule stands for (to fit the radius to a mesh)
 
 
-def _limb(name, j, length, radius):
-    return CapsuleSpec(name, j, np.zeros(3), j, np.array([0.0, length, 0.0]), radius, j)
+def _limb(name, j, end, radius):
+    return CapsuleSpec(name, j, np.zeros(3), j, end, radius, j)
 
 
-def capsules_from_roles(names, lengths, roles, unit=1.0):
+def capsules_from_roles(names, lengths, roles, unit=1.0, ends=None):
     """Capsule specs for the body parts a garment can touch. Needs pelvis and both thighs.
-    `lengths` are the bones' lengths in their own units, `unit` metres per such unit."""
+    `lengths` are the bones' lengths in their own units, `unit` metres per such unit. ends:
+    {bone index: its distal point (3,) in the bone's frame and units} for bones that do not reach
+    their tail (an importer's guess: skeleton.reach_of_made_up_tail)."""
     index = {n: i for i, n in enumerate(names)}
+    ends = ends or {}
 
     def bone(role):
         name = roles.bone(role)
@@ -56,7 +59,8 @@ def capsules_from_roles(names, lengths, roles, unit=1.0):
         for s in "LR":
             j = bone(sided(part, s))
             if j is not None and lengths[j] > 1e-6:
-                specs.append(_limb(f"{part}.{s}", j, lengths[j], RADIUS_OF[part] * ref))
+                end = ends.get(j, np.array([0.0, lengths[j], 0.0]))
+                specs.append(_limb(f"{part}.{s}", j, end, RADIUS_OF[part] * ref))
     return specs
 
 

@@ -87,8 +87,8 @@ NONE, PASSIVE, COMFORT, BALANCE = 0, 1, 2, 3
 
 @dataclass
 class Load:
-    """`mass` kg carried at the tail of bone `bone` from `start_time` (seconds from the clip's
-    start)."""
+    """`mass` kg carried at the centre of mass of bone `bone` (dynamics.model.build_model) from
+    `start_time` (seconds from the clip's start)."""
 
     bone: str
     mass: float
@@ -143,13 +143,11 @@ class ControlSettings:
     limit_stiffness: float = 300.0  # N m/rad, ragdoll joint limits
     limit_damping: float = 10.0
     contact_iterations: int = 30  # projected Gauss-Seidel sweeps
-    # Gauss-Newton iterations of the planted legs' position re-solve after the step; 0: one,
-    # predicted from the step's own frames instead (_Loop._predicted_resolve: no forward
+    # Gauss-Newton iterations of the planted legs' position re-solve after the step; 0 (default):
+    # one, predicted from the step's own frames instead (_Loop._predicted_resolve: no forward
     # kinematics at the integrated configuration, ~9 % fewer instructions per CMU step; the feet
-    # land within ~1e-6 m of the exact re-solve's, every thesis experiment gives the same outcome).
-    # Not the default: on Blender 4.2's import of the demo clip its 1e-5 rad difference moved the
-    # demo skirt's mean stretch from 1.85 % to 2.22 % (the cloth's 2 % limit)
-    foot_iterations: int = 1
+    # land within ~1e-6 m of the exact re-solve's, every thesis experiment gives the same outcome)
+    foot_iterations: int = 0
     foot_damping: float = 1e-3  # damped least squares of the legs' IK (a straight knee is singular)
     kinematic_fraction: float = 0.0015  # as closed_loop.Settings: fingers follow the input
     # joint armature as a share of each DOF's own inertia H_ii in the first frame (closed_loop's
@@ -723,9 +721,23 @@ class _Loop:
                 now = kinematics.point_positions(m, body.data, self.q, [foot], [np.zeros(3)])[0]
                 qd = self.tracking.desired_state(t)[0]
                 want = kinematics.point_positions(m, self.desired_data, qd, [foot], [np.zeros(3)])[0]
-                offset, roll = now - want, self._roll_offset(s, t)[0]
+                offset, roll = now - want + self._landing_pivot(body, s, t), self._roll_offset(s, t)[0]
                 self.planted[s] = (offset, roll, offset - roll)
                 self._drift[s] = None
+
+    def _landing_pivot(self, body, s, t):
+        """A foot that lands turned from the input's (a push changed its swing) is turned to the
+        input's rotation by its first target at once; about the ankle, that slid its contact 2.4 mm
+        (the demo's push). The head's offset that makes the turn one about the contact point
+        instead (the input's contact weights at t). Call with body.data at self.q and the desired
+        data at the input's configuration at t (_update_plants)."""
+        m, foot = body.model, body.parts.feet[s]
+        b = m.joint_body[foot]
+        now = body.data.frames[b] @ m.joint_offset[foot]
+        want = self.desired_data.frames[b] @ m.joint_offset[foot]
+        f = min(int(round(t / self.tracking.dt)), len(self.roll_weights[s]) - 1)
+        arm = self.roll_weights[s][f] @ self._soles(body, self.q)[s] - now[:3, 3]
+        return arm - want[:3, :3] @ (now[:3, :3].T @ arm)
 
     def _foot_skate(self, tr):
         """The input's foot skate as a root offset (F, 2): what moves the whole motion so that the

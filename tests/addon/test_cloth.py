@@ -218,3 +218,16 @@ def test_esc_keeps_the_frames_done():
     samples, start, _ = read_pc2(bpy.path.abspath(obj.modifiers[0].filepath))
     assert start == 1 and len(samples) == 4 * 9 + 1  # frames 1..37: the 10 simulated so far
     assert "cancelled" in reports[-1][1] and scene.frame_current == frame_before
+
+
+def test_hand_capsules_end_at_the_fingers_on_every_blender(empty_scene):
+    """The CMU wrists' tails are the importer's guess (Blender 4.2 continues the forearm 18.5 cm,
+    5.0 points 10 cm up it): the hand colliders end where the file puts the fingers."""
+    from humananim.solver.cloth import capsule_ends
+    arm = import_cmu()
+    scene = bpy.context.scene
+    world = cloth.bone_world(arm, scene, rest=True)
+    specs = {s.name: s for s in cloth.body_capsules(arm, scene, world)}
+    _, ends = capsule_ends([specs["hand.L"], specs["hand.R"]], world)
+    for end, side in zip(ends, "LR"):
+        assert np.allclose(end, world[arm.data.bones.find(f"{side}Fingers"), :3, 3], atol=1e-6)

@@ -134,3 +134,18 @@ def test_register_unregister_register_cycle():
     humananim.register()
     assert bpy.ops.humananim.detect_roles.get_rna_type()
     assert hasattr(bpy.types.Armature, "humananim")
+
+
+def test_cmu_hand_centre_lies_towards_the_fingers_on_every_blender(empty_scene):
+    """The CMU wrists' tails are the importer's guess (Blender 4.2 and 5.0 differ by 29 cm); the
+    hand's centre of mass, where a carried load sits, comes from the wrist and the fingers."""
+    skeleton = skeleton_from_armature(import_cmu(), bpy.context.scene, total_mass=70.0)
+    for side in "LR":
+        j = skeleton.index(skeleton.roles.bone(f"hand.{side}"))
+        wrist = skeleton.rest[j, :3, 3]
+        fingers = skeleton.rest[skeleton.index(f"{side}Fingers"), :3, 3]
+        centre = skeleton.rest[j, :3, :3] @ skeleton.com[j] + wrist
+        reach = fingers - wrist
+        assert (centre - wrist) @ reach / (reach @ reach) == pytest.approx(
+            DE_LEVA["male"]["hand"][1] / 100.0, rel=1e-6)
+        assert np.linalg.norm(np.cross(centre - wrist, reach)) < 1e-6

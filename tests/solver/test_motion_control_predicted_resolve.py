@@ -1,4 +1,4 @@
-"""The planted legs' predicted position re-solve (ControlSettings.foot_iterations = 0,
+"""The planted legs' predicted position re-solve (the default, ControlSettings.foot_iterations = 0,
 controller._Loop._predicted_resolve): each planted foot's pose at the end of the step is predicted
 from the frames at the step's start to second order (the velocity-product acceleration of the
 integration's constant-velocity step, and the root's straight-line translation), so the re-solve

@@ -1,12 +1,12 @@
 """The optimised control loop against the recorded outputs of the implementation before the speed
 work (tests/data/motion_control/reference.npz, made by make_reference.py there from commit
-8b3ebab): the squat with 8 kg in the hands and a push on the chest (comfort and balance control
+bed5782 with the landing pivot added): the squat with 8 kg in the hands and a push on the chest (comfort and balance control
 act), 15 kg with control (passive control too) and as pure tracking (torques over strength on 83
 frames), and the CMU clip's first second with a push. The speed work reorders floating-point
 sums and products (batched products, cached factorisations, plain-float scalars), nothing else:
 measured differences stay below 1e-11 in rotations and 1e-8 N m in stress, while every control
 decision (which control acts on which bone and frame, falling) is the same. It runs the recording's
-exact re-solve of the planted legs (foot_iterations=1, the default), whatever the default becomes."""
+exact re-solve of the planted legs (foot_iterations=1), not the default's prediction of it."""
 
 import sys
 from dataclasses import replace
@@ -42,9 +42,9 @@ def test_the_recording_has_every_case(reference):
 @pytest.mark.parametrize("case", CASES)
 def test_outputs_match_the_previous_implementation(reference, case):
     name, sk, tr, settings = next(c for c in cases() if c[0] == case)
-    # the recording's arithmetic: the planted legs re-solved after the step (the prediction of that
-    # re-solve, ControlSettings.foot_iterations = 0, moves the outputs by ~1e-6 m a step;
-    # test_motion_control_predicted_resolve checks it)
+    # the recording's arithmetic: the planted legs re-solved after the step (the default predicts
+    # that re-solve, ControlSettings.foot_iterations = 0, which moves the outputs by ~1e-6 m a step;
+    # test_motion_control_predicted_resolve and the thesis experiments check it)
     out = outputs(control(sk, tr, replace(settings, foot_iterations=1)))
     for key, value in out.items():
         want = reference[f"{name}/{key}"]

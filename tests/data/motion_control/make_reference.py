@@ -2,7 +2,8 @@
 
 reference.npz was recorded with the implementation before the speed work (commit bed5782: the
 controller with swept collider contacts and leg comfort control in double support only, numpy
-1.26): the optimised loop must reproduce it within rounding. Run from a checkout of that commit:
+1.26) plus the landing pivot (controller._Loop._landing_pivot, the same ten lines added to that
+checkout): the optimised loop must reproduce it within rounding. Run from such a checkout:
 
     PYTHONPATH=<checkout parent> python tests/data/motion_control/make_reference.py
 """
