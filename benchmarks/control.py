@@ -247,15 +247,16 @@ stretch from 1.85 % to 2.22 %, over the cloth's 2 % (tests/addon/test_cli.py). C
 shared host (load ~3) were 1.2-1.34 ms against main's 1.34 in the same run, and 0.62 against 0.70
 in a quieter minute of the same run: the CMU aim (< 0.5 ms) is missed either way.
 
-Seventh round (branch controlspeed8, against main e119757 in the same minutes). Callgrind
+Seventh round (branch controlspeed8, against main cdfaa86 (and e119757 before it: the same counts)
+in the same minutes). Callgrind
 instructions inside the bake's loop per step (collection toggled on itertools.starmap_next,
 PYTHONHASHSEED=0, OPENBLAS_NUM_THREADS=1; load-independent):
 
                                         main        now                 issue's aim
   CMU 131_01, predicted re-solve
-    numpy 1.26                          3.59 M      3.27 M (-9.1 %)     (lead's estimate for the
-    numpy 2                             3.50 M      3.18 M (-9.2 %)      aim on 1.26: <= ~2.9 M)
-  CMU 131_01, exact re-solve (1.26)     3.93 M      3.58 M (-8.9 %)
+    numpy 1.26                          3.59 M      3.27 M (-9.0 %)     (lead's estimate for the
+    numpy 2                             3.50 M      3.18 M (-9.1 %)      aim on 1.26: <= ~2.9 M)
+  CMU 131_01, exact re-solve (1.26)     3.93 M      3.57 M (-9.0 %)
   18-segment figure standing (1.26)     2.04 M      1.74 M (-14.8 %)
   CPU ms per step (process_time, best of 5 bakes per process, main and this branch alternated,
   OPENBLAS_NUM_THREADS=1, 4 pairs per numpy, 06:00-06:07 UTC): the host ran about twice as slow as
@@ -284,16 +285,17 @@ translation on floats; the tracking error's conj(cur) * target the same way
 (spatial._CONJ_QMUL_OUTER) and the root offset on floats; sole points and sphere centres as one
 product of the frames' rows with (x, y, z, 1); both feet's sole centres in one product; the feet's
 accelerations from the motion subspace columns of their ancestor DOFs; the contact drift on floats;
-index arrays for the feet's rows. The products with ones and of outer products reorder sums, so
-outputs move by rounding: at most 1.5e-10 (rotations, translations, ZMP, balance error, slide) and
-2.1e-8 N m (stress) from main on CMU 131_01 (plain, a 30 N s push, 15 kg per hand), the figure
-standing and with 15 kg, the metarig squat with 8 and 15 kg, each with the exact and the predicted
-re-solve, numpy 1.26 and 2. The control codes are main's but on one bone in one or two frames of
-four of those 28 runs (numpy 1.26: the CMU walk with 15 kg per hand, frame 115, both re-solves; the
-squat with 15 kg, predicted, frame 96; numpy 2: the CMU walk with 15 kg, predicted, frames 121 and
-199): there a comfort candidate's pseudo-inverse leaves 3e-16 to 3e-15 rad/s^2 (rounding residue)
-on a DOF it does not move, and ControlLog.record marks any nonzero change, so the bone's code
-turns on or off; the same parts act with the same demands (the rotations stay within 1.5e-10).
+index arrays for the feet's rows; the tracking error's short-way sign by copysign. The products
+with ones and of outer products reorder sums, so outputs move by rounding: at most 9.1e-11
+(rotations, translations, ZMP, balance error, slide) and 1.3e-8 N m (stress) from main cdfaa86 on
+CMU 131_01 (plain, a 30 N s push, 15 kg per hand), the figure standing and with 15 kg, the metarig
+squat with 8 and 15 kg, each with the exact and the predicted re-solve, numpy 1.26 and 2 (28 runs).
+The control codes are main's but on one bone (LeftShoulder) in one or two frames of the CMU walk
+with 15 kg per hand (numpy 1.26: frame 141 exact, 114 predicted; numpy 2: 135 and 140 exact, 121
+predicted; against e119757 the 15 kg squat's predicted run had one such frame too): there a
+comfort candidate's pseudo-inverse leaves 3e-16 to 3e-15 rad/s^2 (rounding residue) on a DOF it
+does not move, and ControlLog.record marks any nonzero change, so the bone's code turns on or
+off; the same parts act with the same demands (the rotations stay within 1e-10).
 Any last-bit change does that (each of the cuts alone did); a threshold in ControlLog.record
 (say 1e-9 rad/s^2) would make the codes robust to it.
 
