@@ -246,6 +246,70 @@ loaded walk differs) its 1e-5 rad difference from the exact re-solve moved the d
 stretch from 1.85 % to 2.22 %, over the cloth's 2 % (tests/addon/test_cli.py). CPU medians on this
 shared host (load ~3) were 1.2-1.34 ms against main's 1.34 in the same run, and 0.62 against 0.70
 in a quieter minute of the same run: the CMU aim (< 0.5 ms) is missed either way.
+
+Seventh round (branch controlspeed8, against main cdfaa86 (and e119757 before it: the same counts)
+in the same minutes). Callgrind
+instructions inside the bake's loop per step (collection toggled on itertools.starmap_next,
+PYTHONHASHSEED=0, OPENBLAS_NUM_THREADS=1; load-independent):
+
+                                        main        now                 issue's aim
+  CMU 131_01, predicted re-solve
+    numpy 1.26                          3.59 M      3.27 M (-9.0 %)     (lead's estimate for the
+    numpy 2                             3.50 M      3.18 M (-9.1 %)      aim on 1.26: <= ~2.9 M)
+  CMU 131_01, exact re-solve (1.26)     3.93 M      3.57 M (-9.0 %)
+  18-segment figure standing (1.26)     2.04 M      1.74 M (-14.8 %)
+  CPU ms per step (process_time, best of 5 bakes per process, main and this branch alternated,
+  OPENBLAS_NUM_THREADS=1, 4 pairs per numpy, 06:00-06:07 UTC): the host ran about twice as slow as
+  in the quiet minutes of earlier rounds whatever the load average said (main's CMU median 1.2-1.6
+  ms against 0.6 then), and single pairs scattered by +-25 %:
+    CMU predicted, median, numpy 1.26   1.21-1.49   0.91-1.14 ms (paired x0.61-0.94, median x0.85)
+    CMU predicted, median, numpy 2      1.03-1.14   0.92-1.12 ms (paired x0.82-1.09, median x0.91)
+    CMU exact, median, numpy 1.26       1.20-1.57   1.12-1.25 ms (paired x0.76-0.97)
+    figure standing, median, numpy 2    0.68-0.75   0.55-0.71 ms
+  Scaled by the instruction counts from main's quiet-host medians (exact re-solve 0.615 ms on
+  numpy 1.26, 0.558 on numpy 2; the predicted re-solve x0.91 of those), the predicted re-solve's
+  CMU median is about 0.51 ms on numpy 1.26 and 0.47 ms on numpy 2, its mean step (x1.15) about
+  0.59 / 0.54 ms, a real-time factor at 30 Hz of about 57 / 62: the real-time aim (> 50) holds on
+  both numpys by that estimate, the median aim (< 0.5 ms) on numpy 2 only, just missed on numpy
+  1.26 (the lead's 2.9 M bound is not reached: 3.27 M). Not measured on a quiet host: none was.
+
+What was removed, with one copy of each shared function (no private near-copies): the
+controlspeed7 cuts ported into the functions themselves: inverse_dynamics.subtree_wrenches and
+velocity_terms, crm, skew, the levers of update_frames, body_velocities, the composite inertias,
+pinv and the balance rows with their 2-D products by ndarray.dot (the same BLAS call as @ in about
+half its dispatch: bit for bit); strength.torque_range's and spatial.log_scale's constants as 0-d
+arrays (numpy 1 converts a Python float operand at every call: bit for bit); kinematics.integrate's
+quaternion products as one 2-D product of their outer products (spatial._QMUL_OUTER) and its norms
+as products with ones (a reduction over a small last axis costs ~4x as much), the root's
+translation on floats; the tracking error's conj(cur) * target the same way
+(spatial._CONJ_QMUL_OUTER) and the root offset on floats; sole points and sphere centres as one
+product of the frames' rows with (x, y, z, 1); both feet's sole centres in one product; the feet's
+accelerations from the motion subspace columns of their ancestor DOFs; the contact drift on floats;
+index arrays for the feet's rows; the tracking error's short-way sign by copysign. The products
+with ones and of outer products reorder sums, so outputs move by rounding: at most 9.1e-11
+(rotations, translations, ZMP, balance error, slide) and 1.3e-8 N m (stress) from main cdfaa86 on
+CMU 131_01 (plain, a 30 N s push, 15 kg per hand), the figure standing and with 15 kg, the metarig
+squat with 8 and 15 kg, each with the exact and the predicted re-solve, numpy 1.26 and 2 (28 runs).
+The control codes are main's but on one bone (LeftShoulder) in one or two frames of the CMU walk
+with 15 kg per hand (numpy 1.26: frame 141 exact, 114 predicted; numpy 2: 135 and 140 exact, 121
+predicted; against e119757 the 15 kg squat's predicted run had one such frame too): there a
+comfort candidate's pseudo-inverse leaves 3e-16 to 3e-15 rad/s^2 (rounding residue) on a DOF it
+does not move, and ControlLog.record marks any nonzero change, so the bone's code turns on or
+off; the same parts act with the same demands (the rotations stay within 1e-10).
+Any last-bit change does that (each of the cuts alone did); a threshold in ControlLog.record
+(say 1e-9 rad/s^2) would make the codes robust to it.
+
+Measured, not kept: the joints' contributions per body and the velocity products as 2-D products
+over all DOFs (model.dof_owner, outer products with a constant crm map): they replace a BLAS call
+per body by a 23 x 72 x 6 product that is mostly zeros, +0.9 % instructions (and +0.2 % for the
+crm map alone); log_scale's mask replaced by one fmin reduction when no entry is small: +0.6 %
+(a ufunc reduction costs several times count_nonzero). Where the remaining ~3.3 M go (callgrind, numpy 1.26): ufunc calls ~45 % (about
+315 per step, ~4.6 k instructions each whatever the size), batched @ products ~20 % (62 per step:
+the frames' pointer doubling, world inertias, velocity terms, inverse dynamics), the interpreter
+~10 %; per part (CPU, wrapped): dynamic control ~40 % (one inverse dynamics, the strength limits,
+the support polygon, ZMP; the acting third of the steps adds the thesis's candidates and
+pseudo-inverses), the legs' Jacobians and constraints ~17 %, the predicted re-solve ~7 %, tracking
+~7 %, integration ~6 %, the swing foot's ground test ~3.6 %.
 """
 
 import argparse

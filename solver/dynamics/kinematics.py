@@ -33,7 +33,7 @@ def update_frames(model: Model, data: Data, q):
     frames = frames[:nb]
     data.frames = frames
     rot = frames[:, :3, :3]
-    lever = (frames[:, :3, 3] @ spatial._SKEW_MAP).reshape(nb, 3, 3) @ rot
+    lever = frames[:, :3, 3].dot(spatial._SKEW_MAP).reshape(nb, 3, 3) @ rot
     parts = np.concatenate((rot.reshape(nb, 9), lever.reshape(nb, 9), data.zero_column), axis=1)
     # parts[:, motion_gather] (whose result is laid out column by column: the products on it keep
     # their arithmetic only on that layout) by take, a third of fancy indexing's cost
@@ -53,7 +53,7 @@ def joint_contributions(model, data, v):
 def body_velocities(model, data, q, v):
     """World spatial velocities (nb, 6) of every body."""
     update_frames(model, data, q)
-    return model.ancestors @ joint_contributions(model, data, v)
+    return model.ancestors.dot(joint_contributions(model, data, v))
 
 
 def body_accelerations(model, data, q, v, a):
@@ -192,37 +192,44 @@ def integrate(model, q, v, dt=1.0):
     quaternion turns by exp of its local angular velocity (locked axes stay at zero)."""
     q = np.asarray(q, dtype=float)
     v = np.asarray(v, float)
+    nb = model.nb
     full = model.expand(v if dt == 1.0 else v * dt)
-    out = np.empty_like(q)
-    quats = q[3:].reshape(model.nb, 4)
+    out = np.empty(len(q))
     # the root's translation along its own axes (quat_to_matrix(quats[0]) @ step, on floats)
     s0, s1, s2 = full[0, 3:].tolist()
     if not (s0 or s1 or s2):  # the root stays (a step of the joints alone): q + 0.0 is q
         out[:3] = q[:3]
     else:
-        w, x, y, z = quats[0].tolist()
-        out[:3] = q[:3] + np.array((
-            (w * w + x * x - y * y - z * z) * s0 + 2.0 * (x * y - w * z) * s1 + 2.0 * (x * z + w * y) * s2,
-            2.0 * (x * y + w * z) * s0 + (w * w - x * x + y * y - z * z) * s1 + 2.0 * (y * z - w * x) * s2,
-            2.0 * (x * z - w * y) * s0 + 2.0 * (y * z + w * x) * s1 + (w * w - x * x - y * y + z * z) * s2))
-    # quats * exp(w / 2): the left-multiplication matrices of quats times the turns, exp inlined
-    # (spatial.quat_exp's arithmetic, bit for bit, in fewer numpy calls)
+        p0, p1, p2, w, x, y, z = q[:7].tolist()
+        out[:3] = (
+            p0 + ((w * w + x * x - y * y - z * z) * s0 + 2.0 * (x * y - w * z) * s1 + 2.0 * (x * z + w * y) * s2),
+            p1 + (2.0 * (x * y + w * z) * s0 + (w * w - x * x + y * y - z * z) * s1 + 2.0 * (y * z - w * x) * s2),
+            p2 + (2.0 * (x * z - w * y) * s0 + 2.0 * (y * z + w * x) * s1 + (w * w - x * x - y * y + z * z) * s2))
+    # quats * exp(w / 2), exp inlined (spatial.quat_exp's arithmetic in fewer numpy calls), the
+    # products as one 2-D product of their outer products (spatial._QMUL_OUTER) and the norms as
+    # products with ones: a reduction over a small last axis costs ~4x as much. (0-d constants:
+    # numpy 1 converts a Python float operand at every call.)
     turn = full[:, :3]
-    angle = np.sqrt(np.add.reduce(turn * turn, 1))
-    half = 0.5 * angle
-    small = angle < 1e-6
-    exp = np.empty((model.nb, 4))
+    angle = np.sqrt((turn * turn).dot(_ONES3))
+    half = _HALF * angle
+    small = angle < _SMALL_TURN
+    exp = np.empty((nb, 4))
     exp[:, 0] = np.cos(half)
     n_small = np.count_nonzero(small)  # (one call where .all() and .any() each cost two)
-    if n_small == model.nb:  # np.where's branch alone (a figure at rest: no body turns)
+    if n_small == nb:  # np.where's branch alone (a figure at rest: no body turns)
         exp[:, 1:] = (0.5 - angle * angle / 48.0)[:, None] * turn
     elif not n_small:  # (angle + small would add 0.0)
         exp[:, 1:] = (np.sin(half) / angle)[:, None] * turn
     else:
         exp[:, 1:] = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / (angle + small))[:, None] * turn
-    turned = np.add.reduce((quats @ spatial._QMUL).reshape(model.nb, 4, 4) * exp[:, None, :], 2)
-    out[3:] = (turned / np.sqrt(np.add.reduce(turned * turned, 1))[:, None]).ravel()
+    quats = q[3:].reshape(nb, 4)
+    turned = (quats[:, :, None] * exp[:, None, :]).reshape(nb, 16).dot(spatial._QMUL_OUTER)
+    out[3:] = (turned / np.sqrt((turned * turned).dot(_ONES4))[:, None]).ravel()
     return out
+
+
+_ONES3, _ONES4 = np.ones(3), np.ones(4)
+_HALF, _SMALL_TURN = np.array(0.5), np.array(1e-6)
 
 
 def difference(model, q0, q1):

@@ -266,7 +266,7 @@ class Data:
         """World spatial inertia (nb, 6, 6) of each body's subtree (inertia_matrix.composite_inertias)."""
         if self._composite is None:
             nb = self.model.nb
-            self._composite = (self.model.ancestors.T @ self.inertia.reshape(nb, 36)).reshape(nb, 6, 6)
+            self._composite = self.model.ancestors.T.dot(self.inertia.reshape(nb, 36)).reshape(nb, 6, 6)
             self._composite.flags.writeable = False
         return self._composite
 

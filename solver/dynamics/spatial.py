@@ -42,7 +42,7 @@ def cross(a, b):
 def skew(w):
     """Skew matrices (..., 3, 3) with skew(w) @ x = w x x (one product with a constant map)."""
     w = np.asarray(w, dtype=float)
-    return (w @ _SKEW_MAP).reshape(w.shape[:-1] + (3, 3))
+    return w.dot(_SKEW_MAP).reshape(w.shape[:-1] + (3, 3))  # (one nonzero term per entry: exact)
 
 
 def quat_to_matrix(q):
@@ -80,13 +80,16 @@ def log_scale(s, aw):
     """The factor taking a unit quaternion's vector part (norm s, |w| = aw) to its rotation vector:
     2 atan2(s, aw) / s, and 2 / aw below s = 1e-8. np.where's arithmetic, bit for bit, with only
     the branch computed when every entry takes the same one (the control loop calls it per step)."""
-    small = s < 1e-8
+    small = s < _LOG_SMALL  # (0-d constants: numpy 1 converts a Python float operand at every call)
     n_small = np.count_nonzero(small)  # (one call where .all() and .any() each cost two)
     if not n_small:  # (s + small would add 0.0)
-        return 2.0 * np.arctan2(s, aw) / s
+        return _TWO * np.arctan2(s, aw) / s
     if n_small == small.size:
         return 2.0 / np.maximum(aw, 1e-300)
     return np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
+
+
+_LOG_SMALL, _TWO = np.array(1e-8), np.array(2.0)
 
 
 # quaternion product a * b = (a @ _QMUL).reshape(4, 4) @ b: the left-multiplication matrix of a
@@ -95,6 +98,11 @@ for _r, _row in enumerate(((0, 1, 2, 3), (1, 0, 3, 2), (2, 3, 0, 1), (3, 2, 1, 0
     for _c, _k in enumerate(_row):
         _QMUL[_k, 4 * _r + _c] = ((1, -1, -1, -1), (1, 1, -1, 1), (1, 1, 1, -1), (1, -1, 1, 1))[_r][_c]
 del _r, _row, _c, _k
+# ... and a * b = outer(a, b).reshape(16) @ _QMUL_OUTER (outer's entry 4 j + l = a_j b_l), for
+# stacks one 2-D product (a reduction over a small last axis costs ~4x as much); conj(a) * b
+# = outer(a, b).reshape(16) @ _CONJ_QMUL_OUTER
+_QMUL_OUTER = np.ascontiguousarray(_QMUL.reshape(4, 4, 4).transpose(0, 2, 1).reshape(16, 4))
+_CONJ_QMUL_OUTER = _QMUL_OUTER * np.repeat([1.0, -1.0, -1.0, -1.0], 4)[:, None]
 
 
 def quat_multiply(a, b):
@@ -127,7 +135,7 @@ _CRM_MAP = _CRM_MAP[:6].copy()
 def crm(m):
     """Motion cross-product operators (n, 6, 6): crm(m) @ u = m x u; crf(m) = -crm(m)^T."""
     m = np.asarray(m, dtype=float)
-    return (m @ _CRM_MAP).reshape(m.shape[:-1] + (6, 6))
+    return m.dot(_CRM_MAP).reshape(m.shape[:-1] + (6, 6))  # (one nonzero term per entry: exact)
 
 
 def body_spatial_inertia(mass, com, inertia):

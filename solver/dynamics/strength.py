@@ -77,10 +77,14 @@ def torque_range(top, w):
     shortens (max((1 - w) / (1 + 4 w), 0.1)), the other lengthens (1.3 - 0.3 / (1 + 10 w)); both
     are 1 at rest."""
     p = np.abs(w)
-    short = np.maximum((1.0 - p) / (1.0 + p / 0.25), 0.1)
-    long = 1.3 - 0.3 / (1.0 + 10.0 * p)
-    pos = w >= 0.0
+    c = _HILL  # (0-d arrays: numpy 1 converts a Python float operand at every call, ~0.5 us)
+    short = np.maximum((c[1.0] - p) / (c[1.0] + p / c[0.25]), c[0.1])
+    long = c[1.3] - c[0.3] / (c[1.0] + c[10.0] * p)
+    pos = w >= c[0.0]
     return -top * np.where(pos, long, short), top * np.where(pos, short, long)
+
+
+_HILL = {x: np.array(x) for x in (0.0, 0.1, 0.25, 0.3, 1.0, 1.3, 10.0)}  # torque_range's constants
 
 
 def default_strength(model, scale=1.0, gravity=9.81):

@@ -55,7 +55,7 @@ def _support_polygon(state):
     key = (id(state.parts), tuple(state.feet))
     cached = _hull_cache.get(key)
     same_shape = cached is not None and cached[0].shape == pts.shape
-    if same_shape and np.abs(cached[0] - pts).max() < _HULL_REUSE:
+    if same_shape and np.maximum.reduce(np.abs(cached[0] - pts), None) < _HULL_REUSE:  # (.max() goes through Python)
         return pts[cached[1]]
     plist = pts.tolist()
     path = cached[2] if same_shape else None
@@ -240,7 +240,7 @@ def zmp_jacobian(state, wrench, dofs=None):
 
 def moment_rows(rate, point):
     """(2, k): horizontal moment about a ground point of the momentum rate columns (6, k)."""
-    return rate[:2] - _skew(point)[:2] @ rate[3:]
+    return rate[:2] - _skew(point)[:2].dot(rate[3:])
 
 
 # ---- balance control of one part --------------------------------------------------------------
@@ -261,10 +261,10 @@ def balance_candidates(state, part, a):
     matrix = part_matrix(state, part)
     if part == "legs":  # horizontally: unloading the feet is no way to balance
         matrix = matrix * np.array([1.0, 1.0, 0.0])
-    rows = moment_rows(rate @ matrix, point)
+    rows = moment_rows(rate.dot(matrix), point)
     if np.abs(rows).max() < 1e-9:
         return []
-    x = pinv(rows, rcond=state.settings.rcond) @ -moment_about(wrench, point)[:2]
+    x = pinv(rows, rcond=state.settings.rcond).dot(-moment_about(wrench, point)[:2])
     return [x]
 
 

@@ -227,14 +227,21 @@ class _Body:
         self.parts = body_parts(model, self.contacts)
         self.strength = strength
         self.spheres = self.contacts.on(model)  # bodies (k,), body-frame centres (k, 3)
+        self.sphere_hom = np.c_[self.spheres[1], np.ones(len(self.spheres[1]))]
         # per side, once per model: the foot's body and frame offset, the DOFs of the foot's
         # ancestors (its Jacobian's columns), and where the leg's own DOFs lie among them
         p = self.parts
         self.foot_body = [int(model.joint_body[f]) for f in p.feet]
+        # the feet's bodies, and the root's and theirs, as index arrays (take converts a list per call)
+        self.feet_rows = np.array(self.foot_body, np.intp)
+        self.root_feet_rows = np.array([0] + self.foot_body, np.intp)
         self.foot_offset = [model.joint_offset[f] for f in p.feet]
         self.leg_cols = [np.asarray(c, int) for c in p.legs]
         self.leg_dofs = [np.flatnonzero(model.ancestors[b][model.dof_body] != 0) for b in self.foot_body]
         self.leg_pos = [np.searchsorted(dofs, cols) for dofs, cols in zip(self.leg_dofs, self.leg_cols)]
+        # per foot (2, nb) its ancestors and (2, nv) their DOFs (as 0 / 1)
+        self.feet_ancestors = np.ascontiguousarray(model.ancestors[self.foot_body], float)
+        self.feet_dof_mask = (self.feet_ancestors[:, model.dof_body] != 0.0).astype(float)
         # per contact set: the rotations that swing the planted feet, the root's and their legs'
         # joints (_Loop._predicted_resolve)
         self.landing_dofs = {(a, b): np.concatenate([np.arange(3)] + [c for c, on in zip(self.leg_cols, (a, b)) if on])
@@ -249,6 +256,13 @@ class _Body:
         self.sole_bodies, self.sole_local = kinematics.points_on_bodies(
             model, np.concatenate(p.sole_joints), np.concatenate(p.sole_points))
         self.sole_split = len(p.sole_joints[0])
+        # the sole points as (x, y, z, 1) on their bodies (_Loop._soles: one product with the
+        # bodies' frames), and each foot's mean over its points (the sole centres, (2, k))
+        self.sole_hom = np.c_[self.sole_local, np.ones(len(self.sole_local))]
+        k, n = self.sole_split, len(self.sole_local)
+        self.sole_mean = np.zeros((2, n))
+        self.sole_mean[0, :k] = 1.0 / k
+        self.sole_mean[1, k:] = 1.0 / (n - k)
         # per contact set (left, right on the ground): the sides' indices and their feet's bodies
         self.contact_sets = {}
         for contact in ((True, True), (True, False), (False, True)):
@@ -534,6 +548,7 @@ class _Loop:
             if planted:  # the sides in contact and their foot bodies (ControlState.sides,
                 # comfort_control._ground_wrenches), known here
                 cs._cache["sides"], cs._cache["foot_bodies"] = body.contact_sets[bool(feet[0]), bool(feet[1])]
+                cs._cache["sole_centres"] = self._sole_centres(body, feet)
             if st.tracking_only:
                 a = a_track
                 if record:
@@ -775,21 +790,32 @@ class _Loop:
         key = (q.tobytes(), id(body))
         if self._soles_cache is None or self._soles_cache[0] != key:
             kinematics.update_frames(body.model, body.data, q)
-            f = body.data.frames.take(body.sole_bodies, axis=0)
-            pts = np.einsum("kij,kj->ki", f[:, :3, :3], body.sole_local) + f[:, :3, 3]
+            # each point's body frame rows (3, 4) against (x, y, z, 1), summed by one product
+            n = len(body.sole_hom)
+            pts = (body.data.frames.take(body.sole_bodies, axis=0)[:, :3, :]
+                   * body.sole_hom[:, None, :]).reshape(3 * n, 4).dot(_ONES4).reshape(n, 3)
             k = body.sole_split
-            self._soles_cache = (key, [pts[:k], pts[k:]])
+            self._soles_cache = (key, [pts[:k], pts[k:]], pts)
         return self._soles_cache[1]
+
+    def _sole_centres(self, body, feet):
+        """comfort_control._sole_centres of the feet in contact at the last _soles: each one's
+        mean sole point [x, y] at the ground's height, both feet in one product."""
+        c = body.sole_mean.dot(self._soles_cache[2]).tolist()
+        h = self.ground
+        return [[c[s][0], c[s][1], h] for s in (0, 1) if feet[s]]
 
     def _contact_drift(self, body, q, s, f):
         """Horizontal travel (m) of the planted foot's contact point since landing: the sole points'
         steps weighted by the input's contact weights (a roll about the contact is no travel)."""
         pts = self._soles(body, q)[s]
-        drift = np.zeros(2) if self._drift[s] is None else self._drift[s][0]
-        if self._drift[s] is not None:
-            drift = drift + self.roll_weights[s][f] @ (pts[:, :2] - self._drift[s][1][:, :2])
-        self._drift[s] = (drift, pts)
-        dx, dy = drift.tolist()
+        last = self._drift[s]
+        if last is None:  # (plain floats: 0.0 + d is d)
+            dx = dy = 0.0
+        else:
+            ex, ey = self.roll_weights[s][f].dot(pts[:, :2] - last[1][:, :2]).tolist()
+            dx, dy = last[0][0] + ex, last[0][1] + ey
+        self._drift[s] = ((dx, dy), pts)
         return math.sqrt(dx * dx + dy * dy)
 
     def _foot_targets(self, body, feet, t):
@@ -859,7 +885,7 @@ class _Loop:
         for s in (0, 1):
             if not feet[s]:
                 continue
-            frame = d.frames[body.foot_body[s]] @ body.foot_offset[s]
+            frame = d.frames[body.foot_body[s]].dot(body.foot_offset[s])
             x0, x1, x2 = frame[:3, 3].tolist()
             dofs = body.leg_dofs[s]
             cols = sub.take(dofs, axis=0)  # (k, 6)
@@ -867,7 +893,7 @@ class _Loop:
             jac[:3] = cols[:, :3].T
             # head velocity v_O + omega x x = v_O - x x omega; rows @ K = x x row
             cross = np.array([[0.0, x2, -x1], [-x2, 0.0, x0], [x1, -x0, 0.0]])
-            jac[3:] = (cols[:, 3:] - cols[:, :3] @ cross).T
+            jac[3:] = (cols[:, 3:] - cols[:, :3].dot(cross)).T
             out[s] = (jac, frame, dofs, jac[:, body.leg_pos[s]], body.leg_cols[s])
         self._legs_cache = (key, out)
         return out
@@ -894,14 +920,14 @@ class _Loop:
         q): dposv's own dpotrf and dpotrs, so the same arithmetic."""
         known = self._dls_factors.get(id(jac))
         if known is None or known[0] is not jac:
-            c, info = dpotrf(jac @ jac.T + self._eye6)
+            c, info = dpotrf(jac.dot(jac.T) + self._eye6)
             if info != 0:
                 raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
             known = self._dls_factors[id(jac)] = (jac, c)
         x, info = dpotrs(known[1], r)
         if info != 0:
             raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
-        return jac.T @ x
+        return jac.T.dot(x)
 
     def _constrain_legs(self, body, q, v, a, feet, targets):
         """Leg accelerations that give each planted foot its target acceleration: the tracking
@@ -911,10 +937,11 @@ class _Loop:
         legs = self._leg_jacobians(body, q, feet)  # the frames at q
         # kinematics.body_accelerations, the accelerations only at the feet's bodies
         vel, _, product = velocity_terms(m, d, q, v)  # shared with the inverse dynamics
-        own = (d.motion @ m.expand(a)[:, :, None])[:, :, 0] + product
-        feet_bodies = body.foot_body
-        acc = (m.ancestors.take(feet_bodies, axis=0) @ own).tolist()
-        vel = vel.take(feet_bodies, axis=0).tolist()
+        # the joint accelerations' part as the motion subspace columns of the feet's ancestor
+        # DOFs (2-D products, no per-body stack)
+        sub = kinematics.motion_subspace(m, d, q)
+        acc = ((body.feet_dof_mask * a).dot(sub) + body.feet_ancestors.dot(product)).tolist()
+        vel = vel.take(body.feet_rows, axis=0).tolist()
         a = a.copy()
         for s, leg in enumerate(legs):
             if leg is None:
@@ -932,7 +959,7 @@ class _Loop:
         for s, leg in enumerate(self._leg_jacobians(body, q, feet)):
             if leg is not None:  # the foot's velocity is linear in v: J v
                 full, _, dofs, jac, cols = leg
-                v[cols] += self._dls(jac, targets[s][2] - full @ v[dofs])
+                v[cols] += self._dls(jac, targets[s][2] - full.dot(v.take(dofs)))
         return v
 
     def _predicted_resolve(self, body, q, v, feet, targets, dt):
@@ -951,14 +978,13 @@ class _Loop:
         if (f0 and not nxt[0]) or (f1 and not nxt[1]):
             return None
         turns = v.take(body.landing_dofs[f0, f1])
-        if max(-turns.min(), turns.max()) * dt > LANDING_TURN:
+        if np.maximum.reduce(np.abs(turns)) * dt > LANDING_TURN:  # (ndarray.max/min go through Python)
             return None
         m, d = body.model, body.data
         legs = self._leg_jacobians(body, q, feet)  # the frames at q
         vel, _, product = velocity_terms(m, d, q, v)  # the step's velocities
-        feet_bodies = body.foot_body
-        acc = (m.ancestors.take(feet_bodies, axis=0) @ product).tolist()
-        vb = vel.take([0] + feet_bodies, axis=0).tolist()
+        acc = body.feet_ancestors.dot(product).tolist()
+        vb = vel.take(body.root_feet_rows, axis=0).tolist()
         # integrate moves the root's origin along a straight line (its world velocity p' fixed over
         # the step), not on the screw of a constant spatial velocity: every body's spatial
         # acceleration then gets the root's (0, -omega x p')
@@ -976,7 +1002,7 @@ class _Loop:
             xd = _add(vo, _cross3(w, x))
             xdd = _add(_add(ao, _cross3(al, x)), _cross3(w, xd))  # the head point's acceleration
             p0, p1, p2 = targets[s][1].tolist()
-            t0, t1, t2 = _rotation_log(targets[s][0] @ frame[:3, :3].T, array=False)
+            t0, t1, t2 = _rotation_log(targets[s][0].dot(frame[:3, :3].T), array=False)
             error = np.array([t0 - h * w[0] - h2 * al[0], t1 - h * w[1] - h2 * al[1], t2 - h * w[2] - h2 * al[2],
                               p0 - x[0] - h * xd[0] - h2 * xdd[0], p1 - x[1] - h * xd[1] - h2 * xdd[1],
                               p2 - x[2] - h * xd[2] - h2 * xdd[2]])
@@ -1047,8 +1073,9 @@ class _Loop:
         kinematics.update_frames(m, d, q)
         bodies, local = body.spheres
         radii = body.contacts.radii
-        fr = d.frames.take(bodies, axis=0)
-        centres = np.einsum("kij,kj->ki", fr[:, :3, :3], local) + fr[:, :3, 3]
+        n = len(bodies)  # each centre's body frame rows (3, 4) against (x, y, z, 1), one product
+        centres = (d.frames.take(bodies, axis=0)[:, :3, :] * body.sphere_hom[:, None, :]).reshape(3 * n, 4) \
+            .dot(_ONES4).reshape(n, 3)
         rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
         vel = kinematics.body_velocities(m, d, q, v).take(bodies, axis=0)
         if ground or self.st.colliders:
@@ -1210,6 +1237,9 @@ if hasattr(np, "seterrobj"):  # numpy 1: np.errstate's error mask set directly (
 else:
     def _raising():
         return np.errstate(over="raise", invalid="raise")
+
+
+_ONES4 = np.ones(4)
 
 
 def _cross3(a, b):

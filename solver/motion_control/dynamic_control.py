@@ -50,7 +50,7 @@ def dynamic_control(state, a_tracking):
     p0, mmp, dist = balance_error(state, wrench, polygon)
     log = ControlLog(state.model.nv)
     if not np.count_nonzero(stress) and dist <= tol.zmp_tolerance:  # step 2: nothing to do
-        return DynamicResult(a0, np.zeros_like(a0), stress, stress, p0, p0, mmp, polygon, None, log)
+        return DynamicResult(a0, np.zeros(len(a0)), stress, stress, p0, p0, mmp, polygon, None, log)
     criteria = {"comfort": comfort_criterion, "balance": balance_criterion}
     out, log = control_sequence(state, a0, criteria, log=log)
     tau, wrench = required_torques(state, out)

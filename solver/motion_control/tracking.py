@@ -142,7 +142,6 @@ class TrackingController:
         self._rel_flat = 4 * self._k + self._rel_axis  # ... in the flattened (nv, 4) quaternions
         self._lin = np.flatnonzero(lin)
         self._lin_axis = slot[lin] - 3
-        self._lin_rows = np.arange(len(self._lin))
         self._has_lin = bool(lin.any())
         # the diagonal entry R[axis, axis] of a quaternion's rotation matrix: w^2 + c_axis^2 - the
         # other two components squared (quat_to_matrix's terms)
@@ -151,12 +150,18 @@ class TrackingController:
         sign[self._k, 1 + axis] = 1.0
         self._diag_sign = sign
         target, horizon, ff = self._frame_data
-        quat = target[0]
-        # conj(cur) * target = R(target) conj(cur): the right-multiplication matrices of the
-        # targets with the conjugation folded in, per frame (F, nv, 4, 4)
-        right = (quat @ _QMUL_RIGHT).reshape(quat.shape[:-1] + (4, 4)) * np.array([1.0, -1.0, -1.0, -1.0])
-        self._frame_right = right
+        # conj(cur) * target as one product of the (nv, 16) outer products cur_j target_l with
+        # the Hamilton product's constant (16, 4) map, the conjugation folded in (a reduction
+        # over a small last axis costs ~4x a 2-D product)
+        self._frame_target = np.ascontiguousarray(target[0])  # (F, nv, 4)
         self._frame_h2 = horizon ** 2
+        # the root translation's DOFs: their target positions per frame (floats) and the
+        # current root axis each one reads (its column of the root's rotation)
+        self._lin_targets = target[1][:, self._lin].tolist() if self._has_lin else None
+        self._lin_cols = self._lin_axis.tolist()
+        lin = self._lin
+        self._lin_slice = slice(int(lin[0]), int(lin[-1]) + 1) if (
+            len(lin) and np.array_equal(lin, np.arange(lin[0], lin[-1] + 1))) else lin
 
     # ---- control ----
 
@@ -168,7 +173,8 @@ class TrackingController:
             target, horizon, ff = self._frame_data
             error, vel_t = self._frame_error(f, q)
             h = horizon[f]
-            out = (6.0 * error - (2.0 * vel_t + 4.0 * np.asarray(v, float)) * h) / self._frame_h2[f]
+            # (0-d constants: numpy 1 converts a Python float operand at every call)
+            out = (_SIX * error - (_TWO * vel_t + _FOUR * np.asarray(v, float)) * h) / self._frame_h2[f]
             return out + ff[f] if self.feedforward else out
         times = self.target_times(t)
         horizon = times - t
@@ -202,23 +208,28 @@ class TrackingController:
         arithmetic in about a third of the numpy calls)."""
         target = self._frame_data[0]
         q = np.asarray(q, float)
-        cur = q[self._cur_index]  # (nv, 4)
-        rel = np.add.reduce(self._frame_right[f] * cur[:, None, :], 2)  # conj(cur) * target
-        # quat_log's arithmetic on the one component each DOF needs
+        cur = q.take(self._cur_index)  # (nv, 4)
+        nv = len(cur)
+        # conj(cur) * target
+        rel = (cur[:, :, None] * self._frame_target[f][:, None, :]).reshape(nv, 16).dot(spatial._CONJ_QMUL_OUTER)
+        # quat_log's arithmetic on the one component each DOF needs (its sign: the short way)
         w = rel[:, 0]
-        neg = w < 0.0
-        aw = np.abs(w)
         xyz = rel[:, 1:]
-        s = np.sqrt(np.add.reduce(xyz * xyz, 1))
-        comp = rel.ravel()[self._rel_flat]  # rel[k, rel_axis]: one flat index is cheaper than two
-        error = spatial.log_scale(s, aw) * np.where(neg, -comp, comp)
+        s = np.sqrt((xyz * xyz).dot(_ONES3))
+        comp = rel.take(self._rel_flat)  # rel[k, rel_axis] (flat)
+        # (log_scale >= 0: copysign gives it w's sign, the where(w < 0, -comp, comp) of before in
+        # two fewer calls; they differ only at w = -0.0, a half turn)
+        error = np.copysign(spatial.log_scale(s, np.abs(w)), w) * comp
         # target angular velocity carried into the current axes: R(rel)[axis, axis] * vel_t
-        vel = np.add.reduce(rel * rel * self._diag_sign, 1) * target[2][f]
+        vel = (rel * rel * self._diag_sign).dot(_ONES4) * target[2][f]
         if self._has_lin:
-            lin = self._lin
-            r0 = spatial.quat_to_matrix(q[3:7])
-            offset = (target[1][f][lin] - q[:3]) @ r0  # r0.T @ (p_t - p)
-            error[lin] = offset[self._lin_rows, self._lin_axis]
+            # the root's world offset to its targets in the current root axes, r0.T @ (p_t - p)
+            p0, p1, p2, a, b, c, d = q[:7].tolist()
+            r = ((a * a + b * b - c * c - d * d, 2.0 * (b * c - a * d), 2.0 * (b * d + a * c)),
+                 (2.0 * (b * c + a * d), a * a - b * b + c * c - d * d, 2.0 * (c * d - a * b)),
+                 (2.0 * (b * d - a * c), 2.0 * (c * d + a * b), a * a - b * b - c * c + d * d))
+            error[self._lin_slice] = [(t0 - p0) * r[0][k] + (t1 - p1) * r[1][k] + (t2 - p2) * r[2][k]
+                                      for (t0, t1, t2), k in zip(self._lin_targets[f], self._lin_cols)]
         return error, vel
 
     def _error(self, q, quat, pos, vel_t):
@@ -248,17 +259,8 @@ class TrackingController:
         return error, vel
 
 
-# a quaternion product a * b = (b @ _QMUL_RIGHT).reshape(4, 4) @ a: the right-multiplication matrix of b
-_QMUL_RIGHT = np.zeros((4, 16))
-for _r in range(4):
-    for _c in range(4):
-        _e = np.zeros(4)
-        _e[_c] = 1.0
-        for _k in range(4):
-            _b = np.zeros(4)
-            _b[_k] = 1.0
-            _QMUL_RIGHT[_k, 4 * _r + _c] = spatial.quat_multiply(_e, _b)[_r]
-del _r, _c, _e, _k, _b
+_ONES3, _ONES4 = np.ones(3), np.ones(4)
+_TWO, _FOUR, _SIX = (np.array(c) for c in (2.0, 4.0, 6.0))
 
 
 def next_extremum_times(v_d, dt):
