@@ -465,6 +465,9 @@ def bounded(state, part, x):
 
 # ---- the heuristic order ------------------------------------------------------------------------
 
+ACTED = 1e-9  # rad/s^2 (m/s^2 on the root): ControlLog.record's least change that counts
+
+
 @dataclass
 class ControlLog:
     """What acted in one step: per DOF masks and the sequence of actions."""
@@ -479,7 +482,10 @@ class ControlLog:
         self.passive, self.comfort, self.balance = np.zeros((3, self.nv), bool)  # (one allocation)
 
     def record(self, part, kind, delta):
-        moved = np.abs(delta) > 0.0
+        # a change is a DOF's acceleration moved by more than rounding: a pseudo-inverse leaves
+        # 1e-16..1e-15 rad/s^2 on DOFs it does not move, and a last-bit change of the inputs
+        # then flipped the recorded control of a bone (CMU walk, 15 kg per hand)
+        moved = np.abs(delta) > ACTED
         if np.count_nonzero(moved):
             getattr(self, kind)[moved] = True
             self.actions.append((part, kind))

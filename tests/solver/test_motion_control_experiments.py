@@ -259,6 +259,21 @@ def test_d_a_frontal_push_on_the_cmu_walk_recovers(walk, walk_runs, at):
           f"{(late.max() + 1) / tr.fps:.2f} s")
 
 
+def test_recorded_controls_do_not_depend_on_rounding(walk, walk_runs):
+    """The baked control codes (the overlay's colours) mark the DOFs a control moved by more than
+    rounding: the comfort candidate's pseudo-inverse leaves 1e-16..1e-15 rad/s^2 on DOFs it does
+    not move, and gravity x (1 + 1e-14) flipped 25-32 recorded codes of the 15 kg walk while the
+    motion stayed within 5e-12 (measured before the threshold, comfort_control.ACTED)."""
+    sk, tr = walk
+    calm = walk_runs(15.0)
+    loads = tuple(Load(sk.roles.bone(f"hand.{s}"), 15.0) for s in "LR")
+    g = np.array(ControlSettings().gravity) * (1.0 + 1e-14)
+    res = control(sk, tr, ControlSettings(loads=loads, gravity=tuple(g)))
+    assert np.abs(res.trajectories.rotations - calm.trajectories.rotations).max() < 1e-9
+    assert np.array_equal(res.control, calm.control)
+    assert np.count_nonzero(calm.control) > 0
+
+
 def test_a_foot_landing_turned_by_a_push_does_not_slide(walk):
     """A 15 N s push on the chest at 0.99 s, while the left foot swings: the foot lands turned
     from the capture's, and its first target turns it to the capture's rotation at once. That turn
