@@ -257,12 +257,8 @@ class _Body:
             model, np.concatenate(p.sole_joints), np.concatenate(p.sole_points))
         self.sole_split = len(p.sole_joints[0])
         # the sole points as (x, y, z, 1) on their bodies (_Loop._soles: one product with the
-        # bodies' frames), and each foot's mean over its points (the sole centres, (2, k))
+        # bodies' frames)
         self.sole_hom = np.c_[self.sole_local, np.ones(len(self.sole_local))]
-        k, n = self.sole_split, len(self.sole_local)
-        self.sole_mean = np.zeros((2, n))
-        self.sole_mean[0, :k] = 1.0 / k
-        self.sole_mean[1, k:] = 1.0 / (n - k)
         # per contact set (left, right on the ground): the sides' indices and their feet's bodies
         self.contact_sets = {}
         for contact in ((True, True), (True, False), (False, True)):
@@ -548,7 +544,6 @@ class _Loop:
             if planted:  # the sides in contact and their foot bodies (ControlState.sides,
                 # comfort_control._ground_wrenches), known here
                 cs._cache["sides"], cs._cache["foot_bodies"] = body.contact_sets[bool(feet[0]), bool(feet[1])]
-                cs._cache["sole_centres"] = self._sole_centres(body, feet)
             if st.tracking_only:
                 a = a_track
                 if record:
@@ -795,15 +790,8 @@ class _Loop:
             pts = (body.data.frames.take(body.sole_bodies, axis=0)[:, :3, :]
                    * body.sole_hom[:, None, :]).reshape(3 * n, 4).dot(_ONES4).reshape(n, 3)
             k = body.sole_split
-            self._soles_cache = (key, [pts[:k], pts[k:]], pts)
+            self._soles_cache = (key, [pts[:k], pts[k:]])
         return self._soles_cache[1]
-
-    def _sole_centres(self, body, feet):
-        """comfort_control._sole_centres of the feet in contact at the last _soles: each one's
-        mean sole point [x, y] at the ground's height, both feet in one product."""
-        c = body.sole_mean.dot(self._soles_cache[2]).tolist()
-        h = self.ground
-        return [[c[s][0], c[s][1], h] for s in (0, 1) if feet[s]]
 
     def _contact_drift(self, body, q, s, f):
         """Horizontal travel (m) of the planted foot's contact point since landing: the sole points'
