@@ -2,6 +2,10 @@
 
 import numpy as np
 
+# a small last axis summed as a product with ones, (x * y).dot(ONES3): a reduction (np.add.reduce,
+# einsum) over it costs about four times as much on the solver's small stacks
+ONES3, ONES4, ONES6 = np.ones(3), np.ones(4), np.ones(6)
+
 
 def cross(a, b):
     """np.cross of (..., 3) arrays (broadcast) without its axis bookkeeping, which costs several

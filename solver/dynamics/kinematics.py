@@ -9,6 +9,7 @@ batched products by pointer doubling. World spatial vectors are (omega, v) at th
 import numpy as np
 
 from . import spatial
+from ..vectors import ONES3, ONES4
 from .model import Data, Model
 
 
@@ -210,7 +211,7 @@ def integrate(model, q, v, dt=1.0):
     # products with ones: a reduction over a small last axis costs ~4x as much. (0-d constants:
     # numpy 1 converts a Python float operand at every call.)
     turn = full[:, :3]
-    angle = np.sqrt((turn * turn).dot(_ONES3))
+    angle = np.sqrt((turn * turn).dot(ONES3))
     half = _HALF * angle
     small = angle < _SMALL_TURN
     exp = np.empty((nb, 4))
@@ -224,11 +225,10 @@ def integrate(model, q, v, dt=1.0):
         exp[:, 1:] = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / (angle + small))[:, None] * turn
     quats = q[3:].reshape(nb, 4)
     turned = (quats[:, :, None] * exp[:, None, :]).reshape(nb, 16).dot(spatial._QMUL_OUTER)
-    out[3:] = (turned / np.sqrt((turned * turned).dot(_ONES4))[:, None]).ravel()
+    out[3:] = (turned / np.sqrt((turned * turned).dot(ONES4))[:, None]).ravel()
     return out
 
 
-_ONES3, _ONES4 = np.ones(3), np.ones(4)
 _HALF, _SMALL_TURN = np.array(0.5), np.array(1e-6)
 
 

@@ -30,6 +30,7 @@ from ..dynamics.inertia_matrix import inertia_block
 from ..dynamics.inverse_dynamics import subtree_wrenches
 from ..dynamics.kinematics import motion_subspace, point_positions, segment_jacobian, update_frames
 from ..dynamics.strength import StrengthModel, torque_range
+from ..vectors import ONES3, ONES6
 
 SIDES = ("L", "R")
 
@@ -180,7 +181,6 @@ class ControlState:
 
 
 _BASE_LOW, _BASE_HIGH = np.full(6, -np.inf), np.full(6, np.inf)  # the base is unbounded
-_ONES3, _ONES6 = np.ones(3), np.ones(6)
 _C = {c: np.array(c) for c in (0.3, 0.6)}  # (0-d constants, _dof_limits: numpy 1 converts a Python float)
 
 
@@ -215,7 +215,7 @@ def _dof_limits(fused, q, v):
     quat = q[index]  # (n, 4)
     comp = quat.ravel()[component]  # quat[k, 1 + slot]: one flat index is cheaper than two
     xyz = quat[:, 1:]
-    s = np.sqrt((xyz * xyz).dot(_ONES3))
+    s = np.sqrt((xyz * xyz).dot(ONES3))
     angle = spatial.log_scale(s, np.abs(quat[:, 0])) * comp  # (+-: the strength curve is even)
     low, high = torque_range(top0 * np.maximum(_C[0.3], np.cos(_C[0.6] * angle)), v[6:] / vmax)
     return np.concatenate((_BASE_LOW, low)), np.concatenate((_BASE_HIGH, high))
@@ -262,7 +262,7 @@ def _required_torques(state, a):
         below = below - m.dof_subtree.take(bodies, axis=0).T.dot(wrenches)
     # rnea's tau: each DOF's motion subspace against the wrench its body's subtree needs
     # (a product with ones: a reduction over the small last axis costs ~4x as much)
-    tau = (motion_subspace(m, d, state.q) * below).dot(_ONES6) + m.armature_v * a
+    tau = (motion_subspace(m, d, state.q) * below).dot(ONES6) + m.armature_v * a
     wrench = total[0]
     tau.flags.writeable = False
     wrench.flags.writeable = False

@@ -65,7 +65,7 @@ from scipy.ndimage import gaussian_filter1d
 from ..body_roles import SIDES
 from ..progress import run_to_end
 from ..trajectories import Trajectories
-from ..vectors import cross as cross_rows
+from ..vectors import ONES4, cross as cross_rows
 from ..dynamics import kinematics, spatial
 from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories, motion_floor,
                                     weld_static_helpers)
@@ -788,7 +788,7 @@ class _Loop:
             # each point's body frame rows (3, 4) against (x, y, z, 1), summed by one product
             n = len(body.sole_hom)
             pts = (body.data.frames.take(body.sole_bodies, axis=0)[:, :3, :]
-                   * body.sole_hom[:, None, :]).reshape(3 * n, 4).dot(_ONES4).reshape(n, 3)
+                   * body.sole_hom[:, None, :]).reshape(3 * n, 4).dot(ONES4).reshape(n, 3)
             k = body.sole_split
             self._soles_cache = (key, [pts[:k], pts[k:]])
         return self._soles_cache[1]
@@ -1063,7 +1063,7 @@ class _Loop:
         radii = body.contacts.radii
         n = len(bodies)  # each centre's body frame rows (3, 4) against (x, y, z, 1), one product
         centres = (d.frames.take(bodies, axis=0)[:, :3, :] * body.sphere_hom[:, None, :]).reshape(3 * n, 4) \
-            .dot(_ONES4).reshape(n, 3)
+            .dot(ONES4).reshape(n, 3)
         rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
         vel = kinematics.body_velocities(m, d, q, v).take(bodies, axis=0)
         if ground or self.st.colliders:
@@ -1227,7 +1227,6 @@ else:
         return np.errstate(over="raise", invalid="raise")
 
 
-_ONES4 = np.ones(4)
 
 
 def _cross3(a, b):
