@@ -707,32 +707,28 @@ class _Loop:
     # ---- planted feet (sec. 2.4.2) ----
 
     def _update_plants(self, body, feet, t):
-        m = body.model
         for s in range(2):
             if not feet[s]:
                 self.planted[s] = None
             elif self.planted[s] is None:
-                foot = body.parts.feet[s]
-                now = kinematics.point_positions(m, body.data, self.q, [foot], [np.zeros(3)])[0]
-                qd = self.tracking.desired_state(t)[0]
-                want = kinematics.point_positions(m, self.desired_data, qd, [foot], [np.zeros(3)])[0]
-                offset, roll = now - want + self._landing_pivot(body, s, t), self._roll_offset(s, t)[0]
-                self.planted[s] = (offset, roll, offset - roll)
+                self.planted[s] = self._landing(body, s, t)
                 self._drift[s] = None
 
-    def _landing_pivot(self, body, s, t):
-        """A foot that lands turned from the input's (a push changed its swing) is turned to the
-        input's rotation by its first target at once; about the ankle, that slid its contact 2.4 mm
-        (the demo's push). The head's offset that makes the turn one about the contact point
-        instead (the input's contact weights at t). Call with body.data at self.q and the desired
-        data at the input's configuration at t (_update_plants)."""
-        m, foot = body.model, body.parts.feet[s]
-        b = m.joint_body[foot]
-        now = body.data.frames[b] @ m.joint_offset[foot]
-        want = self.desired_data.frames[b] @ m.joint_offset[foot]
-        f = min(int(round(t / self.tracking.dt)), len(self.roll_weights[s]) - 1)
-        arm = self.roll_weights[s][f] @ self._soles(body, self.q)[s] - now[:3, 3]
-        return arm - want[:3, :3] @ (now[:3, :3].T @ arm)
+    def _landing(self, body, s, t):
+        """A landing foot's offset from the input's (head position, roll offset, their difference).
+        The foot may land turned from the input's (a push changed its swing); its first target
+        turns it to the input's rotation at once, so the offset makes that turn one about the
+        contact point (the input's contact weights at t), not the ankle, which slid the contact
+        2.4 mm (the demo's push)."""
+        m, b, offset = body.model, body.foot_body[s], body.foot_offset[s]
+        kinematics.update_frames(m, self.desired_data, self.tracking.desired_state(t)[0])
+        want = self.desired_data.frames[b] @ offset
+        contact = self.roll_weights[s][min(int(round(t / self.tracking.dt)), len(self.roll_weights[s]) - 1)] \
+            @ self._soles(body, self.q)[s]  # (body.data now at q)
+        now = body.data.frames[b] @ offset
+        head = contact - want[:3, :3] @ (now[:3, :3].T @ (contact - now[:3, 3]))
+        roll = self._roll_offset(s, t)[0]
+        return (head - want[:3, 3], roll, head - want[:3, 3] - roll)
 
     def _foot_skate(self, tr):
         """The input's foot skate as a root offset (F, 2): what moves the whole motion so that the

@@ -277,7 +277,7 @@ def test_recorded_controls_do_not_depend_on_rounding(walk, walk_runs):
 def test_a_foot_landing_turned_by_a_push_does_not_slide(walk):
     """A 15 N s push on the chest at 0.99 s, while the left foot swings: the foot lands turned
     from the capture's, and its first target turns it to the capture's rotation at once. That turn
-    is about the contact point (controller._Loop._landing_pivot), not the ankle, which slid the
+    is about the contact point (controller._Loop._landing), not the ankle, which slid the
     contact 1.4 mm in one step (measured before the pivot; 2.4 mm in the demo, with 5 kg in each
     hand, on Blender's import). Measured now: 0.23 mm."""
     sk, tr = walk

@@ -2,8 +2,9 @@
 
 reference.npz was recorded with the implementation before the speed work (commit bed5782: the
 controller with swept collider contacts and leg comfort control in double support only, numpy
-1.26) plus the landing pivot (controller._Loop._landing_pivot, the same ten lines added to that
-checkout): the optimised loop must reproduce it within rounding. Run from such a checkout:
+1.26) plus the landing pivot (commit 0b1ab1c's _Loop._landing_pivot, its ten lines added to that
+checkout; main computes it as _Loop._landing): the optimised loop must reproduce it within
+rounding. Run from such a checkout:
 
     PYTHONPATH=<checkout parent> python tests/data/motion_control/make_reference.py
 """
