@@ -65,7 +65,7 @@ from scipy.ndimage import gaussian_filter1d
 from ..body_roles import SIDES
 from ..progress import run_to_end
 from ..trajectories import Trajectories
-from ..vectors import ONES4, cross as cross_rows
+from ..vectors import cross as cross_rows
 from ..dynamics import kinematics, spatial
 from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories, motion_floor,
                                     weld_static_helpers)
@@ -781,10 +781,7 @@ class _Loop:
         key = (q.tobytes(), id(body))
         if self._soles_cache is None or self._soles_cache[0] != key:
             kinematics.update_frames(body.model, body.data, q)
-            # each point's body frame rows (3, 4) against (x, y, z, 1), summed by one product
-            n = len(body.sole_hom)
-            pts = (body.data.frames.take(body.sole_bodies, axis=0)[:, :3, :]
-                   * body.sole_hom[:, None, :]).reshape(3 * n, 4).dot(ONES4).reshape(n, 3)
+            pts = kinematics.body_points(body.data, body.sole_bodies, body.sole_hom)
             k = body.sole_split
             self._soles_cache = (key, [pts[:k], pts[k:]])
         return self._soles_cache[1]
@@ -1055,11 +1052,9 @@ class _Loop:
         if not (ground or self.st.colliders or swing is not None):
             return v  # standing on both planted feet, nothing to collide with: no sphere is asked
         kinematics.update_frames(m, d, q)
-        bodies, local = body.spheres
+        bodies = body.spheres[0]
         radii = body.contacts.radii
-        n = len(bodies)  # each centre's body frame rows (3, 4) against (x, y, z, 1), one product
-        centres = (d.frames.take(bodies, axis=0)[:, :3, :] * body.sphere_hom[:, None, :]).reshape(3 * n, 4) \
-            .dot(ONES4).reshape(n, 3)
+        centres = kinematics.body_points(d, bodies, body.sphere_hom)
         rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
         vel = kinematics.body_velocities(m, d, q, v).take(bodies, axis=0)
         if ground or self.st.colliders:
