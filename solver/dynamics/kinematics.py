@@ -211,10 +211,9 @@ def integrate(model, q, v, dt=1.0):
         out[:3] = q[:3]
     else:
         p0, p1, p2, w, x, y, z = q[:7].tolist()
-        out[:3] = (
-            p0 + ((w * w + x * x - y * y - z * z) * s0 + 2.0 * (x * y - w * z) * s1 + 2.0 * (x * z + w * y) * s2),
-            p1 + (2.0 * (x * y + w * z) * s0 + (w * w - x * x + y * y - z * z) * s1 + 2.0 * (y * z - w * x) * s2),
-            p2 + (2.0 * (x * z - w * y) * s0 + 2.0 * (y * z + w * x) * s1 + (w * w - x * x - y * y + z * z) * s2))
+        r0, r1, r2 = spatial.quat_rows(w, x, y, z)
+        out[:3] = (p0 + (r0[0] * s0 + r0[1] * s1 + r0[2] * s2), p1 + (r1[0] * s0 + r1[1] * s1 + r1[2] * s2),
+                   p2 + (r2[0] * s0 + r2[1] * s1 + r2[2] * s2))
     # quats * exp(w / 2), exp inlined (spatial.quat_exp's arithmetic in fewer numpy calls), the
     # products as one 2-D product of their outer products (spatial._QMUL_OUTER) and the norms as
     # products with ones: a reduction over a small last axis costs ~4x as much. (0-d constants:

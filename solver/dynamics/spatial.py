@@ -45,6 +45,14 @@ def skew(w):
     return w.dot(_SKEW_MAP).reshape(w.shape[:-1] + (3, 3))  # (one nonzero term per entry: exact)
 
 
+def quat_rows(w, x, y, z):
+    """quat_to_matrix of one unit quaternion on floats, as three row tuples (the control loop's
+    root: a few floats cost less than numpy's calls on a 3x3)."""
+    return ((w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)),
+            (2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x)),
+            (2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z))
+
+
 def quat_to_matrix(q):
     """Rotation matrices of unit quaternions (n, 4), without renormalising (callers keep them unit)."""
     q = np.asarray(q, dtype=float)

@@ -225,10 +225,8 @@ class TrackingController:
         vel = (rel * rel * self._diag_sign).dot(ONES4) * target[2][f]
         if self._has_lin:
             # the root's world offset to its targets in the current root axes, r0.T @ (p_t - p)
-            p0, p1, p2, a, b, c, d = q[:7].tolist()
-            r = ((a * a + b * b - c * c - d * d, 2.0 * (b * c - a * d), 2.0 * (b * d + a * c)),
-                 (2.0 * (b * c + a * d), a * a - b * b + c * c - d * d, 2.0 * (c * d - a * b)),
-                 (2.0 * (b * d - a * c), 2.0 * (c * d + a * b), a * a - b * b - c * c + d * d))
+            p0, p1, p2, qw, qx, qy, qz = q[:7].tolist()
+            r = spatial.quat_rows(qw, qx, qy, qz)
             error[self._lin_slice] = [(t0 - p0) * r[0][k] + (t1 - p1) * r[1][k] + (t2 - p2) * r[2][k]
                                       for (t0, t1, t2), k in zip(self._lin_targets[f], self._lin_cols)]
         return error, vel
