@@ -15,7 +15,8 @@ One step (dt = frame time / substeps):
      (the acceleration form of the limb's inverse kinematics); the velocities are projected onto
      the foot's target velocity at the step's end and, after the Euler step, the positions
      re-solved (a Gauss-Newton pass of the leg's IK on its own DOFs), so the foot cannot drift
-     however balance control moves the pelvis;
+     however balance control moves the pelvis. The legs' least squares are damped, more so near a
+     straight knee (_damping: a straight leg cannot move its foot along itself);
   3. dynamic control (dynamic_control: passive, comfort then balance of arms, back and legs),
      unless tracking_only, against the strength and support widened by what the input itself
      needs at that frame (input_allowance); external forces (Impulse with a duration, collider
@@ -24,6 +25,7 @@ One step (dt = frame time / substeps):
   4. semi-implicit Euler on the manifold, v' = v + a dt, q' = q (+) v' dt, which with the input's
      step-consistent velocities (tracking.step_consistent) reproduces an undisturbed input
      exactly; instant impulses change the velocities through the inertia matrix, dv = H^-1 J' p,
+     with the planted feet held during the impulse (_through_feet: the ground takes its share),
      before the legs' projection;
   5. colliders: each collider sphere's path over the step swept against the body's capsules (a
      bone's two contact spheres, default_contacts, and the segment between them), so a fast fist
@@ -36,7 +38,8 @@ One step (dt = frame time / substeps):
 Falling (choice: contact impulses, not a hand-over to closed_loop.iter_simulate): when balance
 control has reported for `fall_time` (0.1 s) that the ZMP cannot be brought inside the support
 polygon (one glitch of a captured motion does not fell the figure) and the capture point lies
-beyond the feet (_can_stop: the figure could not stop without a step), that step's output
+beyond the feet (_can_stop: more than _CAPTURE_TOLERANCE, 10 cm, beyond the support polygon and
+the input's own excursion: the figure could not stop without a step), that step's output
 turns the body about the MMP (Falling.base_acceleration, sec. 2.3.3) and the figure is released;
 an instant impulse whose momentum carries the capture point that far out releases it at once
 (knocked over: the planted feet's projection would otherwise take the momentum back, as an
@@ -59,7 +62,7 @@ import math
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
-from scipy.linalg.lapack import dpotrf, dpotrs
+from scipy.linalg.lapack import dpotrf, dpotrs, dsyevd
 from scipy.ndimage import gaussian_filter1d
 
 from ..body_roles import SIDES
@@ -149,6 +152,10 @@ class ControlSettings:
     # land within ~1e-6 m of the exact re-solve's, every thesis experiment gives the same outcome)
     foot_iterations: int = 0
     foot_damping: float = 1e-3  # damped least squares of the legs' IK (a straight knee is singular)
+    # near a straight knee (the leg Jacobian's smallest singular value below singular_band, m) the
+    # damping grows to singular_damping (_Loop._damping)
+    singular_band: float = 0.1
+    singular_damping: float = 0.1
     kinematic_fraction: float = 0.0015  # as closed_loop.Settings: fingers follow the input
     # joint armature as a share of each DOF's own inertia H_ii in the first frame (closed_loop's
     # armature_ratio): regularises DOF pairs that turn the same mass about nearly the same axis
@@ -368,6 +375,7 @@ class _Loop:
         self._grid_targets = [self._input_feet(self.body, f * self.dt_frame) for f in range(tr.frame_count)]
         self._soles_cache = None
         self._eye6 = st.foot_damping ** 2 * np.eye(6)
+        self._singular = (st.singular_band ** 2, st.singular_damping ** 2)
         self._drift = [None, None]  # per side: (contact drift (2,), last sole points (k, 3))
         self.q = self.tracking.q_d[0].copy()
         self.v = self.tracking.v_d[0].copy()
@@ -579,7 +587,7 @@ class _Loop:
                     v = self._ragdoll_velocity(body, q, v, dt, f_ext)
                 else:
                     v = v + dt * a
-                v, pushed = self._apply_impulses(body, q, v, t, dt)
+                v, pushed = self._apply_impulses(body, q, v, t, dt, feet if planted else None)
                 if pushed and planted and fall is None and not st.tracking_only and self._knocked_over(cs, t, v):
                     # knocked over: the impulse's momentum carries the capture point beyond where the
                     # feet could stop it; planted feet would take that momentum back (their
@@ -693,16 +701,41 @@ class _Loop:
             out = self.collider_wrench if out is None else out + self.collider_wrench
         return out
 
-    def _apply_impulses(self, body, q, v, t, dt):
-        """Instant impulses falling in [t, t + dt): dv = H^-1 J' p. Returns (v, whether any)."""
+    def _apply_impulses(self, body, q, v, t, dt, feet=None):
+        """Instant impulses falling in [t, t + dt): dv = H^-1 J' p, with the planted `feet` held
+        (_through_feet). Returns (v, whether any)."""
         m, d = body.model, body.data
         pushed = False
         for t0, dur, j, point, p in self.impulses:
             if dur == 0.0 and t - 1e-9 <= t0 < t + dt - 1e-9:
                 jac = kinematics.point_jacobian(m, d, q, j, point)
-                v = v + cho_solve(cho_factor(_inertia(m, d, q)), jac.T @ p)
+                inertia = cho_factor(_inertia(m, d, q))
+                dv = cho_solve(inertia, jac.T @ p)
+                if feet is not None and (feet[0] or feet[1]):
+                    dv = self._through_feet(body, q, feet, inertia, dv)
+                v = v + dv
                 pushed = True
         return v, pushed
+
+    def _through_feet(self, body, q, feet, inertia, dv):
+        """A push's velocity change on a body standing on planted feet: the feet are contacts that
+        do not move during the impulse, so the ground takes its share (dv projected in the inertia
+        metric onto Jc dv = 0). The floating body's response would carry the pelvis away from
+        feet the legs then cannot reach: with straight legs they could only follow it by
+        flexing a knee through its singularity."""
+        rows = []
+        for leg in self._leg_jacobians(body, q, feet):
+            if leg is not None:
+                full, _, dofs, _, _ = leg
+                row = np.zeros((6, len(dv)))
+                row[:, dofs] = full
+                rows.append(row)
+        jc = np.concatenate(rows)
+        h_jc = cho_solve(inertia, jc.T)
+        # (a straight leg cannot move its foot along itself: Jc H^-1 Jc' is then singular, and
+        # Jc dv lies in its range)
+        lam = np.linalg.lstsq(jc.dot(h_jc), jc.dot(dv), rcond=1e-10)[0]
+        return dv - h_jc.dot(lam)
 
     # ---- planted feet (sec. 2.4.2) ----
 
@@ -901,7 +934,8 @@ class _Loop:
         q): dposv's own dpotrf and dpotrs, so the same arithmetic."""
         known = self._dls_factors.get(id(jac))
         if known is None or known[0] is not jac:
-            c, info = dpotrf(jac.dot(jac.T) + self._eye6)
+            jj = jac.dot(jac.T)
+            c, info = dpotrf(jj + self._damping(jj))
             if info != 0:
                 raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
             known = self._dls_factors[id(jac)] = (jac, c)
@@ -909,6 +943,19 @@ class _Loop:
         if info != 0:
             raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
         return jac.T.dot(x)
+
+    def _damping(self, jj):
+        """lambda^2 I for the damped least squares of a leg with J J' = jj: foot_damping, growing
+        to singular_damping as the smallest singular value of J falls through singular_band
+        (adaptive damping, Nakamura and Hanafusa 1986). A leg near straight cannot move its foot
+        along itself; undamped, each step's millimetres of error along it asked the knee for
+        degrees, the next step's the other way, and a standing figure's knees thrashed after a
+        10 N s push."""
+        band2, extra = self._singular
+        low = dsyevd(jj, compute_v=0)[0][0]  # the smallest eigenvalue of J J': sigma_min^2
+        if low >= band2:
+            return self._eye6
+        return self._eye6 + (extra * (1.0 - max(low, 0.0) / band2)) * _EYE6
 
     def _constrain_legs(self, body, q, v, a, feet, targets):
         """Leg accelerations that give each planted foot its target acceleration: the tracking
@@ -1353,9 +1400,12 @@ LANDING_TURN = 0.1  # rad: the most a planted leg's joint (or the root) may turn
 KNOCKED_OVER = "knocked over"  # a step's fall from an impulse (no base acceleration: released as it is)
 RAGDOLL_JOINT_SPEED = 40.0  # rad/s (_Loop._ragdoll_velocity; strength.py's fastest joints: 40)
 _BALANCED = 1e-3  # m: a ZMP tolerance above this is an input allowance (_Loop._excess)
-# _Loop._slower_return: m beyond the input's own capture-point excursion (arms swung by passive
-# control move the centre of mass quickly without the body falling; a 150 N s push: 0.6 m)
-_CAPTURE_TOLERANCE = 0.2
+# _Loop._can_stop, _knocked_over: m beyond the input's own capture-point excursion (arms swung by
+# passive control move the centre of mass quickly without the body falling). It was 0.2: a
+# standing figure pushed 45-60 N s then stayed "stoppable" while its legs thrashed and its feet
+# slid up to 13 cm (test_motion_control_standing_pushes)
+_CAPTURE_TOLERANCE = 0.1
+_EYE6 = np.eye(6)
 
 
 def _sole_points(model, qs, parts):

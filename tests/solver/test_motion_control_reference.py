@@ -1,6 +1,6 @@
 """The optimised control loop against the recorded outputs of the implementation before the speed
 work (tests/data/motion_control/reference.npz, made by make_reference.py there from commit
-bed5782 with the landing pivot added): the squat with 8 kg in the hands and a push on the chest (comfort and balance control
+bed5782 with the later behaviour changes added, listed there): the squat with 8 kg in the hands and a push on the chest (comfort and balance control
 act), 15 kg with control (passive control too) and as pure tracking (torques over strength on 83
 frames), and the CMU clip's first second with a push. The speed work reorders floating-point
 sums and products (batched products, cached factorisations, plain-float scalars), nothing else:
