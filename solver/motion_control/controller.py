@@ -38,8 +38,7 @@ One step (dt = frame time / substeps):
 Falling (choice: contact impulses, not a hand-over to closed_loop.iter_simulate): when balance
 control has reported for `fall_time` (0.1 s) that the ZMP cannot be brought inside the support
 polygon (one glitch of a captured motion does not fell the figure) and the capture point lies
-beyond the feet (_can_stop: more than _CAPTURE_TOLERANCE, 10 cm, beyond the support polygon and
-the input's own excursion: the figure could not stop without a step), that step's output
+beyond the feet (_can_stop: the figure could not stop without a step), that step's output
 turns the body about the MMP (Falling.base_acceleration, sec. 2.3.3) and the figure is released;
 an instant impulse whose momentum carries the capture point that far out releases it at once
 (knocked over: the planted feet's projection would otherwise take the momentum back, as an
@@ -702,20 +701,36 @@ class _Loop:
         return out
 
     def _apply_impulses(self, body, q, v, t, dt, feet=None):
-        """Instant impulses falling in [t, t + dt): dv = H^-1 J' p, with the planted `feet` held
-        (_through_feet). Returns (v, whether any)."""
+        """Instant impulses falling in [t, t + dt): dv = H^-1 J' p, with the tracking servo's damping
+        over the step (_servoed_inertia) and the planted `feet` held (_through_feet). Returns (v,
+        whether any)."""
         m, d = body.model, body.data
         pushed = False
         for t0, dur, j, point, p in self.impulses:
             if dur == 0.0 and t - 1e-9 <= t0 < t + dt - 1e-9:
                 jac = kinematics.point_jacobian(m, d, q, j, point)
-                inertia = cho_factor(_inertia(m, d, q))
+                inertia = cho_factor(self._servoed_inertia(body, q, t, dt))
                 dv = cho_solve(inertia, jac.T @ p)
                 if feet is not None and (feet[0] or feet[1]):
                     dv = self._through_feet(body, q, feet, inertia, dv)
                 v = v + dv
                 pushed = True
         return v, pushed
+
+    def _servoed_inertia(self, body, q, t, dt):
+        """H with the tracking servo's damping over the step: H_ii (1 + 4 dt / h_i) on each actuated
+        DOF, h_i its horizon. The Ferguson acceleration (eq. 2.6) falls by 4 / h per unit of
+        velocity; within the step of an impulse it resists the velocity the impulse gives, taken
+        implicitly as the step integrates it. Without it a push met free joints: 45 N s on the
+        standing metarig's pelvis spun the light pelvis at 14 rad/s and its legs thrashed. A
+        fallen body has no servo (its ragdoll damping is the step's own)."""
+        m = body.model
+        h = _inertia(m, body.data, q)
+        if not self.fallen:
+            gain = (4.0 * dt) / (self.tracking.target_times(t) - t)
+            gain[:6] = 0.0  # the root is not actuated
+            h.flat[::m.nv + 1] *= 1.0 + gain
+        return h
 
     def _through_feet(self, body, q, feet, inertia, dv):
         """A push's velocity change on a body standing on planted feet: the feet are contacts that
@@ -1400,11 +1415,9 @@ LANDING_TURN = 0.1  # rad: the most a planted leg's joint (or the root) may turn
 KNOCKED_OVER = "knocked over"  # a step's fall from an impulse (no base acceleration: released as it is)
 RAGDOLL_JOINT_SPEED = 40.0  # rad/s (_Loop._ragdoll_velocity; strength.py's fastest joints: 40)
 _BALANCED = 1e-3  # m: a ZMP tolerance above this is an input allowance (_Loop._excess)
-# _Loop._can_stop, _knocked_over: m beyond the input's own capture-point excursion (arms swung by
-# passive control move the centre of mass quickly without the body falling). It was 0.2: a
-# standing figure pushed 45-60 N s then stayed "stoppable" while its legs thrashed and its feet
-# slid up to 13 cm (test_motion_control_standing_pushes)
-_CAPTURE_TOLERANCE = 0.1
+# _Loop._slower_return: m beyond the input's own capture-point excursion (arms swung by passive
+# control move the centre of mass quickly without the body falling; a 150 N s push: 0.6 m)
+_CAPTURE_TOLERANCE = 0.2
 _EYE6 = np.eye(6)
 
 

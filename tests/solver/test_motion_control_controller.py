@@ -12,8 +12,8 @@ Measured (this machine):
       the supporting legs differ by 1.3 deg RMS because the capture's own foot skate is removed;
   (2, 3) loads in the hands: test_motion_control_experiments.py, on the thesis's squat (a box
       held forward, trunk leaning over the knees: squat_scene.box_squat);
-  (4) a frontal push on the chest: back within 2 deg of the input 0.77 s after 6 N s, 1.7 s after
-      15 N s, with the ZMP kept inside; 150 N s: the figure falls (no NaN, lowest contact sphere
+  (4) a frontal push on the chest: back within 2 deg of the input 1.2 s after 10 N s (4.1 deg
+      away), 1.9 s after 15 N s (6.2 deg), with the ZMP kept inside; 150 N s: the figure falls (no NaN, lowest contact sphere
       above -1 cm);
   (5) supporting feet: 0.15 mm at most while balance control moves the pelvis;
   (6) a 5 kg, 10 cm ball moving at 3 m/s into the chest: the chest's velocity changes at impact like
@@ -151,19 +151,21 @@ def recovery_seconds(sk, tr, res, hit_time=0.5, tolerance=2.0):
     return (np.flatnonzero(e[hit:] > tolerance).max() + 1) / tr.fps, e[hit + 3]
 
 
-@pytest.mark.parametrize("newton_seconds, within", [(6.0, 1.0), (15.0, 2.5)])
+@pytest.mark.parametrize("newton_seconds, within", [(10.0, 1.5), (15.0, 2.5)])
 def test_4_5_frontal_impulse_recovers_and_feet_stay(squat, newton_seconds, within):
     """A frontal push on the chest: the ZMP leaves the support polygon under pure tracking, balance
     control keeps it in (arms, back), and every joint is back within 2 deg of the input. How soon
-    depends on the push: measured 0.77 s at 6 N s, 1.7 at 15 (a
+    depends on the push: measured 1.2 s at 10 N s, 1.9 at 15 (a
     0.2 m/s push on a 70 kg figure: the pelvis can only be stopped as fast as the ZMP at the heel
-    allows; the thesis's figure recovers "while maintaining balance", without a time)."""
+    allows; the thesis's figure recovers "while maintaining balance", without a time). The push
+    moves some joint well beyond the 2 deg band (4.1 and 6.2 deg; the joints' servo takes part of
+    it, controller._Loop._servoed_inertia: 6 N s moved 2.5 deg, 7 before it)."""
     sk, tr = squat
     tracked = control(sk, tr, replace(push(sk, newton_seconds), tracking_only=True))
     assert tracked.balance_error.max() > 0.01  # pure tracking would need the ZMP outside
     res = control(sk, tr, push(sk, newton_seconds))
     seconds, moved = recovery_seconds(sk, tr, res)
-    assert moved > 5.0 and seconds < within
+    assert moved > 3.0 and seconds < within
     assert (res.control == 3).any() and res.balance_error.max() < 1e-3 and not res.falling.any()
     assert res.foot_slide.max() < 0.002  # (5)
     print(newton_seconds, "N s: recovered after", seconds, "s; slide", res.foot_slide.max())

@@ -1,7 +1,13 @@
 """Dynamic reactions (Oshita 2003, sec. 3.5; issue 5) on the Rigify metarig standing still: a push
 sweep gives pure balance control, then a protective step, then a fall; no NaN, no bone more than
 1 cm below the ground; recovery when a joint cannot follow its target. The reactions are
-re-tracked by the controller (ReactionResult.target is the generated reaction it followed)."""
+re-tracked by the controller (ReactionResult.target is the generated reaction it followed).
+
+The sweep is 3, 20 and 40 N s on the root: the pelvis's peak speed 0.10, 0.63 and 3.6 m/s against
+eq. 3.6's 0.5-1.0 m/s for a step. It was 3, 10 and 40 (0.22, 0.74, 3.0 m/s) while a push met a
+floating body with free joints; since the planted feet hold and the joints' servo acts during a
+push (motion_control.controller._Loop._through_feet, _servoed_inertia) 10 N s moves the pelvis
+0.32 m/s and the figure keeps standing."""
 
 import numpy as np
 import pytest
@@ -39,7 +45,7 @@ def check_ground(sk, still, r):
 @pytest.fixture(scope="module")
 def sweep(standing):
     sk, still = standing
-    return {m: push(sk, still, m) for m in (3.0, 10.0, 40.0)}
+    return {m: push(sk, still, m) for m in (3.0, 20.0, 40.0)}
 
 
 def test_push_sweep_balance_then_step_then_fall(standing, sweep):
@@ -56,7 +62,7 @@ def test_push_sweep_balance_then_step_then_fall(standing, sweep):
 
 def test_protective_step_follows_eq_3_6_to_3_8(standing, sweep):
     sk, still = standing
-    r = sweep[10.0]
+    r = sweep[20.0]
     s = ReactionSettings()
     f = r.frame
     assert s.step_speed[0] < r.root_speed[f] < s.step_speed[1] and r.root_acceleration[f] > s.step_acceleration

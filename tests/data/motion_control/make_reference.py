@@ -4,10 +4,11 @@ reference.npz was recorded with the implementation before the speed work (commit
 controller with swept collider contacts and leg comfort control in double support only, numpy
 1.26) plus, added to that checkout in its own terms: the landing pivot (commit 0b1ab1c's
 _Loop._landing_pivot; main computes it as _Loop._landing), the legs' damping near a straight knee
-(_Loop._damping, ControlSettings.singular_band and singular_damping), the planted feet held
-during an impulse (main's _Loop._through_feet, inlined in _apply_impulses there) and
-_CAPTURE_TOLERANCE = 0.1 (bed5782.patch beside this file: `git apply` it on that commit): the
-optimised loop must reproduce it within rounding. Run from such a checkout:
+(_Loop._damping, ControlSettings.singular_band and singular_damping), the tracking servo's
+damping and the planted feet held during an impulse (main's _Loop._servoed_inertia and
+_through_feet, inlined in _apply_impulses there); bed5782.patch beside this file is that
+addition (`git apply` it on that commit). The optimised loop must reproduce it within rounding.
+Run from such a checkout:
 
     PYTHONPATH=<checkout parent> python tests/data/motion_control/make_reference.py
 """
