@@ -73,7 +73,8 @@ class HumanAnimCloth(bpy.types.PropertyGroup):
     wind: FloatVectorProperty(name="Wind", size=3, subtype="VELOCITY", unit="VELOCITY", default=(0.0, 0.0, 0.0))
     thickness: FloatProperty(name="Thickness", default=0.008, min=0.0, soft_max=0.05, unit="LENGTH",
                              description="Distance kept between the cloth and the body")
-    compress_limit: FloatProperty(name="Compression Limit", default=0.05, min=0.0, max=0.5, subtype="FACTOR",
+    compress_limit: FloatProperty(name="Compression Limit", default=ClothParams.compress_limit, min=0.0, max=0.5,
+                                  subtype="FACTOR",
                                   description="Shortening of an edge beyond this share is undone in the simulation; "
                                               "up to it the smoothing folds the edge (0: all left to the smoothing, "
                                               "as in the thesis)")

@@ -32,7 +32,7 @@ def add_commands(sub, add_common_options):
     c.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
     c.add_argument("--step", type=int, default=0, help="simulate every Nth frame (default: about 30 per second)")
     c.add_argument("--wind", help="wind velocity X,Y,Z in m/s")
-    c.add_argument("--compress-limit", type=float, default=0.05,
+    c.add_argument("--compress-limit", type=float, default=0.04,
                    help="shortening undone in the simulation beyond this share (0: all left to the smoothing)")
     c.add_argument("--pn-only", action="store_true", help="plain PN triangles (no normal or edge length control)")
     c.add_argument("--keep-coarse", action="store_true", help="also write the coarse simulated mesh")
