@@ -25,8 +25,8 @@ One step (dt = frame time / substeps):
   4. semi-implicit Euler on the manifold, v' = v + a dt, q' = q (+) v' dt, which with the input's
      step-consistent velocities (tracking.step_consistent) reproduces an undisturbed input
      exactly; instant impulses change the velocities through the inertia matrix, dv = H^-1 J' p,
-     with the planted feet held during the impulse (_through_feet: the ground takes its share),
-     before the legs' projection;
+     the joints' servo resisting it over the step (_servoed_inertia) and the planted feet held
+     (_through_feet: the ground takes its share), before the legs' projection;
   5. colliders: each collider sphere's path over the step swept against the body's capsules (a
      bone's two contact spheres, default_contacts, and the segment between them), so a fast fist
      cannot pass through between two steps; at the first contact an approaching pair gets the
