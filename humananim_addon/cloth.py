@@ -262,6 +262,15 @@ def frame_plan(scene, props):
     return frames
 
 
+# poses read ahead of the simulation (skinned body vertices of that many frames are held)
+READ_AHEAD = 16
+
+
+def _chunks(items, size):
+    for k in range(0, len(items), size):
+        yield items[k:k + size]
+
+
 class ClothJob:
     """`steps()` simulates frame by frame (yielding progress); `write()` writes what is done,
     so a cancelled job keeps its frames."""
@@ -270,6 +279,11 @@ class ClothJob:
         self.scene = scene
         self.props = props or scene.humananim_cloth
         self.max_frames = max_frames  # simulate only the first few frames of the range (a preview)
+        # frames whose poses are read from the scene before they are simulated: the solver then
+        # runs frame after frame with its data and code in the processor's caches, which Blender's
+        # frame evaluation in between would evict (a preview reads one: its body shows the
+        # frame being simulated)
+        self.read_ahead = 1 if max_frames else READ_AHEAD
         self.fine, self.coarse, self.frames_done = [], [], []
         self.sim = None
         self.seconds = 0.0
@@ -307,7 +321,7 @@ class ClothJob:
             binding = pin_binding(p.garment, pins, positions, arm, world) if len(pins) else None
             use_mesh = p.collider in ("MESH", "BOTH") or (p.collider == "AUTO" and p.body is not None)
             use_caps = p.collider in ("CAPSULES", "BOTH") or (p.collider == "AUTO" and p.body is None)
-            bodies, caps, skin = [], None, None
+            bodies, caps, skin, specs = [], None, None, None
             if use_caps:
                 specs = body_capsules(arm, scene, world, p.body, depsgraph)
                 caps = CapsuleBody([s.radius for s in specs], [s.name for s in specs])
@@ -325,26 +339,40 @@ class ClothJob:
             self._record(frames[0])
             yield 1.0 / len(frames)
             t0 = time.perf_counter()
-            for i, f in enumerate(frames[1:], start=1):
-                scene.frame_set(f)
-                dt = (f - frames[i - 1]) / fps
-                world = bone_world(arm, scene)
-                if caps is not None:
-                    ends = capsule_ends(specs, world)
-                    caps.set_motion(*caps_prev, *ends, dt)
-                    caps_prev = ends
-                if skin is not None:
-                    verts, _ = body_mesh_positions(p.body, bpy.context.evaluated_depsgraph_get(), scene)
-                    if len(verts) != len(verts_prev):
-                        raise ClothError(f"'{p.body.name}' changes its vertex count between frames")
-                    skin.set_motion(verts_prev, verts, dt)
-                    verts_prev = verts
-                sim.step(pin_targets(binding, world) if binding is not None else None, dt)
-                self._record(f)
-                yield (i + 1) / len(frames)
+            for chunk in _chunks(list(enumerate(frames[1:], start=1)), self.read_ahead):
+                poses = []
+                for _, f in chunk:
+                    poses.append(self._pose(f, arm, specs, binding, None if skin is None else len(verts_prev)))
+                    yield len(self.frames_done) / len(frames)  # (the UI stays responsive while reading)
+                for (i, f), (ends, verts, targets) in zip(chunk, poses):
+                    dt = (f - frames[i - 1]) / fps
+                    if caps is not None:
+                        caps.set_motion(*caps_prev, *ends, dt)
+                        caps_prev = ends
+                    if skin is not None:
+                        skin.set_motion(verts_prev, verts, dt)
+                        verts_prev = verts
+                    sim.step(targets, dt)
+                    self._record(f)
+                    yield (i + 1) / len(frames)
             self.seconds = time.perf_counter() - t0
         finally:
             scene.frame_set(*saved[:1], subframe=saved[1])
+
+    def _pose(self, frame, arm, specs, binding, vertex_count):
+        """What the simulation needs of the scene at `frame`: (capsule ends (None without
+        `specs`), skinned body vertices (None without `vertex_count`), pin targets (None without
+        `binding`))."""
+        scene, p = self.scene, self.props
+        scene.frame_set(frame)
+        world = bone_world(arm, scene)
+        ends = capsule_ends(specs, world) if specs is not None else None
+        verts = None
+        if vertex_count is not None:
+            verts, _ = body_mesh_positions(p.body, bpy.context.evaluated_depsgraph_get(), scene)
+            if len(verts) != vertex_count:
+                raise ClothError(f"'{p.body.name}' changes its vertex count between frames")
+        return ends, verts, pin_targets(binding, world) if binding is not None else None
 
     def _record(self, frame):
         sim = self.sim
@@ -418,7 +446,9 @@ class ClothPreview:
     def tick(self):
         """One frame more (simulated, or played back once all are): the frame shown."""
         if self.simulating:
-            next(self.steps)
+            done = len(self.job.frames_done)
+            while len(self.job.frames_done) == done:  # (the job also yields after reading a pose)
+                next(self.steps)
             if len(self.job.frames_done) == len(self.job.frames_all):  # the last one: let the job end
                 next(self.steps, None)  # (which puts the scene frame back)
                 self.simulating = False

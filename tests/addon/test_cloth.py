@@ -209,7 +209,8 @@ def test_esc_keeps_the_frames_done():
                          "_cancel_keeping": HUMANANIM_OT_cloth_simulate._cancel_keeping})()
     frame_before = scene.frame_current
     op._steps = op.job(bpy.context)
-    for _ in range(10):
+    next(op._steps)  # the set-up
+    while len(op._cloth.frames_done) < 10:  # (the job yields after reading each pose too)
         next(op._steps)
     assert scene.frame_current != frame_before
     result = op._cancel_keeping(bpy.context)
@@ -218,6 +219,26 @@ def test_esc_keeps_the_frames_done():
     samples, start, _ = read_pc2(bpy.path.abspath(obj.modifiers[0].filepath))
     assert start == 1 and len(samples) == 4 * 9 + 1  # frames 1..37: the 10 simulated so far
     assert "cancelled" in reports[-1][1] and scene.frame_current == frame_before
+
+
+def test_reading_poses_ahead_changes_nothing():
+    """The job reads READ_AHEAD frames' poses before simulating them (its solver then runs with
+    warm caches): the same frames, bit for bit, as reading each frame just before its step, with
+    the skinned body too; the scene frame is put back."""
+    arm, scene, skirt, body = setup(CMU_CLIPS[0], collider="BOTH")
+    scene.humananim_cloth.frame_end = 81  # 21 frames: a chunk of 16 and a partial one
+    frame_before = scene.frame_current
+    runs = []
+    for ahead in (1, 16):
+        job = cloth.ClothJob(scene)
+        job.read_ahead = ahead
+        for _ in job.steps():
+            pass
+        runs.append(job)
+    assert runs[0].frames_done == runs[1].frames_done == list(range(1, 82, 4))
+    assert np.array_equal(np.array(runs[0].coarse), np.array(runs[1].coarse))
+    assert np.array_equal(np.array(runs[0].fine), np.array(runs[1].fine))
+    assert scene.frame_current == frame_before
 
 
 def test_hand_capsules_end_at_the_fingers_on_every_blender(empty_scene):
