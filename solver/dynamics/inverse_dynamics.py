@@ -46,7 +46,7 @@ def rnea(model, data, q, v, a, f_ext=None, gravity=None, return_wrenches=False):
     wrench (nb, 6) each body receives from its parent (index 0: from the outside world).
     """
     total = subtree_wrenches(model, data, q, v, a, f_ext, gravity)
-    tau6 = (np.swapaxes(data.motion, 1, 2) @ total[:, :, None])[:, :, 0]
+    tau6 = (data.motion.swapaxes(1, 2) @ total[:, :, None])[:, :, 0]
     tau = tau6.ravel()[model.flat_dof] + model.armature_v * a
     return (tau, total) if return_wrenches else tau
 

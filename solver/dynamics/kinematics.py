@@ -125,7 +125,7 @@ def motion_subspace(model, data, q):
     """World motion subspace columns (nv, 6): the spatial velocity each DOF gives its body."""
     update_frames(model, data, q)
     if data.subspace is None:  # cached with the frames (read-only: shared by every caller)
-        data.subspace = np.swapaxes(data.motion, 1, 2).reshape(-1, 6).take(model.flat_dof, axis=0)
+        data.subspace = data.motion.swapaxes(1, 2).reshape(-1, 6).take(model.flat_dof, axis=0)
         data.subspace.flags.writeable = False
     return data.subspace
 

@@ -258,7 +258,7 @@ class Data:
         if self._inertia is None:
             # _force[:, force_gather] by take, on fancy indexing's column-by-column layout
             xf = self._force.T.take(self.model.force_gather, axis=0).T.reshape(self.model.nb, 6, 6)
-            self._inertia = xf @ self.model.spatial_inertia @ np.swapaxes(xf, 1, 2)
+            self._inertia = xf @ self.model.spatial_inertia @ xf.swapaxes(1, 2)
         return self._inertia
 
     @property

@@ -936,8 +936,8 @@ class _Loop:
                           [[0.0, b2, -b1], [-b2, 0.0, b0], [b1, -b0, 0.0]]])
         cols = sub.take(dofs, axis=0)  # (2, k, 6)
         jac = np.empty((2, 6, dofs.shape[1]))
-        jac[:, :3] = np.swapaxes(cols[:, :, :3], 1, 2)
-        jac[:, 3:] = np.swapaxes(cols[:, :, 3:] - cols[:, :, :3] @ cross, 1, 2)
+        jac[:, :3] = cols[:, :, :3].swapaxes(1, 2)
+        jac[:, 3:] = (cols[:, :, 3:] - cols[:, :, :3] @ cross).swapaxes(1, 2)
         leg = jac[:, :, pos]  # (2, 6, l)
         return [(jac[i], frames[i], dofs[i], leg[i], body.leg_cols[i]) for i in (0, 1)]
 
