@@ -243,6 +243,7 @@ class Data:
         self._composite = None
         self.subspace = None  # world motion subspace (nv, 6), kinematics.motion_subspace
         self.velocity = None  # (v bytes, velocity terms), inverse_dynamics.velocity_terms
+        self.momentum_forces = None  # (their crm, crf(v) I v), inverse_dynamics._momentum_forces
 
     def set_force_transforms(self, parts):
         """The rotations and levers (nb, 19) of a new configuration (kinematics.update_frames):
