@@ -100,12 +100,12 @@ def _same_path(pts, path):
     rolling feet's hull, whose points move every step but keep that path, is built once per
     contact set (bit for bit convex_hull's own result)."""
     perm, tests = path
-    tup = [tuple(p) for p in pts]
+    # (the [x, y] lists compare as _hull_path's tuples do)
     for i, j in zip(perm, perm[1:]):
-        if not tup[i] < tup[j]:
+        if not pts[i] < pts[j]:
             return False
     for o, a, b, turned in tests:
-        if (_turn(tup[o], tup[a], tup[b]) <= 1e-14) != turned:
+        if (_turn(pts[o], pts[a], pts[b]) <= 1e-14) != turned:
             return False
     return True
 
