@@ -219,7 +219,7 @@ class Model:
         """(nb, 6) per-body local (angular, linear) entries of a velocity-like vector."""
         buffer = self._expand_buffer  # np.concatenate((v, 0)) without a new array each call
         buffer[:-1] = v
-        return buffer[self.v_index]
+        return buffer.take(self.v_index)  # (take: a third of fancy indexing's cost)
 
     def create_data(self):
         return Data(self)

@@ -56,7 +56,7 @@ def _support_polygon(state):
     cached = _hull_cache.get(key)
     same_shape = cached is not None and cached[0].shape == pts.shape
     if same_shape and np.maximum.reduce(np.abs(cached[0] - pts), None) < _HULL_REUSE:  # (.max() goes through Python)
-        return pts[cached[1]]
+        return pts.take(cached[1], axis=0)  # (take: a third of fancy indexing's cost)
     plist = pts.tolist()
     path = cached[2] if same_shape else None
     if path is not None and _same_path(plist, path):
@@ -75,7 +75,7 @@ def _support_polygon(state):
     if len(_hull_cache) > 16:
         _hull_cache.clear()
     _hull_cache[key] = (pts, idx, path)
-    return pts[idx]
+    return pts.take(idx, axis=0)
 
 
 def _hull_path(pts):
