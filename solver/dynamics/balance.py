@@ -121,14 +121,13 @@ def closest_boundary_point(polygon, point):
 def closest_boundary_xy(pts, px, py):
     """closest_boundary_point() on plain floats: the polygon as a list of [x, y] vertices, the
     point's coordinates; returns (x, y)."""
-    # the closest point of each edge (vertex to next vertex)
+    # the closest point of each edge (vertex to next vertex; a single vertex is its own edge)
     best, out = None, None
-    for i, (ax, ay) in enumerate(pts):
-        bx, by = pts[(i + 1) % len(pts)] if len(pts) > 1 else (ax, ay)
+    for (ax, ay), (bx, by) in zip(pts, pts[1:] + pts[:1]):
         ex, ey = bx - ax, by - ay
         length2 = ex * ex + ey * ey
         t = ((px - ax) * ex + (py - ay) * ey) / (length2 if length2 > 0 else 1.0)
-        t = min(max(t, 0.0), 1.0)
+        t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)  # min(max(t, 0), 1) without two calls
         cx, cy = ax + t * ex, ay + t * ey
         dist = math.sqrt((cx - px) * (cx - px) + (cy - py) * (cy - py))
         if best is None or dist < best:

@@ -46,7 +46,7 @@ def rnea(model, data, q, v, a, f_ext=None, gravity=None, return_wrenches=False):
     wrench (nb, 6) each body receives from its parent (index 0: from the outside world).
     """
     total = subtree_wrenches(model, data, q, v, a, f_ext, gravity)
-    tau6 = (np.swapaxes(data.motion, 1, 2) @ total[:, :, None])[:, :, 0]
+    tau6 = (data.motion.swapaxes(1, 2) @ total[:, :, None])[:, :, 0]
     tau = tau6.ravel()[model.flat_dof] + model.armature_v * a
     return (tau, total) if return_wrenches else tau
 
@@ -81,7 +81,19 @@ def subtree_wrenches(model, data, q, v, a, f_ext=None, gravity=None):
     av[:, 3:, 0] -= g  # gravity as an upward acceleration of the whole body (Luh et al.)
     av[:, :, 1] = vel
     ia = data.inertia @ av  # I a and the momentum I v
-    f = ia[:, :, 0] - (np.swapaxes(cr, 1, 2) @ ia[:, :, 1:])[:, :, 0]
+    f = ia[:, :, 0] - _momentum_forces(data, cr, ia)
     if f_ext is not None:
         f = f - f_ext
     return model.subtree_sum.dot(f)  # each body's subtree
+
+
+def _momentum_forces(data, cr, ia):
+    """crf(v) I v (nb, 6), from subtree_wrenches' I [a, v] (ia): the same for every acceleration at
+    one q and v (a matrix product's columns do not mix), so remembered with the velocity terms
+    (keyed on their crm, `cr`): the control step's later inverse-dynamics passes skip its product."""
+    known = data.momentum_forces
+    if known is not None and known[0] is cr:
+        return known[1]
+    out = (cr.swapaxes(1, 2) @ ia[:, :, 1:])[:, :, 0]
+    data.momentum_forces = (cr, out)
+    return out

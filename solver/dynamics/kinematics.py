@@ -125,7 +125,7 @@ def motion_subspace(model, data, q):
     """World motion subspace columns (nv, 6): the spatial velocity each DOF gives its body."""
     update_frames(model, data, q)
     if data.subspace is None:  # cached with the frames (read-only: shared by every caller)
-        data.subspace = np.swapaxes(data.motion, 1, 2).reshape(-1, 6).take(model.flat_dof, axis=0)
+        data.subspace = data.motion.swapaxes(1, 2).reshape(-1, 6).take(model.flat_dof, axis=0)
         data.subspace.flags.writeable = False
     return data.subspace
 
@@ -226,18 +226,19 @@ def integrate(model, q, v, dt=1.0):
     exp[:, 0] = np.cos(half)
     n_small = np.count_nonzero(small)  # (one call where .all() and .any() each cost two)
     if n_small == nb:  # np.where's branch alone (a figure at rest: no body turns)
-        exp[:, 1:] = (0.5 - angle * angle / 48.0)[:, None] * turn
-    elif not n_small:  # (angle + small would add 0.0)
+        exp[:, 1:] = (_HALF - angle * angle / _48)[:, None] * turn
+    elif not n_small:  # (the divisor below is angle itself)
         exp[:, 1:] = (np.sin(half) / angle)[:, None] * turn
-    else:
-        exp[:, 1:] = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / (angle + small))[:, None] * turn
+    else:  # (divided by angle where it is kept; at least _SMALL_TURN, no division by zero, where
+        # np.where drops it: angle + small's values without its bool-to-float cast)
+        exp[:, 1:] = np.where(small, _HALF - angle * angle / _48, np.sin(half) / np.maximum(angle, _SMALL_TURN))[:, None] * turn
     quats = q[3:].reshape(nb, 4)
     turned = (quats[:, :, None] * exp[:, None, :]).reshape(nb, 16).dot(spatial._QMUL_OUTER)
     out[3:] = (turned / np.sqrt((turned * turned).dot(ONES4))[:, None]).ravel()
     return out
 
 
-_HALF, _SMALL_TURN = np.array(0.5), np.array(1e-6)
+_HALF, _SMALL_TURN, _48 = np.array(0.5), np.array(1e-6), np.array(48.0)
 
 
 def difference(model, q0, q1):

@@ -219,7 +219,7 @@ class Model:
         """(nb, 6) per-body local (angular, linear) entries of a velocity-like vector."""
         buffer = self._expand_buffer  # np.concatenate((v, 0)) without a new array each call
         buffer[:-1] = v
-        return buffer[self.v_index]
+        return buffer.take(self.v_index)  # (take: a third of fancy indexing's cost)
 
     def create_data(self):
         return Data(self)
@@ -243,6 +243,7 @@ class Data:
         self._composite = None
         self.subspace = None  # world motion subspace (nv, 6), kinematics.motion_subspace
         self.velocity = None  # (v bytes, velocity terms), inverse_dynamics.velocity_terms
+        self.momentum_forces = None  # (their crm, crf(v) I v), inverse_dynamics._momentum_forces
 
     def set_force_transforms(self, parts):
         """The rotations and levers (nb, 19) of a new configuration (kinematics.update_frames):
@@ -258,7 +259,7 @@ class Data:
         if self._inertia is None:
             # _force[:, force_gather] by take, on fancy indexing's column-by-column layout
             xf = self._force.T.take(self.model.force_gather, axis=0).T.reshape(self.model.nb, 6, 6)
-            self._inertia = xf @ self.model.spatial_inertia @ np.swapaxes(xf, 1, 2)
+            self._inertia = xf @ self.model.spatial_inertia @ xf.swapaxes(1, 2)
         return self._inertia
 
     @property

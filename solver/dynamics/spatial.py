@@ -90,14 +90,16 @@ def log_scale(s, aw):
     the branch computed when every entry takes the same one (the control loop calls it per step)."""
     small = s < _LOG_SMALL  # (0-d constants: numpy 1 converts a Python float operand at every call)
     n_small = np.count_nonzero(small)  # (one call where .all() and .any() each cost two)
-    if not n_small:  # (s + small would add 0.0)
+    if not n_small:  # (the divisor below is s itself)
         return _TWO * np.arctan2(s, aw) / s
     if n_small == small.size:
-        return 2.0 / np.maximum(aw, 1e-300)
-    return np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / (s + small))
+        return _TWO / np.maximum(aw, _TINY)
+    # (divided by s where it is kept; at least _LOG_SMALL, no division by zero, where np.where
+    # drops it: s + small's values without its bool-to-float cast)
+    return np.where(small, _TWO / np.maximum(aw, _TINY), _TWO * np.arctan2(s, aw) / np.maximum(s, _LOG_SMALL))
 
 
-_LOG_SMALL, _TWO = np.array(1e-8), np.array(2.0)
+_LOG_SMALL, _TWO, _TINY = np.array(1e-8), np.array(2.0), np.array(1e-300)
 
 
 # quaternion product a * b = (a @ _QMUL).reshape(4, 4) @ b: the left-multiplication matrix of a

@@ -212,8 +212,8 @@ def _dof_limits(fused, q, v):
     with 15 kg into 64). quat_log's components lie within [-pi, pi], so limits' clamp to it is
     omitted."""
     index, component, top0, vmax = fused
-    quat = q[index]  # (n, 4)
-    comp = quat.ravel()[component]  # quat[k, 1 + slot]: one flat index is cheaper than two
+    quat = q.take(index)  # (n, 4) (take: a third of fancy indexing's cost)
+    comp = quat.take(component)  # quat[k, 1 + slot], by its flat index
     xyz = quat[:, 1:]
     s = np.sqrt((xyz * xyz).dot(ONES3))
     angle = spatial.log_scale(s, np.abs(quat[:, 0])) * comp  # (+-: the strength curve is even)

@@ -936,8 +936,8 @@ class _Loop:
                           [[0.0, b2, -b1], [-b2, 0.0, b0], [b1, -b0, 0.0]]])
         cols = sub.take(dofs, axis=0)  # (2, k, 6)
         jac = np.empty((2, 6, dofs.shape[1]))
-        jac[:, :3] = np.swapaxes(cols[:, :, :3], 1, 2)
-        jac[:, 3:] = np.swapaxes(cols[:, :, 3:] - cols[:, :, :3] @ cross, 1, 2)
+        jac[:, :3] = cols[:, :, :3].swapaxes(1, 2)
+        jac[:, 3:] = (cols[:, :, 3:] - cols[:, :, :3] @ cross).swapaxes(1, 2)
         leg = jac[:, :, pos]  # (2, 6, l)
         return [(jac[i], frames[i], dofs[i], leg[i], body.leg_cols[i]) for i in (0, 1)]
 
@@ -992,8 +992,7 @@ class _Loop:
             _, frame, _, jac, cols = leg
             x = frame[:3, 3].tolist()
             w, vo, al, ao = vel[s][:3], vel[s][3:], acc[s][:3], acc[s][3:]
-            xd = _add(vo, _cross3(w, x))
-            now = al + _add(_add(ao, _cross3(al, x)), _cross3(w, xd))
+            now = al + _point_motion(w, vo, al, ao, x)[1]
             a[cols] += self._dls(jac, targets[s][3] - np.array(now))
         return a
 
@@ -1042,8 +1041,7 @@ class _Loop:
             x = frame[:3, 3].tolist()
             w, vo, al = vb[s + 1][:3], vb[s + 1][3:], acc[s][:3]
             ao = [acc[s][3] - root[0], acc[s][4] - root[1], acc[s][5] - root[2]]
-            xd = _add(vo, _cross3(w, x))
-            xdd = _add(_add(ao, _cross3(al, x)), _cross3(w, xd))  # the head point's acceleration
+            xd, xdd = _point_motion(w, vo, al, ao, x)  # the head point's velocity and acceleration
             p0, p1, p2 = targets[s][1].tolist()
             t0, t1, t2 = _rotation_log(targets[s][0].dot(frame[:3, :3].T), array=False)
             error = np.array([t0 - h * w[0] - h2 * al[0], t1 - h * w[1] - h2 * al[1], t2 - h * w[2] - h2 * al[2],
@@ -1289,6 +1287,17 @@ def _cross3(a, b):
 
 def _add(a, b):
     return [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+
+
+def _point_motion(w, vo, al, ao, x):
+    """Velocity and acceleration (lists) of the world point x (3 floats) of a body of spatial
+    velocity (w, vo) and acceleration (al, ao) at the origin: vo + w x x and ao + al x x + w x x';
+    _add and _cross3's arithmetic in one call (the legs' projection and re-solve, per step)."""
+    (w0, w1, w2), (x0, x1, x2), (a0, a1, a2) = w, x, al
+    d0, d1, d2 = vo[0] + (w1 * x2 - w2 * x1), vo[1] + (w2 * x0 - w0 * x2), vo[2] + (w0 * x1 - w1 * x0)
+    return [d0, d1, d2], [ao[0] + (a1 * x2 - a2 * x1) + (w1 * d2 - w2 * d1),
+                          ao[1] + (a2 * x0 - a0 * x2) + (w2 * d0 - w0 * d2),
+                          ao[2] + (a0 * x1 - a1 * x0) + (w0 * d1 - w1 * d0)]
 
 
 def _cross(a, b):

@@ -137,7 +137,8 @@ class TrackingController:
         lin = slot >= 3
         axis = np.where(lin, slot - 3, slot)
         # each DOF's body quaternion in q, and the rows of the root translation's DOFs
-        self._cur_index = 3 + 4 * m.dof_body[:, None] + np.arange(4)[None, :]
+        # (as (nv, 4, 1): the outer products below take it without a new view)
+        self._cur_index = (3 + 4 * m.dof_body[:, None] + np.arange(4)[None, :])[:, :, None]
         self._k = np.arange(m.nv)
         self._rel_axis = 1 + np.minimum(axis, 2)  # each DOF's component of its relative quaternion
         self._rel_flat = 4 * self._k + self._rel_axis  # ... in the flattened (nv, 4) quaternions
@@ -154,7 +155,7 @@ class TrackingController:
         # conj(cur) * target as one product of the (nv, 16) outer products cur_j target_l with
         # the Hamilton product's constant (16, 4) map, the conjugation folded in (a reduction
         # over a small last axis costs ~4x a 2-D product)
-        self._frame_target = np.ascontiguousarray(target[0])  # (F, nv, 4)
+        self._frame_target = np.ascontiguousarray(target[0])[:, :, None, :]  # (F, nv, 1, 4)
         self._frame_h2 = horizon ** 2
         # the root translation's DOFs: their target positions per frame (floats) and the
         # current root axis each one reads (its column of the root's rotation)
@@ -209,10 +210,10 @@ class TrackingController:
         arithmetic in about a third of the numpy calls)."""
         target = self._frame_data[0]
         q = np.asarray(q, float)
-        cur = q.take(self._cur_index)  # (nv, 4)
+        cur = q.take(self._cur_index)  # (nv, 4, 1)
         nv = len(cur)
         # conj(cur) * target
-        rel = (cur[:, :, None] * self._frame_target[f][:, None, :]).reshape(nv, 16).dot(spatial._CONJ_QMUL_OUTER)
+        rel = (cur * self._frame_target[f]).reshape(nv, 16).dot(spatial._CONJ_QMUL_OUTER)
         # quat_log's arithmetic on the one component each DOF needs (its sign: the short way)
         w = rel[:, 0]
         xyz = rel[:, 1:]
