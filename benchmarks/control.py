@@ -327,6 +327,38 @@ best of 3 bakes per process, before (d5427a7) and after alternated, 4 pairs):
 
 So the issue's aim (median < 0.5 ms, real-time factor > 50) holds on numpy 2 and on numpy 1.26 in
 three runs of four, by 1 %: on the line, not met with a margin.
+
+Ninth round (branch ctlspeed, bit for bit: 70 output arrays of the CMU clip (default, exact
+re-solve, a 30 N s push, 12 kg in each hand) and of the figure (standing, 15 kg, a push that fells
+it) compared on both numpys): ndarray.swapaxes / take instead of numpy's Python-level np.swapaxes
+and fancy indexing on the step's path; crf(v) I v remembered per (q, v) across a step's
+inverse-dynamics passes (inverse_dynamics._momentum_forces: a product's columns do not mix); one
+float helper for a foot head's velocity and acceleration (controller._point_motion, five calls
+per leg -> one); the support polygon's path test and the MMP's edge loop on plain lists; the
+quaternion exponential's and logarithm's mixed branch divided by maximum(x, threshold) (the same
+divisor where np.where keeps the quotient, without x + small's bool-to-float cast). Callgrind per
+CMU step (toggled on the loop's itertools.starmap_next): numpy 1.26 3.321 M -> 3.250 M (-2.1 %),
+numpy 2.4 3.242 M -> 3.149 M (-2.9 %). What a step still costs (numpy 1.26): numpy's own code 48 %,
+Python 31 %, BLAS 10 %, libc 9 %; dynamic control 42 %; ~4-5 k instructions a numpy call, so each
+further 5 % is ~35 numpy calls a step, nearly all of which feed outputs. Tried and not kept: a
+Cholesky test before _damping's eigenvalue (128 of 295 calls on CMU fall inside the band and need
+the eigenvalue anyway); skipping finished rows in the frames' doubling (the indexing costs more
+than the 16 small products it saves).
+
+This session's host (2026-11-23, numpy a+b 0.26 us: a faster machine than the eighth stop's),
+OPENBLAS_NUM_THREADS=1, best of 3 bakes per process, three processes per numpy on main after the
+merge:
+
+                                   numpy 1.26        numpy 2
+  CMU median, ms                   0.389-0.402       0.373-0.387
+  CMU worst, ms                    2.61-2.79         2.58-2.68
+  CMU real-time factor at 30 Hz    69.6-72.2         72.0-74.2
+  figure standing median, ms       0.337-0.351       0.330-0.334
+  figure standing real-time factor 90-96             96-97
+
+The issue's aim (median < 0.5 ms, real-time factor > 50 at 30 Hz) holds on both numpys on this
+machine with a 20 % margin on the median; on the eighth stop's slower host the same code (2 %
+fewer instructions) would sit at about 0.48-0.50 ms on numpy 1.26.
 """
 
 import argparse
