@@ -170,8 +170,11 @@ def _stand_in_operator(reports):
     return op
 
 
-def test_long_bake_shows_progress_and_finishes(cmu_rig, empty_scene):
+def test_long_bake_shows_progress_and_finishes(cmu_rig, empty_scene, monkeypatch):
     from humananim.operators import common
+    # timer ticks of 5 ms: the bake spans several ticks however fast the machine (at 50 ms one
+    # fast machine did it in two)
+    monkeypatch.setattr(common, "CHUNK_SECONDS", 0.005)
     empty_scene.humananim.exact = "DEPSGRAPH"
     source, reports, seen = cmu_rig.animation_data.action, [], []
     op = _stand_in_operator(reports)
@@ -186,8 +189,9 @@ def test_long_bake_shows_progress_and_finishes(cmu_rig, empty_scene):
     assert reports and "995 frames" in reports[-1][1]
 
 
-def test_escape_cancels_a_bake_and_leaves_nothing(cmu_rig, empty_scene):
+def test_escape_cancels_a_bake_and_leaves_nothing(cmu_rig, empty_scene, monkeypatch):
     from humananim.operators import common
+    monkeypatch.setattr(common, "CHUNK_SECONDS", 0.005)  # Esc comes within the bake on any machine
     empty_scene.humananim.exact = "DEPSGRAPH"
     empty_scene.frame_set(7)
     source, reports = cmu_rig.animation_data.action, []
