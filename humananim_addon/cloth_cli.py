@@ -32,8 +32,9 @@ def add_commands(sub, add_common_options):
     c.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
     c.add_argument("--step", type=int, default=0, help="simulate every Nth frame (default: about 30 per second)")
     c.add_argument("--wind", help="wind velocity X,Y,Z in m/s")
-    c.add_argument("--compress-limit", type=float, default=0.04,
-                   help="shortening undone in the simulation beyond this share (0: all left to the smoothing)")
+    c.add_argument("--compress-limit", type=float,
+                   help="shortening undone in the simulation beyond this share (0: all left to the smoothing; "
+                        "default: ClothParams.compress_limit)")
     c.add_argument("--pn-only", action="store_true", help="plain PN triangles (no normal or edge length control)")
     c.add_argument("--keep-coarse", action="store_true", help="also write the coarse simulated mesh")
     c.add_argument("--out", default=os.path.join("out", "cloth.blend"), help="the .blend to write")
@@ -55,6 +56,7 @@ def cmd_cloth(args):
     import bpy
     from . import cloth
     from .cli import _load
+    from ..solver.cloth.materials import ClothParams
     from ..solver.progress import run_to_end
     t0 = time.perf_counter()
     if args.level < 1 or args.substeps < 1 or args.step < 0:
@@ -96,9 +98,10 @@ def cmd_cloth(args):
     props.level, props.substeps, props.frame_step = args.level, args.substeps, args.step
     props.normal_control = props.edge_control = not args.pn_only
     props.keep_coarse = args.keep_coarse
-    if not 0.0 <= args.compress_limit <= 0.5:
+    limit = ClothParams.compress_limit if args.compress_limit is None else args.compress_limit
+    if not 0.0 <= limit <= 0.5:
         raise UsageError("--compress-limit must be between 0 and 0.5")
-    props.compress_limit = args.compress_limit
+    props.compress_limit = limit
     props.cache_dir = "//" + os.path.splitext(os.path.basename(out))[0] + "_cache"
     if args.wind:
         props.wind = _vector(args.wind, "--wind")
