@@ -702,8 +702,8 @@ class _Loop:
 
     def _apply_impulses(self, body, q, v, t, dt, feet=None):
         """Instant impulses falling in [t, t + dt): dv = H^-1 J' p, with the tracking servo's damping
-        over the step (_servoed_inertia) and the planted `feet` held (_through_feet). Returns (v,
-        whether any)."""
+        over the step (_servoed_inertia) and the planted `feet` held (_through_feet; None: no foot
+        planted). Returns (v, whether any)."""
         m, d = body.model, body.data
         pushed = False
         for t0, dur, j, point, p in self.impulses:
@@ -711,7 +711,7 @@ class _Loop:
                 jac = kinematics.point_jacobian(m, d, q, j, point)
                 inertia = cho_factor(self._servoed_inertia(body, q, t, dt))
                 dv = cho_solve(inertia, jac.T @ p)
-                if feet is not None and (feet[0] or feet[1]):
+                if feet is not None:
                     dv = self._through_feet(body, q, feet, inertia, dv)
                 v = v + dv
                 pushed = True
