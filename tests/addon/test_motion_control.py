@@ -86,6 +86,31 @@ def test_a_load_raises_the_stress_on_the_arms_and_back(cmu_short):
     assert loaded_total > free_total + 1.0
 
 
+def test_gravity_is_the_scenes_and_substeps_are_the_panels(cmu_short):
+    """The scene's gravity (Scene > Gravity, off when unticked) is what the bodies weigh: on the
+    Moon the legs' and back's stress is a fraction of the Earth's (without gravity a walk is
+    another problem again: the feet can no longer push on the floor); the panel's Substeps
+    changes the bake."""
+    obj, scene = cmu_short, bpy.context.scene
+    legs_back = ("LeftHip", "LeftKnee", "RightHip", "RightKnee", "lowerback")
+
+    def stress(action):
+        return sum(_stress(action, obj, b).sum() for b in legs_back)
+
+    _, earth = _control(obj)
+    scene.gravity = (0.0, 0.0, -9.81 / 6.0)
+    _, moon = _control(obj)
+    scene.use_gravity = False
+    _, none = _control(obj)
+    print("stress: Earth", stress(earth), "Moon", stress(moon), "none", stress(none))
+    assert stress(moon) < 0.5 * stress(earth)
+    assert abs(stress(none) - stress(moon)) > 0.01 * stress(earth)  # unticked: no gravity at all
+    scene.use_gravity, scene.gravity = True, (0.0, 0.0, -9.81)
+    _, two = _control(obj, substeps=2)
+    hips = _bone_heads(obj, earth, "Hips"), _bone_heads(obj, two, "Hips")
+    assert 1e-7 < np.abs(hips[0] - hips[1]).max() < 0.02  # another integration of the same motion
+
+
 def test_an_impulse_from_an_arrow_empty_is_placed_and_pushes_the_chest(cmu_short):
     obj, scene = cmu_short, bpy.context.scene
     _, calm = _control(obj)

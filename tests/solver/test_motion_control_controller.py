@@ -171,6 +171,25 @@ def test_4_5_frontal_impulse_recovers_and_feet_stay(squat, newton_seconds, withi
     print(newton_seconds, "N s: recovered after", seconds, "s; slide", res.foot_slide.max())
 
 
+def test_a_chosen_substep_keeps_the_frame_rate_and_the_experiments(squat):
+    """Two Euler steps a frame (ControlSettings.substeps, the panel's Substeps): the result has the
+    input's frames; no input is still tracked, and the 10 N s push still moves a joint beyond the
+    2 deg band and comes back within it as at one step a frame, feet planted."""
+    sk, tr = squat
+    settings = replace(push(sk, 10.0), substeps=2)
+    calm = control(sk, tr, replace(settings, impulses=()))
+    assert np.array_equal(calm.trajectories.frames, tr.frames) and calm.trajectories.fps == tr.fps
+    e = errors(sk, tr, calm)
+    assert rms(e) < 0.2 and e.max() < 1.5 and not calm.falling.any()
+    res = control(sk, tr, settings)
+    seconds, moved = recovery_seconds(sk, tr, res)
+    assert moved > 3.0 and seconds < 1.5
+    assert res.foot_slide.max() < 0.002 and not res.falling.any()
+    one_step = control(sk, tr, push(sk, 10.0)).trajectories.rotations
+    assert np.abs(res.trajectories.rotations - one_step).max() > 1e-6  # the steps were taken
+    print("two substeps: moved", moved, "deg, back after", seconds, "s; slide", res.foot_slide.max())
+
+
 def test_4_huge_impulse_falls_without_exploding(squat):
     sk, tr = squat
     chest = sk.roles.chain("spine")[-1]
