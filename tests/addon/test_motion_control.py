@@ -155,6 +155,37 @@ def _ball_into_chest(obj, scene):
     return ball, chest, front
 
 
+def test_a_force_over_an_interval_and_a_load_from_a_frame(cmu_short):
+    """An arrow with a duration is a force (N) over it, not an impulse; a load carried from a
+    chosen frame (Load From) changes nothing before it."""
+    obj, scene = cmu_short, bpy.context.scene
+    source, calm = _control(obj)
+    backwards = obj.matrix_world.to_3x3() @ Vector((0, 1, 0))
+    item = motion_control.add_impulse(obj, scene, "Chest", 40, backwards, magnitude=600.0, duration=0.1)
+    skeleton = skeleton_from_armature(obj, scene)
+    traj = actions.read_action(obj, scene, skeleton, frame_range=FRAMES)
+    (force,) = motion_control.impulses(scene.humananim_control, skeleton, traj, scene)
+    assert force.duration == pytest.approx(0.1) and force.magnitude == 600.0 and item.duration == force.duration
+    _, pushed = _control(obj)
+    shift = (_bone_heads(obj, pushed, "Chest") - _bone_heads(obj, calm, "Chest")) @ np.array(backwards)
+    assert np.abs(shift[:40 - FRAMES[0] - 2]).max() < 0.002  # nothing before the force
+    assert shift[40 - FRAMES[0]:].max() > 0.01  # the chest gives way along it
+    scene.humananim_control.impulses.clear()
+    action_api.assign_action(obj, source, action_api.object_slot(source, obj))  # (_bone_heads assigned others)
+    (load,) = motion_control.loads(replace_props(scene, load_left=20.0, load_frame=60), skeleton, traj)
+    assert load.start_time == pytest.approx((60 - FRAMES[0]) / traj.fps) and load.mass == 20.0
+    _, loaded = _control(obj)
+    moved = np.linalg.norm(_bone_heads(obj, loaded, "LeftHand") - _bone_heads(obj, calm, "LeftHand"), axis=1)
+    assert moved[:60 - FRAMES[0] - 2].max() < 1e-4 and moved[60 - FRAMES[0]:].max() > 0.005
+
+
+def replace_props(scene, **values):
+    props = scene.humananim_control
+    for key, value in values.items():
+        setattr(props, key, value)
+    return props
+
+
 def test_a_ball_flying_into_the_chest_changes_the_motion(cmu_short):
     obj, scene = cmu_short, bpy.context.scene
     _, calm = _control(obj)

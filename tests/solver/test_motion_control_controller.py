@@ -31,6 +31,7 @@ from humananim.solver.motion_control import (Collider, ControlSettings, Impulse,
                                              iter_control)
 from humananim.solver.trajectories import Trajectories
 
+from squat_scene import hand_loads
 from test_dynamics_closed_loop_rigs import load
 
 
@@ -188,6 +189,37 @@ def test_a_chosen_substep_keeps_the_frame_rate_and_the_experiments(squat):
     one_step = control(sk, tr, push(sk, 10.0)).trajectories.rotations
     assert np.abs(res.trajectories.rotations - one_step).max() > 1e-6  # the steps were taken
     print("two substeps: moved", moved, "deg, back after", seconds, "s; slide", res.foot_slide.max())
+
+
+def test_a_load_from_a_chosen_time_changes_nothing_before_it(squat, no_input):
+    """15 kg in the hands from 1.5 s (the panel's Load From): the frames before are the unloaded
+    run's, bit for bit, with no control acting; from then on dynamic control carries it (comfort
+    control acts and the body moves away from the input, measured 20 deg at most)."""
+    sk, tr = squat
+    res = control(sk, tr, ControlSettings(loads=hand_loads(sk, 15.0, start_time=1.5)))
+    start = int(round(1.5 * tr.fps))
+    assert np.array_equal(res.trajectories.rotations[:start], no_input.trajectories.rotations[:start])
+    assert np.all(res.control[:start] == 0)
+    assert (res.control[start:] == 2).any()  # comfort control
+    assert errors(sk, tr, res)[start:].max() > 5.0 and not res.falling.any()
+
+
+def test_a_force_over_an_interval_pushes_like_its_impulse(squat, no_input):
+    """100 N on the chest for 0.1 s (an Impulse with a duration: an external force in inverse
+    dynamics, over the steps it spans) against 10 N s at once: nothing before it, then the same
+    push: joints moved beyond the 2 deg band, back within it, feet planted."""
+    sk, tr = squat
+    chest = sk.roles.chain("spine")[-1]
+    force = Impulse(0.5, chest, (0.0, 0.1, 0.0), (0.0, 1.0, 0.0), 100.0, duration=0.1)
+    res = control(sk, tr, ControlSettings(impulses=(force,)))
+    hit = int(round(0.5 * tr.fps))
+    assert np.array_equal(res.trajectories.rotations[:hit], no_input.trajectories.rotations[:hit])
+    seconds, _ = recovery_seconds(sk, tr, res)
+    moved = errors(sk, tr, res).max(axis=1)
+    at_once = errors(sk, tr, control(sk, tr, push(sk, 10.0))).max(axis=1)
+    assert moved.max() > 3.0 and 0.3 < moved.max() / at_once.max() < 3.0
+    assert seconds < 1.5 and res.foot_slide.max() < 0.002 and not res.falling.any()
+    print("100 N for 0.1 s: moved", moved.max(), "deg (10 N s at once:", at_once.max(), "), back after", seconds)
 
 
 def test_4_huge_impulse_falls_without_exploding(squat):
