@@ -5,7 +5,7 @@ overlay draws (kept in memory, never in the .blend)."""
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import bpy
 import numpy as np
@@ -257,6 +257,17 @@ def solver_settings(scene, props, obj, skeleton, traj):
                            tracking_only=props.tracking_only)
 
 
+def contact_overrides(action, frames):
+    """The source action's foot pose markers, as the Motion Queue reads them
+    (synthesis.marker_overrides): `foot.L=supporting` plants the foot from that frame to the
+    limb's next marker (or the range's end), another constraint lifts it; hand and root markers
+    are the Motion Queue's alone."""
+    from ..solver.motion_control.contacts import Contact
+    from .synthesis import marker_overrides
+    return tuple(Contact(limb[-1], start, end, cons == "supporting")
+                 for limb, start, end, cons in marker_overrides(action, frames) if limb.startswith("foot."))
+
+
 # ---- the job ------------------------------------------------------------------------------------
 
 def stress_channels(obj, skeleton, result):
@@ -319,7 +330,8 @@ def run(obj, scene):
                                                 frame_range=frame_range(props, source))
     if traj.frame_count < 3:
         raise MotionError(f"'{source.name}' has {traj.frame_count} frames in the range: at least 3 are needed")
-    settings = solver_settings(scene, props, obj, skeleton, traj)
+    settings = replace(solver_settings(scene, props, obj, skeleton, traj),
+                       support_overrides=contact_overrides(source, traj.frames))
     t0 = time.perf_counter()
     result = yield from iter_control(skeleton, traj, settings)
     seconds = time.perf_counter() - t0
