@@ -30,18 +30,21 @@ def rig(request):
     return sk, tr
 
 
-def test_ik_of_fk_round_trips(rig):
+@pytest.mark.parametrize("limb", ["leg", "arm"])
+def test_ik_of_fk_round_trips(rig, limb):
+    """The 7-DOF limb (end effector's position and orientation, and the swivel angle) solved back
+    from its own forward kinematics, legs and arms: the end frame and the middle joint exact."""
     sk, tr = rig
     basis, world = tr.basis(), tr.world_frames(sk)
     for side in "LR":
         for f in range(0, tr.frame_count, 11):
-            ik = LimbIK(sk, side, basis=basis[f])
+            ik = LimbIK(sk, side, limb, basis=basis[f])
             w = world[f]
             q, _, reached = ik.solve(ik.parent_frame(w), w[ik.end], ik.swivel(w))
             assert reached
             w2, _ = ik.pose(basis[f], q, tr.armature_to_world)
-            assert np.abs(w2[ik.end] - w[ik.end]).max() < 1e-9  # foot frame
-            assert np.abs(w2[ik.lower, :3, 3] - w[ik.lower, :3, 3]).max() < 1e-9  # knee
+            assert np.abs(w2[ik.end] - w[ik.end]).max() < 1e-9  # foot or hand frame
+            assert np.abs(w2[ik.lower, :3, 3] - w[ik.lower, :3, 3]).max() < 1e-9  # knee or elbow
             assert ik.swivel(w2) == pytest.approx(ik.swivel(w), abs=1e-9)
 
 
@@ -112,10 +115,17 @@ def test_unreachable_target_straightens_the_limb(rig):
     assert not reached and np.all(np.isfinite(q))
 
 
-def test_acceleration_form_matches_finite_differences(rig):
+@pytest.mark.parametrize("limb", ["leg", "arm"])
+def test_acceleration_form_matches_finite_differences(rig, limb):
     sk, tr = rig
     basis, w = tr.basis()[20], tr.world_frames(sk)[20]
-    ik = LimbIK(sk, "L", basis=basis)
+    ik = LimbIK(sk, "L", limb, basis=basis)
+    if limb == "arm":  # hanging arms are straight (singular): bend the elbow, the hand halfway in
+        hand = w[ik.end].copy()
+        hand[:3, 3] = 0.5 * (hand[:3, 3] + w[ik.upper][:3, 3])
+        q, _, reached = ik.solve(ik.parent_frame(w), hand, ik.swivel(w))
+        assert reached
+        w, _ = ik.pose(basis, q, tr.armature_to_world)
     parent, foot, s = ik.parent_frame(w), w[ik.end], ik.swivel(w)
     pr = (np.array([0.3, -0.2, 0.1]), np.array([0.5, 0.2, -1.0]), np.array([1.0, 2.0, -3.0]), np.array([4.0, -2.0, 1.0]))
     er = (np.array([0.1, 0.4, 0.0]), np.array([-0.3, 0.6, 0.2]), np.array([-2.0, 0.5, 1.0]), np.array([1.0, 3.0, -2.0]))
@@ -134,8 +144,11 @@ def test_acceleration_form_matches_finite_differences(rig):
         return spatial.quat_log(spatial.quat_multiply(spatial.quat_conjugate(a), b)) / (2 * d)
 
     dt = 1e-3
-    np.testing.assert_allclose(vel, omega(0.0), atol=1e-5)
+    # (LimbIK.rates is central differences of the analytic solution, O(h^2) with h = 1e-3: the bent
+    # arm's larger third derivatives leave up to ~5e-4 of its largest rate, measured)
+    exact = omega(0.0)
+    np.testing.assert_allclose(vel, exact, atol=1e-5 if limb == "leg" else 1e-3 * max(1.0, np.abs(exact).max()))
     np.testing.assert_allclose(acc, (omega(dt) - omega(-dt)) / (2 * dt), atol=2e-3 * max(1.0, np.abs(acc).max()))
     assert np.abs(acc).max() > 1.0  # not trivially zero
-    # the knee turns about its hinge only
+    # the knee (elbow) turns about its hinge only
     assert np.linalg.norm(np.cross(vel[1], ik.hinge)) < 1e-6 * max(1.0, np.linalg.norm(vel[1]))
