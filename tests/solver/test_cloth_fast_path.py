@@ -98,7 +98,7 @@ def test_the_frames_last_phi_is_reused_only_while_nothing_moved():
         a0, b0 = a1, b1
     fresh = np.maximum(-capsules.query(sim.x, 1.0)[0], 0.0)
     assert np.allclose(sim.depth_inside(), fresh, atol=1e-12)
-    a2, b2 = legs(0.5)  # the legs jump into the skirt: the next frame's motion
+    a2, b2 = legs(0.6)  # the legs jump 6 cm into the skirt: the next frame's motion
     capsules.set_motion(a0, b0, a2, b2, 1 / 30)
     moved = np.maximum(-capsules.query(sim.x, 1.0)[0], 0.0)
     assert moved.max() > 0.01 and np.allclose(sim.depth_inside(), moved)
