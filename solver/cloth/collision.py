@@ -25,7 +25,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..vectors import cross
-from .fast import _c_einsum, clip as _clip, dot, rowdot
+from .fast import Product, _c_einsum, clip as _clip, dot, rowdot
 
 
 def closest_on_segments(p, a, b):
@@ -462,39 +462,58 @@ _SAMPLE_REACH = 1.0 - FACE_SAMPLES  # (S, 3)
 _PREVIOUS = np.array([2, 0, 1])  # each face corner's previous one
 
 
+_SAMPLE_MAPS = {}
+
+
+def _sample_map(faces, particles):
+    """The face samples of every face as one compiled product: (F S, particles) CSR whose row f S
+    + s holds FACE_SAMPLES[s] at face f's corners (cached per face list)."""
+    key = (faces.tobytes(), faces.shape, particles)
+    out = _SAMPLE_MAPS.get(key)
+    if out is None:
+        from scipy.sparse import csr_matrix
+        f_count, s_count = len(faces), len(FACE_SAMPLES)
+        rows = np.repeat(np.arange(f_count * s_count), 3)
+        cols = np.repeat(faces, s_count, axis=0).ravel()
+        vals = np.tile(FACE_SAMPLES.ravel(), f_count)
+        matrix = csr_matrix((vals, (rows, cols)), shape=(f_count * s_count, particles))
+        matrix.sum_duplicates()
+        if len(_SAMPLE_MAPS) > 8:
+            _SAMPLE_MAPS.clear()
+        out = _SAMPLE_MAPS[key] = Product(matrix, 3)
+    return out
+
+
 def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, friction=0.0):
     """Face case (Fig. 4.6 b, d): a face whose interior cuts the body while its corners are out
     is moved out whole by its deepest point. (The number of faces moved, the particles moved.)"""
     tri = x.take(faces, axis=0)  # (F, 3, 3)
     side = tri - tri.take(_PREVIOUS, axis=1)
     edge = np.sqrt(_c_einsum("fkj,fkj->fk", side, side).max(axis=1))
-    phi_c = corner_phi.take(faces)
-    # phi is 1-Lipschitz: a face whose farthest-out corner is beyond its longest edge can't touch
-    near = phi_c.max(axis=1) - edge < thickness
-    if not near.any():
+    # phi is 1-Lipschitz: the sample w.c is within (1 - w_k) times the longest edge of corner k,
+    # so a sample whose bound max_k(phi_k - (1 - w_k) edge) is beyond the thickness can't be inside
+    # (nor any sample of a face whose farthest-out corner is beyond its longest edge)
+    bound = np.multiply.outer(edge, _SAMPLE_REACH)  # (F, S, 3)
+    np.subtract(corner_phi.take(faces)[:, None, :], bound, out=bound)
+    test = np.flatnonzero(bound.max(axis=2).ravel() < thickness)  # (face, sample) as f S + s
+    if len(test) == 0:
         return 0, _NONE
-    f_idx = np.flatnonzero(near)
-    samples = _c_einsum("sk,fkj->fsj", FACE_SAMPLES, tri.take(f_idx, axis=0))  # (F', S, 3)
-    # ... and a sample farther out than that from any corner can't be inside either: the
-    # sample w.c is within (1 - w_k) times the longest edge of corner k
-    bound = (phi_c[f_idx][:, None, :] - _SAMPLE_REACH * edge[f_idx, None, None]).max(axis=2)
-    test = bound < thickness
-    if not test.any():
-        return 0, _NONE
-    ph, nrm, vel = query_bodies(bodies, samples[test], s)
-    depth = np.full(test.shape, -np.inf)
-    depth[test] = thickness - ph
+    samples = _sample_map(faces, len(x))(x).take(test, axis=0)
+    ph, nrm, vel = query_bodies(bodies, samples, s)
+    s_count = len(FACE_SAMPLES)
+    depth = np.full(len(faces) * s_count, -np.inf)
+    depth.put(test, thickness - ph)
+    depth = depth.reshape(-1, s_count)
     deepest = depth.argmax(axis=1)
-    d = depth[np.arange(len(f_idx)), deepest]
-    cut = d > 1e-9
-    if not cut.any():
+    d = depth.max(axis=1)
+    f_idx = np.flatnonzero(d > 1e-9)
+    if len(f_idx) == 0:
         return 0, _NONE
-    f_idx, deepest, d = f_idx[cut], deepest[cut], d[cut]
-    slot = np.cumsum(test.ravel()) - 1  # each sample's row among the tested ones
-    k = slot[np.flatnonzero(cut) * len(FACE_SAMPLES) + deepest]
-    n_k, v_k = nrm[k], vel[k]
-    corners = faces[f_idx].ravel()
-    ok = movable[corners]
+    deepest, d = deepest.take(f_idx), d.take(f_idx)
+    k = np.searchsorted(test, f_idx * s_count + deepest)  # each face's deepest sample among the tested
+    n_k, v_k = nrm.take(k, axis=0), vel.take(k, axis=0)
+    corners = faces.take(f_idx, axis=0).ravel()
+    ok = movable.take(corners)
     face_of = np.repeat(np.arange(len(f_idx)), 3)[ok]
     corners = corners[ok]
     if len(corners) == 0:
