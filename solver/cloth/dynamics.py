@@ -14,7 +14,15 @@ STABLE_OMEGA_DT = 2.2
 VELOCITY_SWEEPS = 3
 SLACK = 2e-3  # relative overshoot of a length limit the correction tolerates
 RELAX = 1.5  # over-relaxation of the averaged (Jacobi) length corrections
-STABLE_DAMPING_DT = 1.0  # damping shares the step's stability budget with the springs
+STABLE_DAMPING_DT = 1.0
+# Chebyshev semi-iterative acceleration of the frame-end sweeps (Wang 2015, "A Chebyshev
+# semi-iterative approach for accelerating projective and position-based dynamics"): the spectral
+# radius estimate of the plain sweeps, and the sweep from which the acceleration starts. On the
+# benchmark's replays 12 accelerated sweeps (rho 0.95) left the skirt's max mean stretch at 1.40-1.50 %
+# and the coat's at 1.54-1.85 %, where 30 plain ones left 1.21-1.40 % and 1.95-2.18 %; rho 0.9 and
+# 0.97 let a coat vertex end 1.6-1.9 mm inside (overshoot the particle passes could not undo)
+CHEBYSHEV_RHO = 0.95
+CHEBYSHEV_FROM = 2  # damping shares the step's stability budget with the springs
 
 
 def _flat3(particles):
@@ -263,7 +271,7 @@ class ClothDynamics:
         k2[1, pins] = pin_v
         return k2[0], k2[1]
 
-    def limit_elongation(self, x, v, iterations=None):
+    def limit_elongation(self, x, v, iterations=None, accelerate=False):
         """Provot's correction (§4.4.3): the particles of an edge longer than (1 + limit) L are
         moved towards each other (inverse-mass weighted, pinned ones stay) back to that length,
         and the part of their relative velocity that stretches the edge further is removed.
@@ -271,9 +279,10 @@ class ClothDynamics:
 
         All edges beyond a limit are corrected together (Jacobi): each particle takes the mean
         of its edges' corrections, over-relaxed by RELAX, for up to `iterations` sweeps (until
-        none is beyond). Before that, tethers to the pins remove the stretch that accumulates
-        along a hanging garment (which local corrections undo only slowly). Returns (x, v,
-        number of edges corrected)."""
+        none is beyond); with `accelerate`, the sweeps are Chebyshev-accelerated (CHEBYSHEV_RHO).
+        Before that, tethers to the pins remove the stretch that accumulates along a hanging
+        garment (which local corrections undo only slowly). Returns (x, v, number of edges
+        corrected)."""
         p = self.params
         x, v = x.copy(), v.copy()
         floor, limit, low_off, high_off = self._floor_m, self._limit_m, self._floor_off, self._limit_off
@@ -282,6 +291,9 @@ class ClothDynamics:
         moves, count, scale, step = self._sweep_moves, self._sweep_count, self._sweep_scale, self._sweep_step
         rows, times_off = self._sweep_rows, self._times_off
         times_off.fill(0.0)
+        # the accelerated sweeps keep x_{k-1}: three buffers of their own, swapped, not copied
+        prev, spare = (np.empty_like(x), np.empty_like(x)) if accelerate else (None, None)
+        rho2, omega = CHEBYSHEV_RHO ** 2, 1.0
         for k in range(max(1, iterations or p.constraint_iterations)):
             d = diff(x)
             length = np.sqrt(rowdot(d, d))
@@ -300,8 +312,18 @@ class ClothDynamics:
             np.multiply(d, over[:, None], out=rows_d)
             sweep(rows)  # each particle's summed moves (RELAX included) and its edges off
             np.maximum(count, 1.0, out=scale[:, 0])
-            np.divide(moves, scale, out=step)
-            x += step
+            if accelerate:
+                new = np.divide(moves, scale, out=spare)
+                new += x  # the plain sweep's x_hat
+                if k >= CHEBYSHEV_FROM:  # x_{k+1} = omega (x_hat - x_{k-1}) + x_{k-1}
+                    omega = 2.0 / (2.0 - rho2) if k == CHEBYSHEV_FROM else 4.0 / (4.0 - rho2 * omega)
+                    new -= prev
+                    new *= omega
+                    new += prev
+                spare, prev, x = prev, x, new
+            else:
+                np.divide(moves, scale, out=step)
+                x += step
         corrected = times_off > 0.0
         # corrected edges stop stretching (squeezed ones stop shortening)
         d = diff(x)

@@ -29,8 +29,8 @@ FACES_EVERY_SUBSTEP = False
 
 def _settle_parts(sweeps):
     """The frame-end Provot sweeps in parts, each followed by a particle pass (see _settle): a
-    third, then the rest (on the benchmark's replays 5 + 25, 15 + 15, 20 + 10 and 10 + 10 + 10 of
-    30 kept less margin under the 2 % mean stretch)."""
+    third, then the rest (on the benchmark's replays, with 30 plain sweeps, 5 + 25, 15 + 15, 20 +
+    10 and 10 + 10 + 10 kept less margin under the 2 % mean stretch than 10 + 20)."""
     first = max(1, round(sweeps / 3))
     return (first, sweeps - first) if first < sweeps else (sweeps,)
 
@@ -101,7 +101,9 @@ class ClothSimulation:
 
     def _settle(self, x, v):
         """The frame that is shown: the body's pushes may have stretched or squeezed edges, so the
-        lengths are restored thoroughly (final_iterations Provot sweeps) and the particles kept out
+        lengths are restored thoroughly (final_iterations Provot sweeps, Chebyshev-accelerated:
+        12 of them hold the benchmark's coat closer to its rest size than 30 plain ones did, see
+        dynamics.CHEBYSHEV_RHO) and the particles kept out
         of the body. Collisions are resolved inside these sweeps too, as position-based dynamics
         does: sweeps that ignore the body drag particles into it, and a particle pass after all of
         them pushes such a particle far from where its edges want it (on the benchmark's walk a
@@ -111,7 +113,7 @@ class ClothSimulation:
         dyn, sweeps = self.dynamics, self.params.final_iterations
         for part in (_settle_parts(sweeps) if self.bodies else (sweeps,)):
             t0 = _clock()
-            x, v, _ = dyn.limit_elongation(x, v, part)
+            x, v, _ = dyn.limit_elongation(x, v, part, accelerate=True)
             t1 = _clock()
             if self.bodies:
                 phi = resolve_particles(x, v, self.bodies, 1.0, self.params.thickness, self._everyone,

@@ -111,6 +111,30 @@ def test_provot_limits_elongated_edges_and_leaves_shortened_ones():
     assert np.maximum(after, 0).sum() < 0.8 * np.maximum(before, 0).sum()  # one sweep per substep
 
 
+def test_accelerated_sweeps_reach_the_limits_sooner():
+    """Chebyshev acceleration of the Provot sweeps (the frame-end pass): on a sheet stretched 20 %,
+    12 accelerated sweeps leave less than half the excess beyond the limits that 12 plain ones
+    leave, and less than 50 plain ones leave; run on, they converge ten times closer; pinned
+    particles stay."""
+    pos, faces = sheet(9, 9, 0.8)
+    mesh = build_mesh(pos, faces)
+    dyn = ClothDynamics(mesh, ClothParams(stretch_limit=0.01, compress_limit=0.04), pinned=[0, 8])
+    x = pos * [1.0, 1.2, 1.0]
+    v = np.zeros_like(x)
+
+    def excess(sweeps, accelerate):
+        out, _, _ = dyn.limit_elongation(x, v, sweeps, accelerate=accelerate)
+        assert np.array_equal(out[[0, 8]], x[[0, 8]])
+        length = edge_lengths(mesh, out)
+        rest = mesh.rest_length
+        return np.abs(length - np.clip(length, 0.96 * rest, 1.01 * rest)).sum() / rest.sum()
+
+    plain, fast = excess(12, False), excess(12, True)
+    assert fast < 0.5 * plain
+    assert excess(50, False) > fast
+    assert excess(400, True) < 0.1 * excess(400, False)
+
+
 @pytest.mark.parametrize("compress_limit", [0.0, 0.05])
 def test_stiff_material_is_capped_to_the_stable_step_and_does_not_explode(compress_limit):
     pos, faces = sheet(7, 7, 0.6)
