@@ -172,13 +172,15 @@ _DOUBLINGS = 2.0 ** np.arange(GROW)
 _FRACTIONS = {b: (np.arange(1, 1 << b) / (1 << b))[:, None] for b in range(1, HALVING_BITS + 1)}
 _GL_BOTH = np.concatenate([GL_W, GL_W])  # the quadrature weights of both halves' nodes
 
-def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=10):
+def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=8):
     """Midpoints (E, 3), their normals, h (E,) and whether each edge was shortened: §4.3.3.
 
     The midpoint of the PN edge curve moves along its normal by h >= 0 so that the two halves'
     PN curves (through the moved midpoint) are as long as the rest length. Bisection: the bracket
     starts at the initial guess of eq. 4.6, h0 = k (L - |p_i - p_j|), and grows until it holds
-    the root; a fixed number of halvings follows, for all shortened edges at once."""
+    the root; a fixed number of halvings follows, for all shortened edges at once (8: the bracket,
+    a doubling wide, to 1/256 of it; on the benchmark's skirt the split curves' lengths then stay
+    within 0.03 % of the rest length, 0.007 % with 10, which cost a third pass of the halvings)."""
     c1, c2 = edge_controls(p0, n0, p1, n1)
     mid = p0 + p1
     mid += 3.0 * (c1 + c2)
@@ -362,7 +364,7 @@ class Smoother:
     """The fine cloth surface from the particles: `surface(x)` -> fine vertices (V, 3)."""
 
     def __init__(self, mesh, level=2, k_elastic=1.0, normal_control=True, edge_control=True, k_guess=1.0,
-                 iterations=10):
+                 iterations=8):
         self.mesh, self.k_elastic = mesh, k_elastic
         self.normal_control, self.edge_control = normal_control, edge_control
         self.k_guess, self.iterations = k_guess, iterations
