@@ -4,7 +4,7 @@ import time
 
 import numpy as np
 
-from .collision import penetration, query_bodies, resolve_contacts, resolve_particles
+from .collision import penetration, query_bodies, resolve_faces, resolve_particles
 from .dynamics import ClothDynamics
 from .fast import rowdot
 from .mesh import ClothError, edge_lengths
@@ -13,18 +13,11 @@ from .smoothing import Smoother, _grid
 # the per-phase timings are CPU time of this process: on a shared machine wall-clock time counts
 # the other processes' share too (the simulation runs on one thread)
 _clock = time.process_time
-# pushes of the frame's last collision pass (and the fine surface's) per particle: a particle
-# wedged where two capsules meet can be pushed from one into the other a few times before it is
-# out of both (only such particles are queried again)
+# pushes of the frame's last collision pass (and the fine surface's) per particle, at most: a
+# particle wedged where two capsules meet is pushed out of one into the other, then along their
+# crease (collision._push), which takes two passes there; more where three parts meet (only
+# particles still inside are queried again)
 FRAME_END_PASSES = 16
-# The particle case runs at every substep; the face case (a face cutting the body between corners
-# that are out) at the frame's last one, before the frame-end correction. A face pushed out at an
-# earlier substep is moved again by the next substep's springs and sweeps anyway; on the benchmark's
-# replays (six trajectories each, 1e-9 m apart at the start) it cost 9 % of the frame and left the
-# stretch no lower: max mean stretch skirt 1.41-1.70 % every substep, 1.21-1.40 % at the last;
-# the tests' walk and hop on the skinned body 1.08 / 1.18 % and 1.00 / 1.02 %; the coat 1.87-2.46 %
-# and 1.95-2.18 %; no particle deeper than before (0.00 mm).
-FACES_EVERY_SUBSTEP = False
 
 
 def _settle_parts(sweeps):
@@ -82,10 +75,7 @@ class ClothSimulation:
             x, v = dyn.rk4_step(x, v, h, pa, pb)
             x, v, corrected = dyn.limit_elongation(x, v)
             t1 = _clock()
-            # the face case at the frame's last substep only: see FACES_EVERY_SUBSTEP
-            faces = self.mesh.faces if k == n - 1 or FACES_EVERY_SUBSTEP else None
-            n_p, n_f = resolve_contacts(x, v, faces, self.bodies, (k + 1) / n, self.params.thickness,
-                                        self.movable, self.params.friction, self._everyone)
+            n_p, n_f = self._contacts(x, v, (k + 1) / n, k == n - 1)
             t2 = _clock()
             self.timing["integration"] += t1 - t0
             self.timing["collision"] += t2 - t1
@@ -98,6 +88,26 @@ class ClothSimulation:
         self.x, self.v = x, v
         self.frames += 1
         return x
+
+    def _contacts(self, x, v, s, last):
+        """The body's pushes at time s of the frame (in place): the particle case at every
+        substep, the face case (a face cutting the body between corners that are out) at the
+        frame's last one only. A face pushed out at an earlier substep is moved again by the next
+        substep's springs and sweeps anyway; on the benchmark's replays (six trajectories each,
+        1e-9 m apart at the start) it cost 9 % of the frame and left the stretch no lower (max
+        mean stretch, skirt: 1.41-1.70 % at every substep, 1.21-1.40 % at the last; the tests'
+        walk and hop 1.08 / 1.18 % and 1.00 / 1.02 %; coat 1.87-2.46 % and 1.95-2.18 %), nothing
+        deeper. The corners a face pushes may land in another part of the body: the frame end's
+        particle passes, next, take them out (`resolve_contacts` queries them again at once).
+        Returns (particles moved, faces moved)."""
+        if not self.bodies:
+            return 0, 0
+        p = self.params
+        n_p, phi = resolve_particles(x, v, self.bodies, s, p.thickness, self._everyone, p.friction)
+        if not last:
+            return n_p, 0
+        n_f, _ = resolve_faces(x, v, self.mesh.faces, self.bodies, s, p.thickness, self.movable, phi, p.friction)
+        return n_p, n_f
 
     def _settle(self, x, v):
         """The frame that is shown: the body's pushes may have stretched or squeezed edges, so the
