@@ -276,7 +276,7 @@ class ClothDynamics:
         k2[1, pins] = pin_v
         return k2[0], k2[1]
 
-    def limit_elongation(self, x, v, iterations=None, accelerate=False):
+    def limit_elongation(self, x, v, iterations=None, frame_end=False):
         """Provot's correction (§4.4.3): the particles of an edge longer than (1 + limit) L are
         moved towards each other (inverse-mass weighted, pinned ones stay) back to that length,
         and the part of their relative velocity that stretches the edge further is removed.
@@ -284,10 +284,10 @@ class ClothDynamics:
 
         All edges beyond a limit are corrected together (Jacobi): each particle takes the mean
         of its edges' corrections, over-relaxed by RELAX, for up to `iterations` sweeps (until
-        none is beyond); with `accelerate`, the sweeps are Chebyshev-accelerated (CHEBYSHEV_RHO).
-        Before that, tethers to the pins remove the stretch that accumulates along a hanging
-        garment (which local corrections undo only slowly). Returns (x, v, number of edges
-        corrected)."""
+        none is beyond); the `frame_end` pass (the frame that is shown) sweeps Chebyshev-
+        accelerated (CHEBYSHEV_RHO) and filters the velocities more thoroughly. Before that,
+        tethers to the pins remove the stretch that accumulates along a hanging garment (which
+        local corrections undo only slowly). Returns (x, v, number of edges corrected)."""
         p = self.params
         x, v = x.copy(), v.copy()
         floor, limit, low_off, high_off = self._floor_m, self._limit_m, self._floor_off, self._limit_off
@@ -297,7 +297,7 @@ class ClothDynamics:
         rows, times_off = self._sweep_rows, self._times_off
         times_off.fill(0.0)
         # the accelerated sweeps keep x_{k-1}: three buffers of their own, swapped, not copied
-        prev, spare = (np.empty_like(x), np.empty_like(x)) if accelerate else (None, None)
+        prev, spare = (np.empty_like(x), np.empty_like(x)) if frame_end else (None, None)
         rho2, omega = CHEBYSHEV_RHO ** 2, 1.0
         for k in range(max(1, iterations or p.constraint_iterations)):
             d = diff(x)
@@ -317,7 +317,7 @@ class ClothDynamics:
             np.multiply(d, over[:, None], out=rows_d)
             sweep(rows)  # each particle's summed moves (RELAX included) and its edges off
             np.maximum(count, 1.0, out=scale[:, 0])
-            if accelerate:
+            if frame_end:
                 new = np.divide(moves, scale, out=spare)
                 new += x  # the plain sweep's x_hat
                 if k >= CHEBYSHEV_FROM:  # x_{k+1} = omega (x_hat - x_{k-1}) + x_{k-1}
@@ -344,7 +344,7 @@ class ClothDynamics:
         reach = self._reach(corrected[:, None].astype(float))
         np.maximum(reach, 1.0, out=reach)
         spread = self._spread
-        for _ in range(VELOCITY_SWEEPS_END if accelerate else VELOCITY_SWEEPS):
+        for _ in range(VELOCITY_SWEEPS_END if frame_end else VELOCITY_SWEEPS):
             rate = _clip(rowdot(diff(v), u), low, high)  # (low <= high everywhere)
             v += spread(rate[:, None] * u) / reach
         return x, v, int(np.count_nonzero(corrected))

@@ -123,7 +123,7 @@ class ClothSimulation:
         dyn, sweeps = self.dynamics, self.params.final_iterations
         for part in (_settle_parts(sweeps) if self.bodies else (sweeps,)):
             t0 = _clock()
-            x, v, _ = dyn.limit_elongation(x, v, part, accelerate=True)
+            x, v, _ = dyn.limit_elongation(x, v, part, frame_end=True)
             t1 = _clock()
             if self.bodies:
                 phi = resolve_particles(x, v, self.bodies, 1.0, self.params.thickness, self._everyone,

@@ -123,7 +123,7 @@ def test_accelerated_sweeps_reach_the_limits_sooner():
     v = np.zeros_like(x)
 
     def excess(sweeps, accelerate):
-        out, _, _ = dyn.limit_elongation(x, v, sweeps, accelerate=accelerate)
+        out, _, _ = dyn.limit_elongation(x, v, sweeps, frame_end=accelerate)
         assert np.array_equal(out[[0, 8]], x[[0, 8]])
         length = edge_lengths(mesh, out)
         rest = mesh.rest_length
