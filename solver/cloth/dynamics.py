@@ -19,7 +19,7 @@ VELOCITY_SWEEPS = 1
 VELOCITY_SWEEPS_END = 3
 SLACK = 2e-3  # relative overshoot of a length limit the correction tolerates
 RELAX = 1.5  # over-relaxation of the averaged (Jacobi) length corrections
-STABLE_DAMPING_DT = 1.0
+STABLE_DAMPING_DT = 1.0  # damping shares the step's stability budget with the springs
 # Chebyshev semi-iterative acceleration of the frame-end sweeps (Wang 2015, "A Chebyshev
 # semi-iterative approach for accelerating projective and position-based dynamics"): the spectral
 # radius estimate of the plain sweeps, and the sweep from which the acceleration starts. On the
@@ -27,7 +27,7 @@ STABLE_DAMPING_DT = 1.0
 # and the coat's at 1.54-1.85 %, where 30 plain ones left 1.21-1.40 % and 1.95-2.18 %; rho 0.9 and
 # 0.97 let a coat vertex end 1.6-1.9 mm inside (overshoot the particle passes could not undo)
 CHEBYSHEV_RHO = 0.95
-CHEBYSHEV_FROM = 2  # damping shares the step's stability budget with the springs
+CHEBYSHEV_FROM = 2  # (the first two sweeps plain)
 
 
 def _flat3(particles):
