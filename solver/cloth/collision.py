@@ -551,17 +551,21 @@ def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, fricti
     return len(f_idx), moved
 
 
-def resolve_contacts(x, v, faces, bodies, s, thickness, movable, friction=0.0, pushable=None):
+def resolve_contacts(x, v, faces, bodies, s, thickness, movable, friction=0.0, pushable=None, again=True):
     """Both cases, then the vertex case again (a face push may carry a corner into another part);
     returns (particles moved, faces moved). `pushable` (default: `movable`) are the particles the
     vertex case may move: pinned ones too, so a hand pressing on a waistband pushes it aside for
-    that step rather than sinking into it (the pin takes it back when the hand leaves)."""
+    that step rather than sinking into it (the pin takes it back when the hand leaves). With
+    `faces` None, the vertex case alone; with `again` False, no second vertex case (for a caller
+    whose own particle pass follows)."""
     if not bodies:
         return 0, 0
     pushable = movable if pushable is None else pushable
     n_p, phi = resolve_particles(x, v, bodies, s, thickness, pushable, friction)
+    if faces is None:
+        return n_p, 0
     n_f, moved = resolve_faces(x, v, faces, bodies, s, thickness, movable, phi, friction)
-    if n_f:  # only the corners the faces moved can be inside again
+    if n_f and again:  # only the corners the faces moved can be inside again
         n_p += resolve_particles(x, v, bodies, s, thickness, pushable, friction, rows=moved, phi=phi)[0]
     return n_p, n_f
 

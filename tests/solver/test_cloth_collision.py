@@ -56,6 +56,28 @@ def test_a_face_cut_by_a_capsule_moves_out_whole_though_its_corners_are_outside(
     assert np.allclose(shift, shift[0]) and shift[0, 2] > 0.029  # moved up together
     samples = np.einsum("sk,kj->sj", np.random.default_rng(0).dirichlet([1, 1, 1], 500), x)
     assert capsule_depth(samples, body.a0, body.b0, body.radius).max() < 2e-3
+    # without faces (a simulation's earlier substeps), the vertex case alone: the face stays cut
+    x = before.copy()
+    assert resolve_contacts(x, v, None, [body], 1.0, 0.0, np.ones(3, bool)) == (0, 0)
+    assert np.array_equal(x, before)
+
+
+def test_a_face_push_into_another_capsule_is_undone_unless_a_particle_pass_follows():
+    """A face pushed up off a bar whose corner lands in a second capsule above it: the vertex
+    case runs again on the corners the face moved; with again=False (the simulation, whose
+    frame-end particle passes follow) that corner is left inside."""
+    body = CapsuleBody([0.05, 0.05])
+    # the bar under the face, and a second bar just above the corner 0 the push will carry up
+    body.set_motion([[0.0, -1.0, 0.0], [-0.5, -1.0, 0.09]], [[0.0, 1.0, 0.0], [-0.5, 1.0, 0.09]])
+    start = np.array([[-0.5, -0.3, 0.02], [0.5, -0.3, 0.02], [0.3, 0.6, 0.02]])  # 2 cm out of the upper bar
+    moved = {}
+    for again in (True, False):
+        x, v = start.copy(), np.zeros_like(start)
+        n_p, n_f = resolve_contacts(x, v, np.array([[0, 1, 2]]), [body], 1.0, 0.0, np.ones(3, bool), again=again)
+        moved[again] = (n_p, n_f, capsule_depth(x, body.a0, body.b0, body.radius).max())
+    assert moved[True][1] == moved[False][1] == 1
+    assert moved[False][0] == 0 and moved[False][2] > 0.005  # the corner left inside the upper bar
+    assert moved[True][0] == 1 and moved[True][2] < 1e-9  # pushed out again
 
 
 def test_mesh_body_inside_outside_matches_the_capsules_it_tessellates():
