@@ -292,7 +292,7 @@ run each, numpy a+b 0.41-0.42 us; before: 3.69 ms, a+b 0.41):
   deepest 0.00 mm. So the issue's 3 ms a frame for the thesis skirt holds, and 20x over Blender's
   cloth with capsules. The host's speed swings: in the same hours three runs (one the fastest of
   --repeat 3) took 3.85-4.17 ms at numpy a+b 0.69-0.84 us, the host at half speed for minutes at a
-  time (Blender's cloth 141-148 ms/frame then, 36-37x; the solver-only replay of the code before
+  time (Blender's cloth 124-148 ms/frame then, 31-37x; the solver-only replay of the code before
   this round took 3.85-5.37 ms then).
 Tried and dropped: collisions at the frame's last substep only (coat 1.56-1.89 %, but a capsule
 moving 6-12 cm a frame against the hips could pass a skirt particle between two checks: the
