@@ -280,14 +280,14 @@ Max mean stretch before -> after (six trajectories each): skirt 1.41-1.70 -> 1.3
 1.87-2.46 -> 1.68-2.06 %, the tests' walk 1.08 -> 1.20 % and hop 1.18 -> 1.32 %; deepest 0.00 mm
 everywhere. (The issue's 2 % is for the skirt; the coat, a tube from the chest to the knees
 around the swinging arms and legs, cannot keep its size without entering the body.) The replay
-alternating before / after (numpy 1.26): 3.61-3.80 -> 2.62-2.74 ms a frame. This benchmark (one
-run each, numpy a+b 0.41-0.42 us; before: 3.69 ms, a+b 0.41):
+alternating before / after (numpy 1.26): 3.61-3.80 -> 2.62-2.74 ms a frame. This benchmark (three
+runs, numpy a+b 0.42-0.43 us; before: 3.69 ms, a+b 0.41):
   skirt, capsules    66 -> 1,760 faces: simulation 1.16-1.24, collision 0.99-1.06, smoothing
                      0.58-0.63 = 2.73-2.93 ms/frame (with Blender I/O 3.71-4.04); Blender cloth
-                     120-141 ms/frame: 45-48x
-  skirt, body mesh   17.7-23.1 ms/frame (6.1-7.0x); PN only 2.41-3.28
-  coat, capsules    300 -> 8,800 faces: 6.96-7.88 ms/frame; Blender cloth 330-372: 47-48x;
-                     body mesh 47.2-58.0 (6.4-7.0x)
+                     120-141 ms/frame: 43-48x
+  skirt, body mesh   17.7-23.1 ms/frame (6.0-7.0x); PN only 2.41-3.28
+  coat, capsules    300 -> 8,800 faces: 6.96-7.88 ms/frame; Blender cloth 327-372: 45-48x;
+                     body mesh 47.2-58.0 (6.3-7.0x)
   max mean stretch skirt 1.33 %, skirt on the mesh 1.42 %, coat 1.68 %, coat on the mesh 1.77 %;
   deepest 0.00 mm. So the issue's 3 ms a frame for the thesis skirt holds, and 20x over Blender's
   cloth with capsules. The host's speed swings: in the same hours three runs (one the fastest of
