@@ -42,6 +42,28 @@ def test_spring_force_is_eq_4_1():
     assert np.allclose(f[0], [7 * 1.5 * 0.5, 0, 0])
 
 
+def test_bending_springs_open_a_folded_hinge():
+    """Two faces on one edge, folded to 90 degrees: the bending spring across them (between the
+    opposite corners) opens the hinge; without it the fold stays."""
+    pos = np.array([[0, 0, 0], [0, 1, 0], [1, 0.5, 0], [-1, 0.5, 0]], float)
+    mesh = build_mesh(pos, [(0, 1, 2), (1, 0, 3)])
+    assert mesh.bend_pairs.tolist() == [[2, 3]]
+
+    def fold(x):  # the angle between the two faces' wings, degrees
+        a, b = x[2] - 0.5 * (x[0] + x[1]), x[3] - 0.5 * (x[0] + x[1])
+        return np.degrees(np.arccos(a @ b / np.linalg.norm(a) / np.linalg.norm(b)))
+
+    opened = {}
+    for bend in (0.0, 0.5):
+        dyn = ClothDynamics(mesh, ClothParams(stretch=20.0, bend=bend, density=0.2, **ZERO))
+        x, v, none = pos.copy(), np.zeros_like(pos), np.zeros((0, 3))
+        x[3] = [0, 0.5, 1.0]
+        for _ in range(400):  # 0.4 s
+            x, v = dyn.rk4_step(x, v, 1e-3, none, none)
+        opened[bend] = fold(x)
+    assert opened[0.0] == pytest.approx(90.0, abs=1e-6) and opened[0.5] > 120.0
+
+
 def test_rk4_keeps_the_energy_of_an_undamped_cloth():
     pos, faces = sheet(5, 5, 0.4)
     mesh = build_mesh(pos, faces)
