@@ -71,16 +71,16 @@ class HumanAnimCloth(bpy.types.PropertyGroup):
     air_damping: FloatProperty(name="Air Damping", default=PRESETS["COTTON"].air_damping, min=0.0, soft_max=5.0,
                                description="Damping of the absolute velocity, 1/s")
     wind: FloatVectorProperty(name="Wind", size=3, subtype="VELOCITY", unit="VELOCITY", default=(0.0, 0.0, 0.0))
-    thickness: FloatProperty(name="Thickness", default=0.008, min=0.0, soft_max=0.05, unit="LENGTH",
+    thickness: FloatProperty(name="Thickness", default=ClothParams.thickness, min=0.0, soft_max=0.05, unit="LENGTH",
                              description="Distance kept between the cloth and the body")
     compress_limit: FloatProperty(name="Compression Limit", default=ClothParams.compress_limit, min=0.0, max=0.5,
                                   subtype="FACTOR",
                                   description="Shortening of an edge beyond this share is undone in the simulation; "
                                               "up to it the smoothing folds the edge (0: all left to the smoothing, "
                                               "as in the thesis)")
-    friction: FloatProperty(name="Friction", default=0.0, min=0.0, max=1.0,
+    friction: FloatProperty(name="Friction", default=ClothParams.friction, min=0.0, max=1.0,
                             description="Share of the sliding speed lost in a contact")
-    substeps: IntProperty(name="Substeps", default=2, min=1, max=64, description="RK4 steps per simulated frame")
+    substeps: IntProperty(name="Substeps", default=ClothParams.substeps, min=1, max=64, description="RK4 steps per simulated frame")
     frame_start: IntProperty(name="Start", default=0, description="0: the scene's start")
     frame_end: IntProperty(name="End", default=0, description="0: the scene's end")
     frame_step: IntProperty(name="Step", default=0, min=0, max=16,

@@ -5,6 +5,7 @@ character and saves a .blend whose new mesh object plays the cloth from a PC2 po
 import os
 import time
 
+from ..solver.cloth.materials import ClothParams
 from .cli import UsageError
 
 COLLIDERS = ("auto", "mesh", "capsules", "both", "none")
@@ -28,13 +29,14 @@ def add_commands(sub, add_common_options):
                    help="auto: the body mesh if any, else capsules on the bones")
     c.add_argument("--preset", choices=PRESET_NAMES, default="cotton", help="material (default cotton)")
     c.add_argument("--level", type=int, default=2, help="smoothing level: 4 x level^2 triangles per face")
-    c.add_argument("--substeps", type=int, default=2, help="RK4 steps per simulated frame (default 2)")
+    c.add_argument("--substeps", type=int, default=ClothParams.substeps,
+                   help=f"RK4 steps per simulated frame (default {ClothParams.substeps})")
     c.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
     c.add_argument("--step", type=int, default=0, help="simulate every Nth frame (default: about 30 per second)")
     c.add_argument("--wind", help="wind velocity X,Y,Z in m/s")
-    c.add_argument("--compress-limit", type=float,
+    c.add_argument("--compress-limit", type=float, default=ClothParams.compress_limit,
                    help="shortening undone in the simulation beyond this share (0: all left to the smoothing; "
-                        "default: ClothParams.compress_limit)")
+                        f"default {ClothParams.compress_limit})")
     c.add_argument("--pn-only", action="store_true", help="plain PN triangles (no normal or edge length control)")
     c.add_argument("--keep-coarse", action="store_true", help="also write the coarse simulated mesh")
     c.add_argument("--out", default=os.path.join("out", "cloth.blend"), help="the .blend to write")
@@ -56,7 +58,6 @@ def cmd_cloth(args):
     import bpy
     from . import cloth
     from .cli import _load
-    from ..solver.cloth.materials import ClothParams
     from ..solver.progress import run_to_end
     t0 = time.perf_counter()
     if args.level < 1 or args.substeps < 1 or args.step < 0:
@@ -98,10 +99,9 @@ def cmd_cloth(args):
     props.level, props.substeps, props.frame_step = args.level, args.substeps, args.step
     props.normal_control = props.edge_control = not args.pn_only
     props.keep_coarse = args.keep_coarse
-    limit = ClothParams.compress_limit if args.compress_limit is None else args.compress_limit
-    if not 0.0 <= limit <= 0.5:
+    if not 0.0 <= args.compress_limit <= 0.5:
         raise UsageError("--compress-limit must be between 0 and 0.5")
-    props.compress_limit = limit
+    props.compress_limit = args.compress_limit
     props.cache_dir = "//" + os.path.splitext(os.path.basename(out))[0] + "_cache"
     if args.wind:
         props.wind = _vector(args.wind, "--wind")
