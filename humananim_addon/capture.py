@@ -17,7 +17,7 @@ from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatPrope
 
 from ..solver import rotations
 from ..solver.body_roles import FINGERS, sided
-from .devices import cyberglove, fob, hidglove, vmc
+from .devices import cyberglove, fob, hidglove, sim_fob, sim_glove, vmc
 from ..solver.anatomical_converter import AnatomicalConverter, CalibrationError
 from .devices.glove_calibration import GloveCalibration, joint_rotations
 from ..solver.hands.grasp_automaton import SENSOR_COLOURS, GraspAutomaton
@@ -69,7 +69,10 @@ class HumanAnimCaptureDevice(bpy.types.PropertyGroup):
                                       "the body")
     hemisphere: EnumProperty(name="Hemisphere", items=[(k, k.title(), f"{k} hemisphere") for k in fob.HEMISPHERES])
     extended_range: BoolProperty(name="Extended Range", description="Simulate an Extended Range "
-                                                                    "Controller (144 in)")
+                                                                    "Controller (144 in; it is address 1, its "
+                                                                    "birds start at 2)")
+    standalone: BoolProperty(name="Standalone", description="One bird without the Fast Bird Bus (no FBB "
+                                                            "addressing, no auto-configuration)")
     sensors: EnumProperty(name="Model", items=(("18", "18 Sensors", "CyberGlove with 18 sensors"),
                                                ("22", "22 Sensors", "CyberGlove with 22 sensors")))
     hand: EnumProperty(name="Hand", items=(("R", "Right", "Right hand"), ("L", "Left", "Left hand")))
@@ -142,15 +145,21 @@ def build_device(item):
         birds = _ints(item.birds, f"{name}: Birds")
         sim = None
         port = item.port
+        if item.standalone and len(birds) != 1:
+            raise HumanAnimError(f"{name}: a standalone bird is one bird (Birds: {item.birds})")
         if item.simulate:
-            sim = fob.FlockSimulator(birds=birds, extended_range=item.extended_range, rate=item.rate or 100.0)
+            if item.extended_range and 1 in birds:
+                raise HumanAnimError(f"{name}: an Extended Range Controller is address 1; its birds start at 2")
+            sim = sim_fob.FlockSimulator(birds=birds, extended_range=item.extended_range, rate=item.rate or 100.0,
+                                         standalone=item.standalone)
             port = sim.port
         dev = fob.FlockOfBirds(name, port, item.baud, birds=birds, record=item.record, mode=item.mode,
-                               hemisphere=item.hemisphere, settle=0.05 if item.simulate else 0.3)
+                               hemisphere=item.hemisphere, standalone=item.standalone,
+                               settle=0.05 if item.simulate else 0.3)
         return dev, sim
     if item.kind == "CYBERGLOVE":
         n = int(item.sensors)
-        sim = cyberglove.CyberGloveSimulator(sensors=n, rate=item.rate or 100.0) if item.simulate else None
+        sim = sim_glove.CyberGloveSimulator(sensors=n, rate=item.rate or 100.0) if item.simulate else None
         dev = cyberglove.CyberGlove(name, sim.port if sim else item.port, item.baud, sensors=n,
                                     mode="POLL" if item.mode == "POINT" else "STREAM", hand=item.hand,
                                     settle=0.02 if sim else 0.1)

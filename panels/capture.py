@@ -87,6 +87,7 @@ def draw_device(layout, item, editable):
         col.prop(item, "bones")
         col.prop(item, "record")
         col.prop(item, "hemisphere")
+        col.prop(item, "standalone")
         if item.simulate:
             col.prop(item, "extended_range")
     elif item.kind == "CYBERGLOVE":

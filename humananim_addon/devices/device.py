@@ -33,8 +33,12 @@ class Device:
         self.last_error = ""
         self.resyncing = False
         self.silent = False  # a listening device (UDP) hears nothing: shown as 'disconnected'
-        self.lost = 0  # records the driver knows it lost (corrupted on the line)
-        self.garbage_bytes = 0
+        # honest counters, kept apart: records known lost (a gap the protocol shows: a bird
+        # missing from a group-mode tick, a sample counter or time stamp that skipped), bytes
+        # discarded while finding records, and how many times the stream lost its framing
+        self.lost = 0
+        self.discarded_bytes = 0
+        self.resyncs = 0
         self.reconnects = 0
         self.seq = 0
         self._times = collections.deque(maxlen=1024)
@@ -130,7 +134,7 @@ class Device:
             return None
         self._last_data = now
         records = self._parser.feed(data)
-        self.garbage_bytes, self.lost = self._parser.garbage_bytes, self._parser.corrupt_records
+        self.discarded_bytes, self.resyncs = self._parser.discarded_bytes, self._parser.resyncs
         self.resyncing = self._parser.resyncing
         return records
 
@@ -150,15 +154,23 @@ class Device:
             return 0.0
         return (len(recent) - 1) / (recent[-1] - recent[0])
 
+    def _new_parser(self, parser):
+        """A fresh parser on (re)connect: its counters continue the device's."""
+        parser.discarded_bytes, parser.resyncs = self.discarded_bytes, self.resyncs
+        return parser
+
     @property
     def dropped(self):
+        """Samples lost: records known lost on the line plus samples the session did not drain
+        in time (the ring buffer overwrote them)."""
         return self.buffer.dropped + self.lost
 
     def status_dict(self):
         return {"name": self.name, "kind": self.kind, "status": self.status,
                 "rate_hz": round(self.measured_rate() / max(1, len(self._channels)), 2),
                 "channels": len(self._channels), "samples": self.seq, "dropped": self.dropped,
-                "garbage_bytes": self.garbage_bytes, "reconnects": self.reconnects,
+                "lost": self.lost, "overwritten": self.buffer.dropped, "discarded_bytes": self.discarded_bytes,
+                "resyncs": self.resyncs, "reconnects": self.reconnects,
                 "last_error": self.last_error}
 
 

@@ -87,9 +87,9 @@ class VMCReceiver(Device):
         try:
             messages = parse(data)
         except (OSCError, Exception) as exc:
-            self.bad_packets += 1
-            self.lost += 1
-            self.garbage_bytes += len(data)
+            self.bad_packets += 1  # not a frame we can read: discarded, not counted as a lost frame
+            self.discarded_bytes += len(data)
+            self.resyncs += 1
             self.resyncing = True
             self.last_error = f"bad OSC packet: {exc}"
             return []
@@ -99,7 +99,7 @@ class VMCReceiver(Device):
             try:
                 changed |= self._message(address, args)
             except (ValueError, TypeError, IndexError):
-                self.lost += 1
+                self.bad_packets += 1
         if not changed:
             return []
         data = {"bones": dict(self.bones), "root": self.root, "blendshapes": dict(self.blendshapes),
