@@ -39,6 +39,9 @@ from .device import Device, DeviceError
 
 DEFAULT_PORT = 9763
 HEADER = struct.Struct(">6sIBBIBBBB2sH")
+# a sample counter this far behind the last one is a datagram late on the network (discarded);
+# further behind, the sender started counting again (MVN restarted, or a new recording)
+REORDER_WINDOW = 16
 ITEM_QUATERNION = struct.Struct(">i7f")
 # Table 1 (3.1): index -> name; the segment ID sent is index + 1
 SEGMENTS = ("Pelvis", "L5", "L3", "T12", "T8", "Neck", "Head", "RightShoulder", "RightUpperArm", "RightForearm",
@@ -200,7 +203,7 @@ class MVNReceiver(Device):
         if last is not None:
             ahead = (d.sample - last) & 0xFFFFFFFF
             if ahead == 0 or ahead > 0x80000000:
-                if ahead and (last - d.sample) & 0xFFFFFFFF > 1000:  # the sender restarted its counter
+                if ahead and (last - d.sample) & 0xFFFFFFFF > REORDER_WINDOW:  # the sender restarted its counter
                     self._last_sample.pop(d.actor)
                     self._parts.pop(d.actor, None)
                 else:  # late or repeated: that sample was already used or counted
