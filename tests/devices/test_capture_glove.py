@@ -48,7 +48,7 @@ def test_time_stamp_and_status_byte_configured_from_any_state(time_stamp, status
     """The driver sets 'D' and 'U' to what it is configured for, whatever another program left
     on the glove, and parses the records that follow exactly."""
     with sim_glove.CyberGloveSimulator(sensors=18, rate=150) as sim:
-        sim.time_stamp = sim.status_byte = left_on
+        sim.time_stamp = sim.status_byte = sim.streaming = left_on  # another program left it streaming too
         dev = cyberglove.CyberGlove("glove", sim.port, sensors=18, settle=0.02, time_stamp=time_stamp,
                                     status_byte=status_byte)
         dev.start()
@@ -65,6 +65,24 @@ def test_time_stamp_and_status_byte_configured_from_any_state(time_stamp, status
             assert ("time_stamp" in s.data) == time_stamp and ("status" in s.data) == status_byte
             if time_stamp:
                 assert s.data["time_stamp"] == round(1000 * (first + k) / sim.rate)
+
+
+def test_a_glove_power_cycled_mid_session_is_configured_again():
+    with sim_glove.CyberGloveSimulator(sensors=22, rate=150) as sim:
+        dev = cyberglove.CyberGlove("glove", sim.port, sensors=22, settle=0.02, time_stamp=True, status_byte=True,
+                                    watchdog=0.3, reconnect_interval=0.05)
+        dev.start()
+        try:
+            assert wait_for(lambda: dev.seq > 10)
+            sim.power_cycle()  # the box restarts: time stamp and status byte off, not streaming
+            assert wait_for(lambda: dev.reconnects == 1 and sim.time_stamp and sim.status_byte, timeout=15)
+            dev.buffer.drain()
+            samples = collect(dev, 20)
+        finally:
+            dev.stop()
+        for s in samples:
+            tick = round(s.data["time_stamp"] * sim.rate / 1000)
+            assert np.array_equal(s.data["raw"], sim.values(tick).astype(float)) and s.data["status"] == 1
 
 
 def test_time_stamp_bytes_that_are_zero_are_nul_encoded():
