@@ -8,6 +8,7 @@ replugged device resumes on its own. Decoding trouble (garbage on the line) is r
 the driver through `self.resyncing`, shown as status 'resyncing'."""
 
 import collections
+import socket
 import threading
 import time
 
@@ -172,6 +173,62 @@ class Device:
                 "lost": self.lost, "overwritten": self.buffer.dropped, "discarded_bytes": self.discarded_bytes,
                 "resyncs": self.resyncs, "reconnects": self.reconnects,
                 "last_error": self.last_error}
+
+
+class DatagramDevice(Device):
+    """A device that listens for UDP datagrams on host:port (VMC, Xsens MVN). Silence for
+    `watchdog` seconds shows 'disconnected' (a sender cannot be told from a pulled cable); when
+    datagrams come back that counts as a reconnection. Subclasses implement `_datagram(data,
+    now)` returning samples."""
+
+    what = "datagrams"
+
+    def __init__(self, name, host, port, timeout=0.05, watchdog=1.0, **kw):
+        super().__init__(name, **kw)
+        self.host, self.port, self.timeout, self.watchdog = host, int(port), timeout, watchdog
+        self._sock = None
+        self._last = 0.0
+
+    def _open(self):
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 21)
+        try:
+            sock.bind((self.host, self.port))
+        except OSError as exc:
+            sock.close()
+            raise DeviceError(f"{self.name}: cannot listen on {self.host}:{self.port} ({exc.strerror})") from None
+        sock.settimeout(self.timeout)
+        self._sock = sock
+        self._last = time.perf_counter()
+
+    @property
+    def bound_port(self):
+        return self._sock.getsockname()[1] if self._sock is not None else None
+
+    def _read(self):
+        try:
+            data = self._sock.recv(65536)
+        except socket.timeout:
+            data = None
+        now = time.perf_counter()
+        if not data:
+            if now - self._last > self.watchdog and not self.silent:
+                self.silent = True
+                self.last_error = f"no {self.what} for {self.watchdog:g} s"
+            return []
+        if self.silent:
+            self.silent = False
+            self.reconnects += 1
+        self._last = now
+        return self._datagram(data, now)
+
+    def _datagram(self, data, now):
+        raise NotImplementedError
+
+    def _close(self):
+        sock, self._sock = self._sock, None
+        if sock is not None:
+            sock.close()
 
 
 def open_serial(port, baud, timeout):

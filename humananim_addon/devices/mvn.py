@@ -29,13 +29,11 @@ reconnection and counters as the Flock of Birds. Types 01 (Euler, whose rotation
 specification does not define), 03, 05 and 20-25 are skipped by their payload size (counted
 in `skipped`, not as garbage)."""
 
-import socket
 import struct
-import time
 
 import numpy as np
 
-from .device import Device, DeviceError
+from .device import DatagramDevice
 
 DEFAULT_PORT = 9763
 HEADER = struct.Struct(">6sIBBIBBBB2sH")
@@ -123,52 +121,20 @@ def parse_meta(d):
     return dict(line.split(":", 1) for line in text.splitlines() if ":" in line)
 
 
-class MVNReceiver(Device):
+class MVNReceiver(DatagramDevice):
     """Listens on host:port for MVN datagrams of any number of actors."""
 
     kind = "mvn"
+    what = "MVN datagrams"
 
     def __init__(self, name, host="127.0.0.1", port=DEFAULT_PORT, timeout=0.05, watchdog=1.0, **kw):
-        super().__init__(name, **kw)
-        self.host, self.port, self.timeout, self.watchdog = host, int(port), timeout, watchdog
-        self._sock = None
-        self._last = 0.0
+        super().__init__(name, host, port, timeout, watchdog, **kw)
         self.actors = {}  # character ID -> name (meta data) or "actor<ID>"
         self.skipped = 0  # datagrams of message types not read (by their payload size)
         self._last_sample = {}  # actor -> last complete sample counter
         self._parts = {}  # actor -> (sample counter, {index: segments}, last index or None)
 
-    def _open(self):
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 21)
-        try:
-            sock.bind((self.host, self.port))
-        except OSError as exc:
-            sock.close()
-            raise DeviceError(f"{self.name}: cannot listen on {self.host}:{self.port} ({exc.strerror})") from None
-        sock.settimeout(self.timeout)
-        self._sock = sock
-        self._last = time.perf_counter()
-
-    @property
-    def bound_port(self):
-        return self._sock.getsockname()[1] if self._sock is not None else None
-
-    def _read(self):
-        try:
-            data = self._sock.recv(65536)
-        except socket.timeout:
-            data = None
-        now = time.perf_counter()
-        if not data:
-            if now - self._last > self.watchdog and not self.silent:
-                self.silent = True
-                self.last_error = f"no MVN datagrams for {self.watchdog:g} s"
-            return []
-        if self.silent:  # the stream came back: a reconnection from the session's point of view
-            self.silent = False
-            self.reconnects += 1
-        self._last = now
+    def _datagram(self, data, now):
         d = parse_header(data)
         if d is None:
             return self._garbage(data, "not an MVN datagram")
@@ -232,8 +198,3 @@ class MVNReceiver(Device):
         for k in sorted(parts):
             whole.update(parts[k])
         return whole
-
-    def _close(self):
-        sock, self._sock = self._sock, None
-        if sock is not None:
-            sock.close()

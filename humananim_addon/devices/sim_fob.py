@@ -143,7 +143,6 @@ class FlockSimulator(PtySimulator):
         self.sent = []
         self.tick_count = 0
         self.power_ups = 0
-        self._cut = 0
         super().__init__("fob", rate, speed)
         self.on_power_up()
 
@@ -161,11 +160,6 @@ class FlockSimulator(PtySimulator):
         self.stream_target = None
         self._target = None
         self._pending = bytearray()
-
-    def power_cycle(self):
-        """The flock is switched off and on: power-up state, bytes on their way are lost."""
-        with self._lock:
-            self.on_power_up()
 
     @property
     def master(self):
@@ -185,23 +179,6 @@ class FlockSimulator(PtySimulator):
 
     def true_pose(self, address, tick):
         return self.motion(address, tick / self.rate)
-
-    # -- faults ---------------------------------------------------------------------------
-    def inject(self, data):
-        with self._lock:
-            self.send(bytes(data))
-
-    def cut(self, n):
-        """The next n bytes the flock sends are lost on the line."""
-        with self._lock:
-            self._cut += int(n)
-
-    def send(self, data):
-        if self._cut and data:
-            k = min(self._cut, len(data))
-            self._cut -= k
-            data = data[k:]
-        super().send(data)
 
     # -- data -------------------------------------------------------------------------------
     def records(self, tick, target):

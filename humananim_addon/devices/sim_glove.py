@@ -48,7 +48,6 @@ class CyberGloveSimulator(PtySimulator):
         self.sent = []
         self.tick_count = 0
         self.glove_plugged = True
-        self._cut = 0
         super().__init__("cyberglove", rate, speed)
         self.on_power_up()
 
@@ -70,26 +69,6 @@ class CyberGloveSimulator(PtySimulator):
         if self.status_byte:
             out += b"\x01"  # glove in
         return out + b"\x00"
-
-    # -- faults ---------------------------------------------------------------------------
-    def inject(self, data):
-        with self._lock:
-            self.send(bytes(data))
-
-    def cut(self, n):
-        with self._lock:
-            self._cut += int(n)
-
-    def send(self, data):
-        if self._cut and data:
-            k = min(self._cut, len(data))
-            self._cut -= k
-            data = data[k:]
-        super().send(data)
-
-    def power_cycle(self):
-        with self._lock:
-            self.on_power_up()
 
     # -- the glove --------------------------------------------------------------------------
     def tick(self, now):
