@@ -3,7 +3,6 @@ written separately from the specification (sim_mvn.py): several actors, split sa
 silence, and calibration through the anatomical converter like the Flock of Birds."""
 
 import numpy as np
-import pytest
 
 from humananim.solver import rotations
 from humananim.solver.anatomical_converter import AnatomicalConverter
