@@ -22,13 +22,16 @@ _HEADER = ">6sIBBIBBBBHH"  # reserved sent as one u16 0
 
 
 def default_segment_motion(actor, segment_id, t):
-    """Position (cm) and unit quaternion (w, x, y, z) of a segment at device time t."""
+    """Position (cm) and unit quaternion (w, x, y, z) of a segment at device time t (a number,
+    or an array of times: then (3, n) and (4, n))."""
+    t = np.asarray(t, float)
     k = segment_id + 7 * actor
-    pos = np.array([100 * np.sin(0.3 * t + k) + 50 * actor, 60 * np.cos(0.2 * t + 0.5 * k), 5 * k + 10 * np.sin(t)])
-    axis = np.array([np.sin(0.5 * t + k), np.cos(0.4 * t + 2 * k), 0.5 + np.sin(0.7 * t + 0.3 * k)])
-    axis /= np.linalg.norm(axis)
+    pos = np.stack([100 * np.sin(0.3 * t + k) + 50 * actor + 0 * t, 60 * np.cos(0.2 * t + 0.5 * k),
+                    5 * k + 10 * np.sin(t)])
+    axis = np.stack([np.sin(0.5 * t + k), np.cos(0.4 * t + 2 * k), 0.5 + np.sin(0.7 * t + 0.3 * k)])
+    axis = axis / np.linalg.norm(axis, axis=0)
     angle = 2.5 * np.sin(0.6 * t + k)
-    return pos, np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis])
+    return pos, np.concatenate([np.cos(angle / 2)[None], np.sin(angle / 2) * axis])
 
 
 class MVNSender:
