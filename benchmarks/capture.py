@@ -32,11 +32,13 @@ added, p99 latency under one display frame at 60 Hz (16.7 ms).
 """
 
 import argparse
+import contextlib
 import datetime
 import importlib
 import importlib.util
 import json
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -270,11 +272,13 @@ def main(argv=None):
     humananim.register()
     runs = []
     try:
-        for _ in range(args.rounds):
-            for config in ("baseline", "new", "new+mvn"):
-                runs.append(run_config(config, args.seconds, baseline_dir))
+        with contextlib.redirect_stdout(sys.stderr):  # Blender's BVH importer prints; stdout is the JSON
+            for _ in range(args.rounds):
+                for config in ("baseline", "new", "new+mvn"):
+                    runs.append(run_config(config, args.seconds, baseline_dir))
     finally:
         humananim.unregister()
+        shutil.rmtree(baseline_dir, ignore_errors=True)
 
     def pooled(config, key):
         return float(np.median([r[key] for r in runs if r["config"] == config and r.get(key) is not None]))
@@ -298,7 +302,7 @@ def main(argv=None):
     out = {"benchmark": "capture", "date": datetime.date.today().isoformat(),
            "machine_speed": {"numpy_add_us": machine_speed()}, "claims": claims,
            "baseline_commit": BASELINE_COMMIT, "device_rate_hz": RATE, "mvn_rate_hz": MVN_RATE,
-           "display_rate_hz": DISPLAY, "runs": runs}
+           "display_rate_hz": DISPLAY, "load_average": os.getloadavg(), "runs": runs}
     if args.json:
         os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
         with open(os.path.join(HERE, "results", "capture.json"), "w") as f:
