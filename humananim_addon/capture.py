@@ -17,12 +17,13 @@ from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatPrope
 
 from ..solver import rotations
 from ..solver.body_roles import FINGERS, sided
-from .devices import cyberglove, fob, hidglove, vmc
+from .devices import cyberglove, fob, hidglove, mvn, sim_fob, sim_glove, sim_mvn, vmc
 from ..solver.anatomical_converter import AnatomicalConverter, CalibrationError
 from .devices.glove_calibration import GloveCalibration, joint_rotations
 from ..solver.hands.grasp_automaton import SENSOR_COLOURS, GraspAutomaton
 from ..solver.hands.sensors import Box, Sphere, default_hand_sensors, sensor_centres
 from .devices.replay import ReplayDevice
+from .devices.samples import tracker_reading
 from .devices.session import Session, Take
 from ..solver.errors import HumanAnimError, MotionError
 from ..solver.trajectories import Trajectories
@@ -36,6 +37,7 @@ DEVICE_KINDS = (
     ("FLOCK", "Flock of Birds", "Ascension Flock of Birds on an RS-232 port"),
     ("CYBERGLOVE", "CyberGlove", "Virtual Technologies CyberGlove (18 or 22 sensors) on an RS-232 port"),
     ("HID_GLOVE", "USB Glove", "A USB HID data glove through hidapi (5DT Data Glove Ultra, ...)"),
+    ("MVN", "Xsens MVN", "Xsens MVN network stream (UDP pose datagrams, several actors)"),
     ("VMC", "VMC", "VMC protocol (OSC over UDP) from a capture tool"),
     ("REPLAY", "Replay", "A BVH file played back at its own rate, looping"),
 )
@@ -69,9 +71,16 @@ class HumanAnimCaptureDevice(bpy.types.PropertyGroup):
                                       "the body")
     hemisphere: EnumProperty(name="Hemisphere", items=[(k, k.title(), f"{k} hemisphere") for k in fob.HEMISPHERES])
     extended_range: BoolProperty(name="Extended Range", description="Simulate an Extended Range "
-                                                                    "Controller (144 in)")
+                                                                    "Controller (144 in; it is address 1, its "
+                                                                    "birds start at 2)")
+    standalone: BoolProperty(name="Standalone", description="One bird without the Fast Bird Bus (no FBB "
+                                                            "addressing, no auto-configuration)")
     sensors: EnumProperty(name="Model", items=(("18", "18 Sensors", "CyberGlove with 18 sensors"),
                                                ("22", "22 Sensors", "CyberGlove with 22 sensors")))
+    time_stamp: BoolProperty(name="Time Stamp", description="CyberGlove: records carry the glove's time "
+                                                            "stamp (set on the glove at every connect)")
+    status_byte: BoolProperty(name="Status Byte", description="CyberGlove: records carry the glove status byte "
+                                                              "(set on the glove at every connect)")
     hand: EnumProperty(name="Hand", items=(("R", "Right", "Right hand"), ("L", "Left", "Left hand")))
     # a name, not an enum: decoders are plug-ins registered at run time (and a dynamic enum's
     # items callback crashes the bpy 4.2 module at exit)
@@ -80,6 +89,10 @@ class HumanAnimCaptureDevice(bpy.types.PropertyGroup):
                                         + " or one registered with hidglove.register_decoder")
     host: StringProperty(name="Host", default="127.0.0.1")
     vmc_port: IntProperty(name="UDP Port", default=vmc.DEFAULT_PORT, min=0, max=65535)
+    mvn_port: IntProperty(name="UDP Port", default=mvn.DEFAULT_PORT, min=0, max=65535,
+                          description="MVN's Network Streamer sends here (its default is 9763)")
+    actor: IntProperty(name="Actor", default=0, min=0, max=255,
+                       description="The MVN character ID that drives this rig (every actor is recorded)")
     filepath: StringProperty(name="File", subtype="FILE_PATH",
                              description="The .bvh file, or a take saved as .json, to replay")
 
@@ -142,21 +155,35 @@ def build_device(item):
         birds = _ints(item.birds, f"{name}: Birds")
         sim = None
         port = item.port
+        if item.standalone and len(birds) != 1:
+            raise HumanAnimError(f"{name}: a standalone bird is one bird (Birds: {item.birds})")
         if item.simulate:
-            sim = fob.FlockSimulator(birds=birds, extended_range=item.extended_range, rate=item.rate or 100.0)
+            if item.extended_range and 1 in birds:
+                raise HumanAnimError(f"{name}: an Extended Range Controller is address 1; its birds start at 2")
+            sim = sim_fob.FlockSimulator(birds=birds, extended_range=item.extended_range, rate=item.rate or 100.0,
+                                         standalone=item.standalone)
             port = sim.port
         dev = fob.FlockOfBirds(name, port, item.baud, birds=birds, record=item.record, mode=item.mode,
-                               hemisphere=item.hemisphere, settle=0.05 if item.simulate else 0.3)
+                               hemisphere=item.hemisphere, standalone=item.standalone,
+                               settle=0.05 if item.simulate else 0.3)
         return dev, sim
     if item.kind == "CYBERGLOVE":
         n = int(item.sensors)
-        sim = cyberglove.CyberGloveSimulator(sensors=n, rate=item.rate or 100.0) if item.simulate else None
+        sim = sim_glove.CyberGloveSimulator(sensors=n, rate=item.rate or 100.0) if item.simulate else None
         dev = cyberglove.CyberGlove(name, sim.port if sim else item.port, item.baud, sensors=n,
                                     mode="POLL" if item.mode == "POINT" else "STREAM", hand=item.hand,
-                                    settle=0.02 if sim else 0.1)
+                                    settle=0.02 if sim else 0.1, time_stamp=item.time_stamp,
+                                    status_byte=item.status_byte)
         return dev, sim
     if item.kind == "HID_GLOVE":
         return hidglove.HidGlove(name, decoder=item.decoder, hand=item.hand), None
+    if item.kind == "MVN":
+        sim = None
+        if item.simulate:
+            if item.mvn_port == 0:
+                raise HumanAnimError(f"{name}: a simulated MVN stream needs a UDP port")
+            sim = sim_mvn.MVNSender(port=item.mvn_port, host=item.host, actors=(item.actor,), rate=item.rate or 60.0)
+        return mvn.MVNReceiver(name, host=item.host, port=item.mvn_port), sim
     if item.kind == "VMC":
         return vmc.VMCReceiver(name, host=item.host, port=item.vmc_port), None
     if item.kind == "REPLAY":
@@ -168,6 +195,19 @@ def build_device(item):
                 raise HumanAnimError(f"cannot read the take '{path}': {exc}") from None
         return ReplayDevice(name, path, rate=item.rate or None), None
     raise HumanAnimError(f"unknown device kind {item.kind}")
+
+
+def mvn_attachments(sk, name, actor):
+    """{(device, channel): bone} of an MVN actor's body segments on the rig, through body roles;
+    the segments without a bone of their role (the rig has no such bone) are not attached."""
+    out = {}
+    for segment, role in mvn.SEGMENT_ROLES.items():
+        bone = sk.roles.bone(role)
+        if bone is not None and bone not in out.values():
+            out[(name, mvn.channel(actor, segment))] = bone
+    if not out:
+        raise HumanAnimError(f"{name}: the rig has none of the body roles MVN's segments drive")
+    return out
 
 
 def glove_resolution(item):
@@ -205,6 +245,11 @@ class LiveCapture:
                         if sk.find(bone) is None:
                             raise HumanAnimError(f"{name}: no bone named '{bone}' in '{obj.name}'")
                         key = (name, f"bird{bird}")
+                        self.attach[key] = bone
+                        if sk.index(bone) == sk.root and root_key is None:
+                            root_key = key
+                if item.kind == "MVN":  # every body segment on the bone of its role, for the converter
+                    for key, bone in mvn_attachments(sk, name, item.actor).items():
                         self.attach[key] = bone
                         if sk.index(bone) == sk.root and root_key is None:
                             root_key = key
@@ -271,7 +316,7 @@ class LiveCapture:
         sk = self.skeleton
         if basis is None:
             basis = np.tile(np.eye(4), (sk.joint_count, 1, 1))
-        pose = {k: (s.data.get("position", np.zeros(3)), s.data["quaternion"]) for k, s in newest.items()
+        pose = {k: tracker_reading(s) for k, s in newest.items()
                 if s.kind == "pose" and "quaternion" in s.data and k in self.attach}
         if pose and self.converter is not None and self.converter.calibrated:
             basis = self.converter.solve(pose)

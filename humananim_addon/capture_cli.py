@@ -23,6 +23,9 @@ def add_commands(sub, add_common_options):
     c.add_argument("--glove-sensors", choices=("18", "22"), default="18")
     c.add_argument("--hand", choices=("L", "R"), default="R")
     c.add_argument("--vmc", type=int, metavar="UDP_PORT", help="listen for VMC on 127.0.0.1:UDP_PORT")
+    c.add_argument("--mvn", metavar="UDP_PORT", help="listen for an Xsens MVN stream on 127.0.0.1:UDP_PORT, or "
+                                                    "'sim' for its simulator (on a free port)")
+    c.add_argument("--actor", type=int, default=0, help="the MVN character ID that drives the rig (default 0)")
     c.add_argument("--replay", metavar="BVH", help="replay a BVH file as a device")
     c.add_argument("--rate", type=float, default=100.0, help="simulators' samples per second (default 100)")
     c.add_argument("--seconds", type=float, default=3.0, help="how long to record (default 3)")
@@ -38,8 +41,10 @@ def cmd_capture(args):
     from . import capture
     from .cli import _load
     t0 = time.perf_counter()
-    if not (args.flock or args.glove or args.vmc is not None or args.replay):
-        raise UsageError("give at least one device: --flock, --glove, --vmc or --replay")
+    if not (args.flock or args.glove or args.vmc is not None or args.mvn or args.replay):
+        raise UsageError("give at least one device: --flock, --glove, --mvn, --vmc or --replay")
+    if args.mvn and args.mvn != "sim" and not args.mvn.isdigit():
+        raise UsageError(f"--mvn: a UDP port number or 'sim', not '{args.mvn}'")
     if args.seconds <= 0:
         raise UsageError("--seconds must be positive")
     obj, scene, unit = _load(args.file, args.armature, args.scale)
@@ -54,6 +59,9 @@ def cmd_capture(args):
                            rate=args.rate, sensors=args.glove_sensors, hand=args.hand)
     if args.vmc is not None:
         capture.add_device(scene, "VMC", name="vmc", vmc_port=args.vmc)
+    if args.mvn:
+        capture.add_device(scene, "MVN", name="mvn", simulate=args.mvn == "sim", actor=args.actor,
+                           mvn_port=_free_udp_port() if args.mvn == "sim" else int(args.mvn), rate=args.rate)
     if args.replay:
         if not os.path.isfile(args.replay):
             raise UsageError(f"--replay: no such file: {args.replay}")
@@ -88,17 +96,27 @@ def cmd_capture(args):
                "action": action.name, "samples": samples, "take_seconds": round(take.duration, 3),
                "display_steps": steps, "devices": status,
                "dropped": sum(d["dropped"] for d in status),
+               "discarded_bytes": sum(d["discarded_bytes"] for d in status),
+               "resyncs": sum(d["resyncs"] for d in status),
                "median_latency_ms": None if latency is None else round(1000 * latency, 3),
                "wrote": [out], "seconds": round(time.perf_counter() - t0, 3)}
     if unit:
         summary["bvh_unit"] = unit
     lines = [f"capture: '{obj.name}' recorded {sum(samples.values())} samples in {take.duration:.2f} s "
              f"into '{action.name}' ({summary['dropped']} dropped)"]
-    lines += [f"  {d['name']}: {d['status']}, {d['rate_hz']:.0f} Hz, {d['samples']} samples"
-              + (f", {d['last_error']}" if d["last_error"] else "") for d in status]
+    lines += [f"  {d['name']}: {d['status']}, {d['rate_hz']:.0f} Hz, {d['samples']} samples, {d['dropped']} lost, "
+              f"{d['discarded_bytes']} bytes discarded, {d['resyncs']} resyncs"
+              + (f", last error: {d['last_error']}" if d["last_error"] else "") for d in status]
     lines += [f"  wrote {out}", f"  took {summary['seconds']:.2f} s"]
     summary["summary"] = "\n".join(lines)
     return summary
+
+
+def _free_udp_port():
+    import socket
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 def _calibrate_when_every_sensor_reads(live, deadline):

@@ -50,13 +50,7 @@ class VIEW3D_PT_humananim_capture(HumanAnimPanel, bpy.types.Panel):
         layout.operator("humananim.capture_disconnect", text="Disconnect", icon="CANCEL")
         box = layout.box()
         for d in live.status():
-            r = box.row()
-            r.label(text=d["name"], icon=STATUS_ICONS.get(d["status"], "QUESTION"))
-            r.label(text=d["status"])
-            r = box.row()
-            r.label(text=f"{d['rate_hz']:.0f} Hz, {d['samples']} samples, {d['dropped']} dropped")
-            if d["last_error"]:
-                box.label(text=d["last_error"], icon="INFO")
+            draw_status(box, d)
         row = layout.row(align=True)
         row.operator("humananim.capture_calibrate", icon="ARMATURE_DATA")
         row.operator("humananim.capture_glove_flat")
@@ -70,13 +64,30 @@ class VIEW3D_PT_humananim_capture(HumanAnimPanel, bpy.types.Panel):
 
 
 
+def status_lines(d):
+    """What the panel says about one device: state, rate, then the counters kept apart (records
+    lost, bytes discarded, resyncs) beside the device's last error."""
+    lines = [f"{d['rate_hz']:.0f} Hz, {d['samples']} samples, {d['reconnects']} reconnects",
+             f"lost {d['dropped']} records, discarded {d['discarded_bytes']} bytes, {d['resyncs']} resyncs"]
+    return lines + ([f"last error: {d['last_error']}"] if d["last_error"] else [])
+
+
+def draw_status(box, d):
+    r = box.row()
+    r.label(text=d["name"], icon=STATUS_ICONS.get(d["status"], "QUESTION"))
+    r.label(text=d["status"])
+    for k, line in enumerate(status_lines(d)):
+        box.label(text=line, icon="ERROR" if line.startswith("last error") else "NONE")
+
+
 def draw_device(layout, item, editable):
     col = layout.column()
     col.use_property_split = True
     col.enabled = editable
     col.prop(item, "kind")
-    if item.kind in {"FLOCK", "CYBERGLOVE"}:
+    if item.kind in {"FLOCK", "CYBERGLOVE", "MVN"}:
         col.prop(item, "simulate")
+    if item.kind in {"FLOCK", "CYBERGLOVE"}:
         if not item.simulate:
             col.prop(item, "port")
             col.prop(item, "baud")
@@ -87,14 +98,23 @@ def draw_device(layout, item, editable):
         col.prop(item, "bones")
         col.prop(item, "record")
         col.prop(item, "hemisphere")
+        col.prop(item, "standalone")
         if item.simulate:
             col.prop(item, "extended_range")
     elif item.kind == "CYBERGLOVE":
         col.prop(item, "sensors")
         col.prop(item, "hand")
+        col.prop(item, "time_stamp")
+        col.prop(item, "status_byte")
     elif item.kind == "HID_GLOVE":
         col.prop(item, "decoder")
         col.prop(item, "hand")
+    elif item.kind == "MVN":
+        col.prop(item, "host")
+        col.prop(item, "mvn_port")
+        col.prop(item, "actor")
+        if item.simulate:
+            col.prop(item, "rate")
     elif item.kind == "VMC":
         col.prop(item, "host")
         col.prop(item, "vmc_port")

@@ -108,14 +108,17 @@ class AnatomicalConverter:
         return self.tracker @ np.asarray(pos, float) + self.origin
 
     def bone_targets(self, readings):
-        """{joint: (world rotation, world head position)} for the bones whose sensor has a reading."""
-        out = {}
-        for key, j in self.attachments.items():
-            if key in readings:
-                pos, quat = readings[key]
-                s_world = self.tracker @ _rot(quat)
-                out[j] = (s_world @ self.offsets[key], self.sensor_position(pos) + s_world @ self.head_offsets[key])
-        return out
+        """{joint: (world rotation, world head position)} for the bones whose sensor has a reading
+        (all sensors at once: a suit streams twenty of them every frame)."""
+        keys = [k for k in self.attachments if k in readings]
+        if not keys:
+            return {}
+        pos = np.array([readings[k][0] for k in keys], float)
+        s_world = self.tracker @ rotations.to_matrix(np.array([readings[k][1] for k in keys], float))
+        rot = s_world @ np.array([self.offsets[k] for k in keys])
+        head = pos @ self.tracker.T + self.origin + np.einsum("nij,nj->ni", s_world,
+                                                              np.array([self.head_offsets[k] for k in keys]))
+        return {self.attachments[k]: (r, h) for k, r, h in zip(keys, rot, head)}
 
     def solve(self, readings):
         """Local pose bases (J, 4, 4) of the rig for the newest readings."""
@@ -169,17 +172,16 @@ class AnatomicalConverter:
         calib = frame[:3, :3] @ self.calib_basis[j, :3, :3]
         axis_angle = rotations.to_axis_angle(rotations.from_matrix(target_rot @ calib.T))
         n = len(path) + 1
-        for b in path:
-            turn = rotations.to_matrix(rotations.from_axis_angle(np.r_[axis_angle[0] / n, axis_angle[1:]]))
+        turn = rotations.to_matrix(rotations.from_axis_angle(np.r_[axis_angle[0] / n, axis_angle[1:]]))
+        for b in path:  # top-down, each the parent of the next: one refresh below them at the end
             frame_b = world[sk.parents[b]] @ rest_local[b]
-            new_rot = turn @ world[b, :3, :3]
+            new_rot = turn @ frame_b[:3, :3] @ basis[b, :3, :3]  # after the turns of the bones above
             basis[b, :3, :3] = frame_b[:3, :3].T @ new_rot
             world[b] = frame_b @ basis[b]
-            self._refresh(basis, world, b)
         frame = world[sk.parents[j]] @ rest_local[j]
         basis[j, :3, :3] = frame[:3, :3].T @ target_rot
         world[j] = frame @ basis[j]
-        self._refresh(basis, world, j)
+        self._refresh(basis, world, path[0])  # everything below the chain once (side branches too)
 
     def _two_bone_ik(self, basis, world, upper, lower, end, target):
         sk, rest_local = self.skeleton, self.rest_local

@@ -8,6 +8,7 @@ replugged device resumes on its own. Decoding trouble (garbage on the line) is r
 the driver through `self.resyncing`, shown as status 'resyncing'."""
 
 import collections
+import socket
 import threading
 import time
 
@@ -33,8 +34,12 @@ class Device:
         self.last_error = ""
         self.resyncing = False
         self.silent = False  # a listening device (UDP) hears nothing: shown as 'disconnected'
-        self.lost = 0  # records the driver knows it lost (corrupted on the line)
-        self.garbage_bytes = 0
+        # honest counters, kept apart: records known lost (a gap the protocol shows: a bird
+        # missing from a group-mode tick, a sample counter or time stamp that skipped), bytes
+        # discarded while finding records, and how many times the stream lost its framing
+        self.lost = 0
+        self.discarded_bytes = 0
+        self.resyncs = 0
         self.reconnects = 0
         self.seq = 0
         self._times = collections.deque(maxlen=1024)
@@ -130,7 +135,7 @@ class Device:
             return None
         self._last_data = now
         records = self._parser.feed(data)
-        self.garbage_bytes, self.lost = self._parser.garbage_bytes, self._parser.corrupt_records
+        self.discarded_bytes, self.resyncs = self._parser.discarded_bytes, self._parser.resyncs
         self.resyncing = self._parser.resyncing
         return records
 
@@ -150,16 +155,80 @@ class Device:
             return 0.0
         return (len(recent) - 1) / (recent[-1] - recent[0])
 
+    def _new_parser(self, parser):
+        """A fresh parser on (re)connect: its counters continue the device's."""
+        parser.discarded_bytes, parser.resyncs = self.discarded_bytes, self.resyncs
+        return parser
+
     @property
     def dropped(self):
+        """Samples lost: records known lost on the line plus samples the session did not drain
+        in time (the ring buffer overwrote them)."""
         return self.buffer.dropped + self.lost
 
     def status_dict(self):
         return {"name": self.name, "kind": self.kind, "status": self.status,
                 "rate_hz": round(self.measured_rate() / max(1, len(self._channels)), 2),
                 "channels": len(self._channels), "samples": self.seq, "dropped": self.dropped,
-                "garbage_bytes": self.garbage_bytes, "reconnects": self.reconnects,
+                "lost": self.lost, "overwritten": self.buffer.dropped, "discarded_bytes": self.discarded_bytes,
+                "resyncs": self.resyncs, "reconnects": self.reconnects,
                 "last_error": self.last_error}
+
+
+class DatagramDevice(Device):
+    """A device that listens for UDP datagrams on host:port (VMC, Xsens MVN). Silence for
+    `watchdog` seconds shows 'disconnected' (a sender cannot be told from a pulled cable); when
+    datagrams come back that counts as a reconnection. Subclasses implement `_datagram(data,
+    now)` returning samples."""
+
+    what = "datagrams"
+
+    def __init__(self, name, host, port, timeout=0.05, watchdog=1.0, **kw):
+        super().__init__(name, **kw)
+        self.host, self.port, self.timeout, self.watchdog = host, int(port), timeout, watchdog
+        self._sock = None
+        self._last = 0.0
+
+    def _open(self):
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 21)
+        try:
+            sock.bind((self.host, self.port))
+        except OSError as exc:
+            sock.close()
+            raise DeviceError(f"{self.name}: cannot listen on {self.host}:{self.port} ({exc.strerror})") from None
+        sock.settimeout(self.timeout)
+        self._sock = sock
+        self._last = time.perf_counter()
+
+    @property
+    def bound_port(self):
+        return self._sock.getsockname()[1] if self._sock is not None else None
+
+    def _read(self):
+        try:
+            data = self._sock.recv(65536)
+        except socket.timeout:
+            data = None
+        now = time.perf_counter()
+        if not data:
+            if now - self._last > self.watchdog and not self.silent:
+                self.silent = True
+                self.last_error = f"no {self.what} for {self.watchdog:g} s"
+            return []
+        if self.silent:
+            self.silent = False
+            self.reconnects += 1
+        self._last = now
+        return self._datagram(data, now)
+
+    def _datagram(self, data, now):
+        raise NotImplementedError
+
+    def _close(self):
+        sock, self._sock = self._sock, None
+        if sock is not None:
+            sock.close()
 
 
 def open_serial(port, baud, timeout):

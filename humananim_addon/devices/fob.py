@@ -1,28 +1,42 @@
-"""Ascension Flock of Birds over RS-232: commands, the binary record format, a driver and a
-simulator that speaks the same protocol on a pseudo-terminal.
+"""Ascension Flock of Birds over RS-232: commands, the binary record format and the driver.
+The simulator is in sim_fob.py, written separately from the same guide.
 
 Protocol source: Ascension Technology, "The Flock of Birds Installation and Operation Guide"
-(RS-232 commands chapter: command bytes, the "RS232 TO FBB" prefix 0xF0 + address, CHANGE
-VALUE / EXAMINE VALUE parameter numbers, HEMISPHERE arguments, the data record format),
-cross-checked with the decoding in VRPN's vrpn_Tracker_Flock (auto-configuration with
-CHANGE VALUE 50, group mode with CHANGE VALUE 35 and the trailing address byte, the flock
-system status bits of EXAMINE VALUE 36).
+(the guide itself is not in our reference library; the command table, record formats and
+orientation definitions below follow its text as quoted by Ascension's laserBIRD guide of the
+same protocol family and by the public drivers that implement it: VRPN vrpn_Tracker_Flock,
+libflock, Atamai's flock.c).
 
-Record format: every value is a 14-bit two's-complement word sent as two bytes, the least
-significant first. Each byte carries 7 data bits; bit 7 is the phasing bit, set only on the
-first byte of a record, so a reader can find the start of a record in a byte stream. The word
-is ((MSbyte << 7) | (LSbyte & 0x7F)) << 2 read as a signed 16-bit integer, and scales to
-+-full scale at +-32768: positions to the range in inches (36 in for the standard transmitter,
-72 in with the 72-in scaling, 144 in for the Extended Range Controller), angles to +-180 deg,
-matrix and quaternion elements to +-1. In group mode each bird's record is followed by one
-byte holding its FBB address.
+- RS-232 Commands: POINT 'B', STREAM '@', RUN 'F', SLEEP 'G', CHANGE VALUE 'P', EXAMINE VALUE
+  'O', HEMISPHERE 'L', the record-format commands, and RS232 TO FBB (0xF0 + FBB address,
+  normal addressing) that sends the next command to one bird of the flock.
+- Data Records: every value is a 14-bit two's-complement word sent as two bytes, the least
+  significant first, 7 data bits each; bit 7 (the phasing bit) is set only on the first byte
+  of a record. The word is ((MSbyte << 7) | (LSbyte & 0x7F)) << 2 as a signed 16-bit integer,
+  +-full scale at +-32768: positions to +-36 in (72 in with POSITION SCALING 1, 144 in with an
+  Extended Range Controller), angles to +-180 deg, matrix elements and quaternions to +-1. In
+  group mode each bird's record is followed by its FBB address byte.
+- Orientation (ANGLES, MATRIX, QUATERNION commands): azimuth A (about Z), elevation E (about Y)
+  and roll R (about X) of the sensor in the transmitter's frame (X forward, Y right, Z down).
+  The MATRIX output M has first row (cos E cos A, cos E sin A, -sin E): M is the transpose of
+  Rz(A) Ry(E) Rx(R) and maps transmitter axes to sensor axes; it is sent column by column
+  (M11, M21, M31, M12, ...). The QUATERNION output q0 (scalar), q1, q2, q3 is "extracted from
+  the MATRIX output" (Shepperd's algorithm): the quaternion of M.
 
-Orientation conventions (as the guide defines them): angles are azimuth (about Z), elevation
-(about Y) and roll (about X) of the sensor in the transmitter's frame (X forward, Y right,
-Z down); the rotation taking sensor axes to transmitter axes is Rz(A) Ry(E) Rx(R). The MATRIX
-record is the guide's M, the transpose of that rotation, sent column by column
-(M11, M21, M31, M12, ...). The QUATERNION record is q0 (scalar), q1, q2, q3 of the same
-sensor-to-transmitter rotation."""
+One convention for every format (`decode_record`): a sample's 'quaternion' (w, x, y, z) is the
+sensor's orientation in the transmitter frame, the rotation Rz(A) Ry(E) Rx(R) = M^T that takes
+sensor axes to transmitter axes; a QUATERNION record is therefore conjugated. Test:
+tests/devices/test_capture_fob.py::test_every_format_gives_one_rotation_for_the_same_pose.
+
+Connecting from any state (`FlockOfBirds._open`, every connect and reconnect): POINT (ends a
+stream), RUN (wakes a flock left asleep, e.g. by our own disconnect), the stale error code
+read away, FBB AUTO-CONFIGURATION with the number of units (a power-up needs it; the guide
+asks for a pause of at least 300 ms around it), the flock status checked for every bird,
+GROUP MODE set explicitly on (several birds) or off (one bird: a flock left in group mode
+would stream every bird), record format and hemisphere sent to each bird through RS232 TO
+FBB, the error code checked, then STREAM or POINT to the master (group mode) or through
+RS232 TO FBB to the one bird (its address need not be 1, e.g. behind an Extended Range
+Controller, which is the master at address 1 without a receiver)."""
 
 import time
 
@@ -30,7 +44,6 @@ import numpy as np
 
 from ...solver import rotations
 from .device import Device, DeviceError, open_serial
-from .pty_sim import PtySimulator
 
 INCH = 0.0254
 
@@ -125,11 +138,6 @@ def decode_words(data):
     return np.where(n >= 32768, n - 65536, n)
 
 
-def quantize(values, full_scale):
-    """What the device can represent: the value after encoding and decoding."""
-    return decode_words(encode_words(values, full_scale)) * full_scale / 32768.0
-
-
 # -- orientation --------------------------------------------------------------------------------
 def angles_to_rotation(angles_deg):
     """(azimuth, elevation, roll) degrees to the sensor-to-transmitter rotation matrix."""
@@ -149,27 +157,6 @@ def rotation_to_angles(m):
     return np.degrees([azimuth, elevation, roll])
 
 
-def encode_record(fmt, position_m, angles_deg, range_inches, address=None):
-    """One record as the bird sends it, from a position (metres) and angles (degrees)."""
-    rot = angles_to_rotation(angles_deg)
-    pos_in = np.asarray(position_m, float) / INCH
-    parts = []
-    if fmt.startswith("POSITION"):
-        parts.append((pos_in, range_inches))
-    if fmt.endswith("ANGLES"):
-        parts.append((angles_deg, 180.0))
-    elif fmt.endswith("MATRIX"):
-        parts.append((rot.T.flatten(order="F"), 1.0))  # the guide's M = rot^T, column by column
-    elif fmt.endswith("QUATERNION"):
-        q = rotations.from_matrix(rot)
-        parts.append((q if q[0] >= 0 else -q, 1.0))
-    words = np.concatenate([np.asarray(v, float) / s for v, s in parts])
-    data = bytearray(encode_words(words, 1.0))
-    if address is not None:
-        data.append(address & 0x7F)
-    return bytes(data)
-
-
 def decode_record(fmt, words, range_inches):
     """Signed words of one record to a sample dict: position (m), quaternion (w,x,y,z), and
     the angles or matrix when that is what the bird sent."""
@@ -187,7 +174,7 @@ def decode_record(fmt, words, range_inches):
         out["matrix"] = m
         out["quaternion"] = rotations.from_matrix(_orthonormal(m.T))
     elif fmt.endswith("QUATERNION"):
-        out["quaternion"] = rotations.normalize(w[:4])
+        out["quaternion"] = rotations.conjugate(rotations.normalize(w[:4]))  # the quaternion of M = rot^T
         out["raw_quaternion"] = w[:4]
     return out
 
@@ -205,9 +192,14 @@ class RecordParser:
     """Finds records in a byte stream by their phasing bit, rejects corrupted ones and resyncs.
 
     A candidate record starts at a byte with bit 7 set; it is accepted when none of its other
-    bytes has bit 7 set, its address byte (group mode) is one of the birds, and a quaternion
+    bytes has bit 7 set, its address byte (group mode) is one of `addresses`, and a quaternion
     or matrix is a rotation. A rejected candidate is dropped one byte at a time, so a real
-    record hidden behind a partial one is still found."""
+    record hidden behind a partial one is still found.
+
+    Counters, kept apart because they mean different things: `discarded_bytes` (bytes that
+    belonged to no accepted record), `resyncs` (how many times the stream lost its framing and
+    found it again) and `rejected` (candidates that failed the checks: not records lost, a
+    record's bytes can make several candidates)."""
 
     def __init__(self, fmt, range_inches, addresses=None):
         self.fmt = fmt
@@ -215,9 +207,15 @@ class RecordParser:
         self.addresses = None if addresses is None else set(addresses)
         self.size = record_size(fmt, addresses is not None)
         self.buf = bytearray()
-        self.garbage_bytes = 0
-        self.corrupt_records = 0
+        self.discarded_bytes = 0
+        self.resyncs = 0
+        self.rejected = 0
         self.resyncing = False
+
+    def _lose_sync(self):
+        if not self.resyncing:
+            self.resyncing = True
+            self.resyncs += 1
 
     def feed(self, data):
         """Bytes in, [(address or None, decoded dict)] out."""
@@ -231,15 +229,15 @@ class RecordParser:
             while i < n and not buf[i] & 0x80:
                 i += 1
             if i > start:
-                self.garbage_bytes += i - start
-                self.resyncing = True
+                self.discarded_bytes += i - start
+                self._lose_sync()
             if n - i < size:
                 break
-            rec = bytes(buf[i:i + size])
-            decoded = self._check(rec)
+            decoded = self._check(bytes(buf[i:i + size]))
             if decoded is None:
-                self.corrupt_records += 1
-                self.resyncing = True
+                self.rejected += 1
+                self.discarded_bytes += 1
+                self._lose_sync()
                 i += 1
                 continue
             out.append(decoded)
@@ -266,11 +264,13 @@ class RecordParser:
 
 
 class FlockOfBirds(Device):
-    """A flock on one RS-232 port: a standalone bird, or several birds on the Fast Bird Bus
-    addressed through the master (RS232 TO FBB), in group mode when more than one is read.
+    """A flock on one RS-232 port: a standalone bird, or birds on the Fast Bird Bus addressed
+    through the master (RS232 TO FBB), in group mode when more than one is read.
 
-    `birds`: FBB addresses of the birds with a sensor; `units`: how many units the flock
-    auto-configures (default: the highest address); `mode`: 'STREAM' or 'POINT'."""
+    `birds`: FBB addresses of the birds read; `units`: how many units the flock auto-configures
+    (default: the highest address; an Extended Range Controller is unit 1); `mode`: 'STREAM'
+    or 'POINT'. Every connect and reconnect brings the flock from any state to this one (see
+    the module docstring)."""
 
     kind = "flock_of_birds"
 
@@ -282,9 +282,12 @@ class FlockOfBirds(Device):
             raise DeviceError(f"unknown Flock of Birds record '{record}' (one of {', '.join(RECORDS)})")
         if hemisphere not in HEMISPHERES:
             raise DeviceError(f"unknown hemisphere '{hemisphere}' (one of {', '.join(HEMISPHERES)})")
+        birds = tuple(sorted(int(b) for b in birds))
+        if not birds or len(set(birds)) != len(birds) or not all(1 <= b <= 14 for b in birds):
+            raise DeviceError(f"Flock of Birds addresses are 1..14, each once (not {birds})")
         if standalone and len(birds) != 1:
             raise DeviceError("a standalone bird is a single bird")
-        self.port, self.baud, self.birds = port, baud, tuple(int(b) for b in birds)
+        self.port, self.baud, self.birds = port, baud, birds
         self.record, self.mode, self.hemisphere = record, mode.upper(), hemisphere
         self.standalone, self.units = standalone, units or max(self.birds)
         self.settle, self.timeout, self.watchdog = settle, timeout, watchdog
@@ -294,6 +297,9 @@ class FlockOfBirds(Device):
         self._ser = None
         self._parser = None
         self._last_data = 0.0
+        self._order = self.birds  # the group-mode birds in the order their records come
+        self._held = []
+        self._last_address = None
 
     # -- commands ---------------------------------------------------------------------------
     def _to(self, address):
@@ -325,23 +331,35 @@ class FlockOfBirds(Device):
     def error_code(self):
         return self.examine(PARAM_ERROR_CODE)[0]
 
+    def _quiet(self):
+        time.sleep(self.settle)
+        self._ser.reset_input_buffer()
+
     # -- the device ---------------------------------------------------------------------------
     def _open(self):
         self._ser = open_serial(self.port, self.baud, self.timeout)
-        self._write(POINT)  # a flock left streaming answers nothing else
-        time.sleep(self.settle)
-        self._ser.reset_input_buffer()
+        self._write(POINT)  # a flock left streaming stops (and answers one record, flushed)
+        self._write(RUN)  # a flock left asleep wakes; an awake one ignores it
+        self._quiet()
+        self.error_code()  # an error left from before this session is read away (reading clears it)
         if not self.standalone:
-            # the guide asks for a pause of at least 300 ms around the auto-configuration
-            self.change(PARAM_AUTOCONFIG, [self.units])
-            time.sleep(self.settle)
-            self._ser.reset_input_buffer()
+            self.change(PARAM_AUTOCONFIG, [self.units])  # also what a flock needs after a power-up
+            self._quiet()
+            code = self.error_code()
+            if code:
+                raise DeviceError(f"{self.name}: the flock cannot auto-configure {self.units} units (error {code}: "
+                                  f"{ERRORS.get(code, 'unknown error')}); is every unit up to address "
+                                  f"{self.units} switched to FLY?")
             status = self.examine(PARAM_SYSTEM_STATUS)
             for b in self.birds:
                 s = status[b - 1]
                 if not (s & STATUS_ACCESSIBLE and s & STATUS_RUNNING and s & STATUS_RECEIVER):
                     raise DeviceError(f"{self.name}: bird {b} is not accessible, running and with a sensor "
-                                      f"(status 0x{s:02x})")
+                                      f"(flock status 0x{s:02x})")
+            # a group-mode record holds every running bird with a receiver, in address order
+            self._order = tuple(a for a in range(1, self.units + 1)
+                                if status[a - 1] & STATUS_RUNNING and status[a - 1] & STATUS_RECEIVER)
+            self.change(PARAM_GROUP_MODE, [1 if self.group else 0])  # set either way: it persists
         self.model = self.examine(PARAM_MODEL).decode("ascii", "replace").strip()
         if "ERC" in self.model:
             self.range_inches = RANGES_INCHES["EXTENDED"]
@@ -352,21 +370,25 @@ class FlockOfBirds(Device):
         for b in self.birds:
             self._write(self._to(b) + cmd)
             self._write(self._to(b) + HEMISPHERE + bytes(HEMISPHERES[self.hemisphere]))
-        if self.group:
-            self.change(PARAM_GROUP_MODE, [1])
         code = self.error_code()
         if code:
             raise DeviceError(f"{self.name}: flock error {code}: {ERRORS.get(code, 'unknown error')}")
-        self._parser = RecordParser(self.record, self.range_inches, self.birds if self.group else None)
-        self._held = []
+        self._parser = self._new_parser(RecordParser(self.record, self.range_inches, self._order if self.group else None))
+        self._held, self._last_address = [], None
         if self.mode == "STREAM":
-            self._write(STREAM)
+            self._write(self._request(STREAM))
         self._last_data = time.perf_counter()
+
+    def _request(self, command):
+        """A data request: to the master in group mode or for a standalone bird, else through
+        RS232 TO FBB to the one bird (without the prefix the master answers, and the master is
+        not our bird when it sits at another address or is an Extended Range Controller)."""
+        return command if self.group or self.standalone else self._to(self.birds[0]) + command
 
     def _read(self):
         if self.mode == "POINT":
-            self._write(POINT if self.group or self.standalone else self._to(self.birds[0]) + POINT)
-            want = self._parser.size * (len(self.birds) if self.group else 1)
+            self._write(self._request(POINT))
+            want = self._parser.size * (len(self._order) if self.group else 1)
             data = self._ser.read(want)
         else:
             data = self._read_stream()
@@ -379,19 +401,25 @@ class FlockOfBirds(Device):
         samples = []
         for address, d in records:
             bird = self.birds[0] if address is None else address
-            samples.append(self.make_sample(f"bird{bird}", "pose", d, now))
+            if bird in self.birds:  # a running bird we were not asked for is not a sample
+                samples.append(self.make_sample(f"bird{bird}", "pose", d, now))
         return samples
 
     def _whole_records(self, records):
-        """Group-mode birds held until their record is whole: a read can end mid-record, and the
-        birds of one record must reach the take together (not some before recording began)."""
-        out = []
+        """Group-mode birds held until their tick is whole: a read can end mid-record, and the
+        birds of one tick must reach the take together. A bird missing between two that arrive
+        (in the cyclic address order) is a record known lost."""
+        out, order = [], self._order
         for address, d in records:
-            if self._held and address <= self._held[-1][0]:  # a bird was lost: a new record began
+            if self._last_address is not None:
+                gap = (order.index(address) - order.index(self._last_address) - 1) % len(order)
+                self.lost += gap
+            if self._held and address <= self._held[-1][0]:  # a new tick began
                 out += self._held
                 self._held = []
             self._held.append((address, d))
-            if address == max(self.birds):
+            self._last_address = address
+            if address == order[-1]:
                 out += self._held
                 self._held = []
         return out
@@ -400,166 +428,7 @@ class FlockOfBirds(Device):
         ser, self._ser = self._ser, None
         if ser is not None:
             try:
-                ser.write(POINT + SLEEP)
+                ser.write(POINT + SLEEP)  # transmitter off between sessions; the next connect sends RUN
             except Exception:
                 pass
             ser.close()
-
-
-def default_motion(address, t):
-    """A performer's sensor moving smoothly: position (m) and angles (deg) at device time t."""
-    k = float(address)
-    pos = np.array([0.3 * np.sin(0.7 * t + k), 0.2 * np.cos(0.5 * t + 0.3 * k), 0.1 * k + 0.05 * np.sin(1.3 * t)])
-    angles = np.array([150.0 * np.sin(0.4 * t + k), 60.0 * np.sin(0.3 * t + 0.5 * k), 170.0 * np.cos(0.6 * t + k)])
-    return pos, angles
-
-
-class FlockSimulator(PtySimulator):
-    """A flock answering the guide's commands on a pseudo-terminal: auto-configuration,
-    RS232 TO FBB, record formats per bird, hemisphere, group mode, point and stream, EXAMINE
-    VALUE of status, model, scaling, error code and flock status. Motion comes from
-    `motion(address, t)`; every streamed tick is logged in `sent` as (tick, perf_counter)."""
-
-    def __init__(self, birds=(1,), extended_range=False, rate=100.0, speed=1.0, motion=default_motion,
-                 standalone=False):
-        self.birds = tuple(birds)
-        self.extended_range = extended_range
-        self.motion = motion
-        self.standalone = standalone
-        self.sent = []
-        self.tick_count = 0
-        super().__init__("fob", rate, speed)
-        self.on_power_up()
-
-    @property
-    def range_inches(self):
-        if self.extended_range:
-            return RANGES_INCHES["EXTENDED"]
-        return RANGES_INCHES["STANDARD_72" if self.scaling else "STANDARD"]
-
-    def on_power_up(self):
-        self.streaming = False
-        self.formats = {b: "POSITION/ANGLES" for b in self.birds}
-        self.hemispheres = {b: "FORWARD" for b in self.birds}
-        self.group = False
-        self.configured = 0 if not self.standalone else 1
-        self.error = 0
-        self.scaling = 0
-        self._pending = bytearray()
-        self._target = None
-
-    def true_pose(self, address, tick):
-        return self.motion(address, tick / self.rate)
-
-    def _records(self, tick, addresses):
-        out = bytearray()
-        for b in addresses:
-            pos, ang = self.true_pose(b, tick)
-            out += encode_record(self.formats[b], pos, ang, self.range_inches, b if self.group else None)
-        return bytes(out)
-
-    def _active(self):
-        return [b for b in self.birds if b <= self.configured] if self.group else [self._target or self.birds[0]]
-
-    def tick(self, now):
-        self.sent.append((self.tick_count, now))
-        self.send(self._records(self.tick_count, self._active()))
-        self.tick_count += 1
-
-    def on_bytes(self, data):
-        self._pending.extend(data)
-        while self._pending:
-            if not self._command():
-                break
-
-    def _command(self):
-        """Consume one complete command from the pending bytes; False when it needs more."""
-        p = self._pending
-        c = p[0]
-        if RS232_TO_FBB < c <= RS232_TO_FBB + 14:
-            if len(p) < 2:
-                return False
-            self._target = c - RS232_TO_FBB
-            del p[0]
-            if self._target not in self.birds:
-                self.error = 13
-            return True
-        target = self._target or self.birds[0]
-        if c in COMMAND_RECORD:
-            del p[0]
-            if target in self.formats:
-                self.formats[target] = COMMAND_RECORD[c]
-            self._target = None
-            return True
-        if c == HEMISPHERE[0]:
-            if len(p) < 3:
-                return False
-            axis_sign = (p[1], p[2])
-            names = {v: k for k, v in HEMISPHERES.items()}
-            if axis_sign in names and target in self.hemispheres:
-                self.hemispheres[target] = names[axis_sign]
-            else:
-                self.error = 6
-            del p[:3]
-            self._target = None
-            return True
-        if c == CHANGE_VALUE[0]:
-            if len(p) < 2:
-                return False
-            param = p[1]
-            size = PARAM_SIZES.get(param, 1)
-            if len(p) < 2 + size:
-                return False
-            value = bytes(p[2:2 + size])
-            del p[:2 + size]
-            if param == PARAM_GROUP_MODE:
-                self.group = bool(value[0])
-            elif param == PARAM_AUTOCONFIG:
-                self.configured = value[0]
-            elif param == PARAM_POSITION_SCALING:
-                self.scaling = value[0] | value[1] << 8
-            else:
-                self.error = 6
-            return True
-        if c == EXAMINE_VALUE[0]:
-            if len(p) < 2:
-                return False
-            param = p[1]
-            del p[:2]
-            self.send(self._examine(param))
-            return True
-        del p[0]
-        self._target = None
-        if c == POINT[0]:
-            self.streaming = False
-            self.send(self._records(self.tick_count, self._active()))
-            self.tick_count += 1
-        elif c == STREAM[0]:
-            self.streaming = True
-        elif c in (RUN[0], SLEEP[0]):
-            self.streaming = False
-        else:
-            self.error = 6  # Invalid RS232 command
-        return True
-
-    def _examine(self, param):
-        if param == PARAM_ERROR_CODE:
-            code, self.error = self.error, 0
-            return bytes([code])
-        if param == PARAM_MODEL:
-            return (b"6DERC" if self.extended_range else b"6DFOB").ljust(10)
-        if param == PARAM_POSITION_SCALING:
-            return bytes([self.scaling & 0xFF, self.scaling >> 8])
-        if param == PARAM_SYSTEM_STATUS:
-            status = bytearray(14)
-            for a in range(1, self.configured + 1):
-                status[a - 1] = STATUS_ACCESSIBLE | STATUS_RUNNING | (STATUS_RECEIVER if a in self.birds else 0)
-            return bytes(status)
-        if param == PARAM_GROUP_MODE:
-            return bytes([int(self.group)])
-        if param == PARAM_HEMISPHERE:
-            return bytes(HEMISPHERES[self.hemispheres[self.birds[0]]])
-        if param in PARAM_SIZES:
-            return bytes(PARAM_SIZES[param])
-        self.error = 6
-        return b""

@@ -133,7 +133,8 @@ class HidGlove(Device):
         try:
             raw = self.decoder.decode(report)
         except ValueError as exc:
-            self.lost += 1
+            self.discarded_bytes += len(report)
+            self.resyncs += 1
             self.last_error = str(exc)
             return []
         return [self.make_sample("glove", "glove", {"raw": raw, "model": self.decoder.name, "hand": self.hand},

@@ -35,6 +35,7 @@ class PtySimulator:
         self._running = False
         self.sent_bytes = 0
         self.dropped_bytes = 0
+        self._cut = 0
         self._plug()
 
     # -- the line ------------------------------------------------------------------------
@@ -74,8 +75,27 @@ class PtySimulator:
     def plugged(self):
         return self._master is not None
 
+    def inject(self, data):
+        """Bytes on the line that the device did not send (noise, another program)."""
+        with self._lock:
+            self.send(bytes(data))
+
+    def cut(self, n):
+        """The next n bytes the device sends are lost on the line."""
+        with self._lock:
+            self._cut += int(n)
+
+    def power_cycle(self):
+        """The device is switched off and on: its power-up state, the line kept."""
+        with self._lock:
+            self.on_power_up()
+
     def send(self, data):
         """Write to the host; bytes nobody reads are lost, as on a real line (never blocks)."""
+        if self._cut and data:
+            k = min(self._cut, len(data))
+            self._cut -= k
+            data = data[k:]
         if self._master is None or not data:
             return
         try:

@@ -11,7 +11,7 @@ import time
 import numpy as np
 
 from .gestures import GestureRecognizer
-from .samples import Sample
+from .samples import Sample, tracker_reading
 
 
 class Take:
@@ -219,8 +219,7 @@ class Session:
 
     def pose_readings(self):
         """{(device, channel): (position, quaternion)} of the newest pose samples."""
-        return {k: (s.data["position"] if "position" in s.data else np.zeros(3), s.data["quaternion"])
-                for k, s in self.newest().items() if s.kind == "pose" and "quaternion" in s.data}
+        return {k: tracker_reading(s) for k, s in self.newest().items() if s.kind == "pose" and "quaternion" in s.data}
 
     # -- recording ------------------------------------------------------------------------
     def start_recording(self, name="take"):

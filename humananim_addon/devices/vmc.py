@@ -8,11 +8,10 @@ metres: (x, y, z) -> (-x, -z, y), and a rotation keeps its angle about the mappe
 (quaternion (w, x, y, z) -> (w, x, z, -y))."""
 
 import socket
-import time
 
 import numpy as np
 
-from .device import Device, DeviceError
+from .device import DatagramDevice
 from .osc import OSCError, encode_bundle, encode_message, parse
 
 DEFAULT_PORT = 39539
@@ -45,51 +44,22 @@ def to_unity(position, quaternion_wxyz):
     return (-bx, bz, -by), (x, -z, y, w)
 
 
-class VMCReceiver(Device):
+class VMCReceiver(DatagramDevice):
     kind = "vmc"
+    what = "VMC packets"
 
     def __init__(self, name, host="127.0.0.1", port=DEFAULT_PORT, timeout=0.05, watchdog=1.0, **kw):
-        super().__init__(name, **kw)
-        self.host, self.port, self.timeout, self.watchdog = host, int(port), timeout, watchdog
-        self._sock = None
-        self._last = 0.0
+        super().__init__(name, host, port, timeout, watchdog, **kw)
         self.bones, self.root, self.blendshapes = {}, None, {}
         self.bad_packets = 0
 
-    def _open(self):
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
-        try:
-            sock.bind((self.host, self.port))
-        except OSError as exc:
-            sock.close()
-            raise DeviceError(f"{self.name}: cannot listen on {self.host}:{self.port} ({exc.strerror})") from None
-        sock.settimeout(self.timeout)
-        self._sock = sock
-        self._last = time.perf_counter()
-
-    @property
-    def bound_port(self):
-        return self._sock.getsockname()[1] if self._sock is not None else None
-
-    def _read(self):
-        try:
-            data = self._sock.recv(65536)
-        except socket.timeout:
-            data = None
-        now = time.perf_counter()
-        if not data:
-            if now - self._last > self.watchdog:
-                self.silent = True
-                self.last_error = f"no VMC packets for {self.watchdog:g} s"
-            return []
-        self._last, self.silent = now, False
+    def _datagram(self, data, now):
         try:
             messages = parse(data)
         except (OSCError, Exception) as exc:
-            self.bad_packets += 1
-            self.lost += 1
-            self.garbage_bytes += len(data)
+            self.bad_packets += 1  # not a frame we can read: discarded, not counted as a lost frame
+            self.discarded_bytes += len(data)
+            self.resyncs += 1
             self.resyncing = True
             self.last_error = f"bad OSC packet: {exc}"
             return []
@@ -99,7 +69,7 @@ class VMCReceiver(Device):
             try:
                 changed |= self._message(address, args)
             except (ValueError, TypeError, IndexError):
-                self.lost += 1
+                self.bad_packets += 1
         if not changed:
             return []
         data = {"bones": dict(self.bones), "root": self.root, "blendshapes": dict(self.blendshapes),
@@ -119,11 +89,6 @@ class VMCReceiver(Device):
         if address == "/VMC/Ext/Blend/Apply":
             return True
         return False
-
-    def _close(self):
-        sock, self._sock = self._sock, None
-        if sock is not None:
-            sock.close()
 
 
 class VMCSender:

@@ -174,7 +174,12 @@ def test_glove_drives_the_finger_bones_and_the_hand_grasps_a_ball(metarig, live_
     log = draw_all(bpy.context)  # the panel shows the live session: status, calibration, record, hand state
     assert ("operator", "humananim.capture_glove_fist") in log and ("operator", "humananim.capture_record") in log
     assert any(kind == "label" and "hand:" in text for kind, text in log)
-    assert any(kind == "label" and "dropped" in text for kind, text in log)
+    # the counters, kept apart, beside each device's last error
+    assert any(kind == "label" and "lost 0 records, discarded" in text and "resyncs" in text for kind, text in log)
+    from humananim.panels.capture import status_lines
+    lines = status_lines(dict(live.status()[0], dropped=2, discarded_bytes=57, resyncs=3,
+                              last_error="CyberGlove unknown command"))
+    assert lines[1:] == ["lost 2 records, discarded 57 bytes, 3 resyncs", "last error: CyberGlove unknown command"]
     geometry = capture.overlay_geometry(live)
     assert geometry[0][0] == "LINES" and geometry[0][2] == ga.colour
     assert any(kind == "POINTS" and colour == (0.8, 0.8, 0.8, 1.0) for kind, _, colour in geometry)  # touching

@@ -31,8 +31,20 @@ def test_capture_command_records_simulated_devices_into_an_action(tmp_path):
     assert r.returncode == 0 and json.loads(r.stdout)["action"] == s["action"]
 
 
+def test_capture_command_records_a_simulated_mvn_stream_through_the_calibration(tmp_path):
+    out = tmp_path / "mvn.blend"
+    r = run("capture", CMU_CLIPS[0], "--mvn", "sim", "--rate", "60", "--seconds", "1.5", "--out", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert s["dropped"] == 0 and s["discarded_bytes"] == 0 and s["action"].startswith("capture")
+    assert s["samples"]["mvn/actor0/Pelvis"] >= 60 and s["samples"]["mvn/actor0/LeftHand"] >= 60
+    assert s["devices"][0]["kind"] == "mvn" and s["devices"][0]["channels"] == 23
+
+
 def test_capture_command_mistakes_are_one_line(tmp_path):
     r = run("capture", CMU_CLIPS[0], "--out", str(tmp_path / "x.blend"))
     assert r.returncode == 2 and "give at least one device" in r.stderr and "Traceback" not in r.stderr
     r = run("capture", CMU_CLIPS[0], "--flock", "sim", "--bones", "Nope", "--out", str(tmp_path / "x.blend"))
     assert r.returncode == 2 and "no bone named 'Nope'" in r.stderr and "Traceback" not in r.stderr
+    r = run("capture", CMU_CLIPS[0], "--mvn", "suit", "--out", str(tmp_path / "x.blend"))
+    assert r.returncode == 2 and "--mvn: a UDP port number or 'sim'" in r.stderr and "Traceback" not in r.stderr

@@ -11,7 +11,7 @@ import pytest
 
 from humananim.solver import bvh, rotations
 from humananim.solver.body_roles import sided
-from humananim.humananim_addon.devices import cyberglove, fob
+from humananim.humananim_addon.devices import cyberglove, fob, sim_fob, sim_glove
 from humananim.solver.anatomical_converter import TRACKER_Z_DOWN, AnatomicalConverter, CalibrationError
 from humananim.humananim_addon.devices.glove_calibration import GloveCalibration
 from humananim.solver.hands.grasp_automaton import FREE_HAND, GRASPING_IN_PROGRESS, SECURE_GRASP, GraspAutomaton
@@ -62,8 +62,8 @@ def test_a_record_pushed_at_once_is_never_split_by_a_drain_on_another_thread():
 
 
 def _two_devices(rate, speed):
-    fsim = fob.FlockSimulator(birds=(1,), rate=rate, speed=speed).start()
-    gsim = cyberglove.CyberGloveSimulator(sensors=18, rate=rate, speed=speed).start()
+    fsim = sim_fob.FlockSimulator(birds=(1,), rate=rate, speed=speed).start()
+    gsim = sim_glove.CyberGloveSimulator(sensors=18, rate=rate, speed=speed).start()
     devices = [fob.FlockOfBirds("fob", fsim.port, birds=(1,), record="POSITION/QUATERNION", settle=0.02),
                cyberglove.CyberGlove("glove", gsim.port, sensors=18, settle=0.02)]
     return fsim, gsim, devices
@@ -97,7 +97,7 @@ def _record_two_devices(seconds, speed):
         seqs = [x.seq for x in take.samples[key]]
         assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # nothing lost between reader and take
         assert len(seqs) == sent[k]  # every record sent while recording is in the take, and no other
-    assert session.dropped == 0 and all(d.garbage_bytes == 0 and d.lost == 0 and d.reconnects == 0
+    assert session.dropped == 0 and all(d.discarded_bytes == 0 and d.lost == 0 and d.resyncs == 0 and d.reconnects == 0
                                         for d in devices)
     assert fsim.dropped_bytes == 0 and gsim.dropped_bytes == 0
     return take
@@ -113,7 +113,7 @@ def test_two_devices_at_120_hz_for_60_s_of_device_time_run_ten_times_faster():
 
 
 def test_a_disconnect_mid_take_keeps_the_take_and_reconnects():
-    fsim = fob.FlockSimulator(birds=(1, 2), rate=100).start()
+    fsim = sim_fob.FlockSimulator(birds=(1, 2), rate=100).start()
     dev = fob.FlockOfBirds("fob", fsim.port, birds=(1, 2), settle=0.02, reconnect_interval=0.05, watchdog=0.3)
     session = Session([dev]).start()
     try:
@@ -134,7 +134,7 @@ def test_a_disconnect_mid_take_keeps_the_take_and_reconnects():
 
 
 def test_glove_gestures_start_and_stop_recording_in_the_session():
-    gsim = cyberglove.CyberGloveSimulator(sensors=18, rate=100).start()
+    gsim = sim_glove.CyberGloveSimulator(sensors=18, rate=100).start()
     dev = cyberglove.CyberGlove("glove", gsim.port, sensors=18, settle=0.02)
     session = Session([dev])
     flat, fist = np.full(18, 40, np.uint8), np.full(18, 220, np.uint8)

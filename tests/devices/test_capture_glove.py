@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from humananim.humananim_addon.devices import cyberglove, hidglove
+from humananim.humananim_addon.devices import cyberglove, hidglove, sim_glove
 from humananim.humananim_addon.devices.device import DeviceError
 from humananim.humananim_addon.devices.gestures import GestureRecognizer, finger_curls
 from humananim.humananim_addon.devices.glove_calibration import DIP_COUPLING, FIST_DEGREES, GloveCalibration
@@ -26,7 +26,7 @@ def _first_tick(sim, raw, ticks=range(20)):
 @pytest.mark.parametrize("sensors", [18, 22])
 @pytest.mark.parametrize("mode", ["STREAM", "POLL"])
 def test_records_decode_exactly(sensors, mode):
-    with cyberglove.CyberGloveSimulator(sensors=sensors, rate=150) as sim:
+    with sim_glove.CyberGloveSimulator(sensors=sensors, rate=150) as sim:
         dev = cyberglove.CyberGlove("glove", sim.port, sensors=sensors, mode=mode, settle=0.02)
         dev.start()
         try:
@@ -41,21 +41,97 @@ def test_records_decode_exactly(sensors, mode):
             assert np.array_equal(s.data["raw"], sim.values(first + k).astype(float))
 
 
+@pytest.mark.parametrize("time_stamp", [False, True])
+@pytest.mark.parametrize("status_byte", [False, True])
+@pytest.mark.parametrize("left_on", [False, True])
+def test_time_stamp_and_status_byte_configured_from_any_state(time_stamp, status_byte, left_on):
+    """The driver sets 'D' and 'U' to what it is configured for, whatever another program left
+    on the glove, and parses the records that follow exactly."""
+    with sim_glove.CyberGloveSimulator(sensors=18, rate=150) as sim:
+        sim.time_stamp = sim.status_byte = sim.streaming = left_on  # another program left it streaming too
+        dev = cyberglove.CyberGlove("glove", sim.port, sensors=18, settle=0.02, time_stamp=time_stamp,
+                                    status_byte=status_byte)
+        dev.start()
+        try:
+            samples = collect(dev, 30)
+        finally:
+            dev.stop()
+        assert dev.last_error == "" and dev.discarded_bytes == 0 and dev.resyncs == 0
+        assert (sim.time_stamp, sim.status_byte) == (time_stamp, status_byte)
+        first = _first_tick(sim, samples[0].data["raw"])
+        assert first is not None
+        for k, s in enumerate(samples):
+            assert np.array_equal(s.data["raw"], sim.values(first + k).astype(float))
+            assert ("time_stamp" in s.data) == time_stamp and ("status" in s.data) == status_byte
+            if time_stamp:
+                assert s.data["time_stamp"] == round(1000 * (first + k) / sim.rate)
+
+
+def test_a_glove_power_cycled_mid_session_is_configured_again():
+    with sim_glove.CyberGloveSimulator(sensors=22, rate=150) as sim:
+        dev = cyberglove.CyberGlove("glove", sim.port, sensors=22, settle=0.02, time_stamp=True, status_byte=True,
+                                    watchdog=0.3, reconnect_interval=0.05)
+        dev.start()
+        try:
+            assert wait_for(lambda: dev.seq > 10)
+            sim.power_cycle()  # the box restarts: time stamp and status byte off, not streaming
+            assert wait_for(lambda: dev.reconnects == 1 and sim.time_stamp and sim.status_byte, timeout=15)
+            dev.buffer.drain()
+            samples = collect(dev, 20)
+        finally:
+            dev.stop()
+        for s in samples:
+            tick = round(s.data["time_stamp"] * sim.rate / 1000)
+            assert np.array_equal(s.data["raw"], sim.values(tick).astype(float)) and s.data["status"] == 1
+
+
+def test_time_stamp_bytes_that_are_zero_are_nul_encoded():
+    parser = cyberglove.GloveParser(18, time_stamp=True, status_byte=True)
+    with sim_glove.CyberGloveSimulator(sensors=18) as sim:
+        sim.time_stamp = sim.status_byte = True
+        for stamp_ms, tick in ((0, 0), (256000, 25600), (16777216 // 10, 1677721)):
+            rec = sim.record(b"S", tick)
+            assert b"\x00" not in rec[1:-1][19:]  # the stamp's bytes are never NUL
+            (d,) = parser.feed(rec)
+            assert d["time_stamp"] == round(1000 * tick / sim.rate) and d["status"] == 1
+    assert parser.discarded_bytes == 0
+
+
+@pytest.mark.parametrize("mode", ["STREAM", "POLL"])
+def test_an_error_reply_is_an_error_never_a_record(mode):
+    with sim_glove.CyberGloveSimulator(sensors=18, rate=100) as sim:
+        dev = cyberglove.CyberGlove("glove", sim.port, sensors=18, mode=mode, settle=0.02, watchdog=5.0)
+        dev.start()
+        try:
+            assert wait_for(lambda: dev.seq > 5)
+            sim.inject(b"e?\x00")  # e.g. a command the glove did not know
+            assert wait_for(lambda: "unknown command" in dev.last_error)
+            n = dev.seq
+            assert wait_for(lambda: dev.seq > n + 10) and dev.reconnects == 0
+        finally:
+            dev.stop()
+        samples = dev.buffer.drain()
+        first = _first_tick(sim, samples[0].data["raw"], range(sim.tick_count))
+        for k, s in enumerate(samples):  # every sample a record, in order; the error is none of them
+            assert np.array_equal(s.data["raw"], sim.values(first + k).astype(float))
+
+
 def test_wrong_model_and_unplugged_glove_are_reported():
-    with cyberglove.CyberGloveSimulator(sensors=22) as sim:
+    with sim_glove.CyberGloveSimulator(sensors=22) as sim:
         dev = cyberglove.CyberGlove("glove", sim.port, sensors=18, settle=0.02, reconnect_interval=0.05)
         dev.start()
         try:
             assert wait_for(lambda: "has 22 sensors" in dev.last_error)
         finally:
             dev.stop()
-    with cyberglove.CyberGloveSimulator(sensors=18) as sim:
+    with sim_glove.CyberGloveSimulator(sensors=18) as sim:
         dev = cyberglove.CyberGlove("glove", sim.port, sensors=18, settle=0.02, reconnect_interval=0.05)
         dev.start()
         try:
             assert wait_for(lambda: dev.seq > 5)
             sim.glove_plugged = False
             assert wait_for(lambda: "glove not plugged in" in dev.last_error and dev.status == "disconnected")
+            assert all(s.data["raw"].shape == (18,) for s in dev.buffer.drain())  # no error became a record
             sim.glove_plugged = True
             n = dev.seq
             assert wait_for(lambda: dev.status == "connected" and dev.seq > n + 5)
@@ -64,19 +140,19 @@ def test_wrong_model_and_unplugged_glove_are_reported():
 
 
 def test_garbage_resyncs_and_keeps_later_records():
-    with cyberglove.CyberGloveSimulator(sensors=18, rate=100) as sim:
+    with sim_glove.CyberGloveSimulator(sensors=18, rate=100) as sim:
         dev = cyberglove.CyberGlove("glove", sim.port, sensors=18, settle=0.02)
         dev.start()
         try:
             assert wait_for(lambda: dev.seq >= 10)
             with sim._lock:
                 cut = sim.tick_count
-                sim.send(b"\x01\x02S\x05\x06" + sim._record(b"S", cut)[:7] + b"garbage")
+                sim.send(b"\x01\x02S\x05\x06" + sim.record(b"S", cut)[:7] + b"garbage")
             assert wait_for(lambda: dev.seq >= cut + 25)
         finally:
             dev.stop()
         samples = dev.buffer.drain()
-        assert dev.garbage_bytes > 0
+        assert dev.discarded_bytes > 0 and dev.resyncs >= 1 and dev.lost == 0
         ticks = [_first_tick(sim, s.data["raw"], range(cut + 40)) for s in samples]
         after = [t for t in ticks if t is not None and t >= cut]
         assert after[:20] == list(range(cut, cut + 20))
