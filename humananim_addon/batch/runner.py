@@ -236,6 +236,8 @@ def run_batch(takes, steps, out_dir, python=None, workers=None, scheduler=None, 
             results[take.name] = take_summary(record) if record else {
                 "name": take.name, "file": take.file, "status": "not run", "error": "interrupted before it finished",
                 "skipped": False, "steps": [], "outputs": []}
+    if status == "finished":
+        _clear_stale(out_dir)  # e.g. the folder of a take whose worker was killed (the take was redone)
     progress.finish(status)
     ordered = [results[t.name] for t in takes]
     summary = summarize(ordered, steps, out_dir, engine_info, time.monotonic() - t0, status)

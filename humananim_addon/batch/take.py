@@ -13,6 +13,7 @@ record; the batch runner publishes the folder only when the record says done.
 
 import json
 import os
+import signal
 import sys
 import threading
 import time
@@ -155,6 +156,7 @@ def serve():
             except ProcessLookupError:
                 pass
     _exit_with_parent(kill_child)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the driver's: it stops the workers, we follow
     import bpy  # noqa: F401
     from ..cli import _registered
     _parser()
