@@ -23,9 +23,14 @@ import subprocess
 import sys
 import time
 import uuid
+from concurrent.futures import CancelledError
 
 from .plan import PARTIAL, RECORD, Take, is_complete, load_record, write_json_atomic
 from .report import Progress, take_summary, write_summary
+
+class SchedulerLost(Exception):
+    """The Dask scheduler stopped answering in the middle of a batch."""
+
 
 TAKE_MODULE = "humananim.humananim_addon.batch.take"
 THREAD_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -227,7 +232,7 @@ def run_batch(takes, steps, out_dir, python=None, workers=None, scheduler=None, 
                 _run_on(client, todo, out_dir, python, timeout, retries, start, results, progress)
     except KeyboardInterrupt:
         status = "interrupted"
-    except OSError as error:  # the scheduler is unreachable or went away
+    except (OSError, SchedulerLost) as error:  # the scheduler is unreachable or went away
         status = "interrupted"
         engine_info = dict(engine_info, error=f"{type(error).__name__}: {error}")
     for take in takes:  # takes this run never heard back about: finished by a worker, or not
@@ -253,6 +258,8 @@ def _run_on(client, todo, out_dir, python, timeout, retries, start, results, pro
         take = futures[future]
         try:
             record = future.result()
+        except CancelledError:  # the scheduler went away: the take may still finish, or not
+            raise SchedulerLost(f"lost the scheduler at {client.scheduler.address}") from None
         except Exception as error:  # e.g. KilledWorker: the take's worker died on every try
             record = {"name": take.name, "file": take.file, "status": "failed", "steps": [],
                       "error": f"{type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}"}
