@@ -100,13 +100,15 @@ class Progress:
 def take_summary(record, skipped=False):
     """The part of a take's record the summary and the report show."""
     steps = [{"command": s["command"], "seconds": s["seconds"], "qa": s.get("qa"),
-              "wrote": [os.path.basename(p) for p in s["result"].get("wrote", [])]}
+              "measures": own_measures(s["result"]), "wrote": [os.path.basename(p) for p in s["result"].get("wrote", [])]}
              for s in record.get("steps", [])]
     out = {"name": record["name"], "file": record["file"], "status": record["status"],
            "skipped": skipped, "attempts": record.get("attempts"), "error": record.get("error"),
            "wall_seconds": record.get("wall_seconds"), "work_seconds": record.get("work_seconds"),
            "worker": record.get("worker"), "thumbnail": record.get("thumbnail"),
-           "result_file": record.get("result_file"), "outputs": record.get("outputs", []), "steps": steps}
+           "result_file": record.get("result_file"), "outputs": record.get("outputs", []), "steps": steps,
+           "qa_passed": qa_state(steps),
+           "qa_warnings": [f"{s['command']}: {w}" for s in steps for w in (s["qa"] or {}).get("warnings", [])]}
     return out
 
 
@@ -120,18 +122,38 @@ def write_summary(out_dir, summary):
 
 
 def qa_figures(step):
-    """`name value` pairs of a step's QA: the `qa` object when the command reports one (flattened
-    one level), else nothing."""
+    """(label, value text, failed) of a step's QA: the measures of its `qa` object when the command
+    reports one; otherwise the command's own measures of its result (errors, slides, peaks)."""
     qa = step.get("qa")
-    if not isinstance(qa, dict):
-        return []
-    pairs = []
-    for key, value in qa.items():
-        if isinstance(value, dict):
-            pairs += [(f"{key}.{k}", v) for k, v in value.items() if _scalar(v)]
-        elif _scalar(value):
-            pairs.append((key, value))
-    return pairs
+    if isinstance(qa, dict) and isinstance(qa.get("measures"), dict):
+        out = []
+        for name, m in qa["measures"].items():
+            if not isinstance(m, dict) or m.get("value") is None:
+                continue
+            value = m["value"]
+            text = f"{_fmt(value)} {m.get('unit', '')}".strip() if not isinstance(value, bool) else str(value)
+            out.append((name, text, m.get("passed") is False))
+        return out
+    if isinstance(qa, dict):
+        return [(k, _fmt(v), False) for k, v in qa.items() if _scalar(v)]
+    return [(k, _fmt(v), False) for k, v in step.get("measures", {}).items()]
+
+
+MEASURE_WORDS = ("error", "slide", "peak_", "falling", "ratio", "depth", "penetration", "tracking")
+
+
+def own_measures(result):
+    """A command's numeric figures about its result's quality (shown when it reports no `qa`)."""
+    return {k: v for k, v in result.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
+            and any(w in k for w in MEASURE_WORDS) and not k.endswith(("_frame", "_at"))}
+
+
+def qa_state(steps):
+    """True when every step's QA passed, False when one failed, None when none was measured."""
+    states = [s["qa"].get("passed") for s in steps if isinstance(s.get("qa"), dict) and "passed" in s["qa"]]
+    if not states:
+        return None
+    return all(st is not False for st in states)
 
 
 def _scalar(v):
@@ -148,7 +170,7 @@ STYLE = """body{font:14px system-ui,sans-serif;margin:1.5em;color:#222}
 table{border-collapse:collapse;width:100%}td,th{border-bottom:1px solid #ddd;padding:4px 8px;text-align:left;vertical-align:top}
 tr.failed{background:#fde8e8}tr.failed td.status{color:#b00;font-weight:bold}td.status{color:#070}
 .err{font-family:monospace;color:#b00}.qa{font-size:12px;color:#444}.qa b{font-weight:600}img{display:block}
-.counts span{margin-right:1.5em}"""
+.counts span{margin-right:1.5em}.bad{color:#b00;font-weight:600}"""
 
 
 def html_report(summary):
@@ -159,15 +181,18 @@ def html_report(summary):
                  f'alt="{html.escape(t["name"])}">' if t.get("thumbnail") and t["status"] == "done" else "")
         qa = "".join(
             f'<div class="qa"><b>{html.escape(s["command"])}</b> {s["seconds"]:.2f} s'
-            + "".join(f" &middot; {html.escape(k)} {_fmt(v)}" for k, v in qa_figures(s)) + "</div>"
+            + "".join(f' &middot; <span class="{"bad" if bad else "ok"}">{html.escape(k)} {v}</span>'
+                      for k, v, bad in qa_figures(s)) + "</div>"
             for s in t["steps"])
         detail = f'<div class="err">{html.escape(t["error"] or "")}</div>' if t["status"] != "done" else qa
         link = (f'<a href="{html.escape(t["name"])}/{html.escape(t["result_file"])}">{html.escape(t["name"])}</a>'
                 if t["status"] == "done" and t.get("result_file") else html.escape(t["name"]))
         status = t["status"] + (" (earlier run)" if t.get("skipped") else "")
+        if t.get("qa_passed") is not None:
+            status += "<br>QA " + ("passed" if t["qa_passed"] else f"{len(t['qa_warnings'])} warning(s)")
         rows.append(f'<tr class="{html.escape(t["status"])}" id="take-{html.escape(t["name"])}">'
                     f'<td class="name">{link}<div class="qa">{html.escape(os.path.basename(t["file"]))}</div></td>'
-                    f'<td class="status">{html.escape(status)}</td><td class="thumb">{thumb}</td>'
+                    f'<td class="status">{status}</td><td class="thumb">{thumb}</td>'
                     f'<td class="detail">{detail}</td></tr>')
     c = summary
     return f"""<!DOCTYPE html>

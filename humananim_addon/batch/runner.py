@@ -65,7 +65,7 @@ def run_take(take, out_dir, python, timeout, retries, start="fork"):
         if record and record.get("error"):
             error = record["error"]
         shutil.rmtree(partial, ignore_errors=True)
-        if status == 2:  # bad input: the same answer on every try
+        if status in (2, 3):  # bad input or a failed --strict QA: the same answer on every try
             break
     return {"name": take.name, "file": take.file, "status": "failed", "error": error, "attempts": attempts,
             "wall_seconds": round(time.monotonic() - t0, 3), "worker": _where(), "steps": []}

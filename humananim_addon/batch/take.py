@@ -47,6 +47,7 @@ def main(argv):
 
 def run_steps(spec, record):
     from ...solver.errors import HumanAnimError
+    from .. import cli
     from ..cli import COMMANDS, UsageError, _chatter_to_stderr, _registered
     parser = _parser()
     commands = _subparsers(parser)
@@ -64,14 +65,22 @@ def run_steps(spec, record):
             t0 = time.perf_counter()
             try:
                 result = COMMANDS[command](args)
+                if "qa" not in result and hasattr(cli, "qa_of_result"):  # as `main` does for --json
+                    result["qa"] = cli.qa_of_result(result)
             except (HumanAnimError, UsageError) as error:
-                record["error"] = f"{command}: {error}"
+                record["error"] = f"{command}: {' '.join(str(error).split())}"
                 record["failed_step"] = index
                 return 2
             result = json.loads(json.dumps(result))  # exactly what --json prints
             record["steps"].append({"step": index, "command": command, "argv": argv + ["--json"],
                                     "seconds": round(time.perf_counter() - t0, 3), "qa": result.get("qa"),
                                     "result": result})
+            qa = result.get("qa") or {}
+            if getattr(args, "strict", False) and qa.get("passed") is False:  # --strict: a failed QA fails
+                warning = (qa.get("warnings") or ["see the record"])[0]
+                record["error"] = f"{command}: the result fails the motion QA: {warning}"
+                record["failed_step"] = index
+                return 3
             blends = [p for p in result.get("wrote", []) if str(p).endswith(".blend")]
             if blends:
                 current = blends[0]
@@ -118,7 +127,8 @@ def _write_thumbnail(path, armature_name, record):
     world = obj.matrix_world
     for frame in frames:
         scene.frame_set(int(frame))
-        poses.append([[tuple(world @ pb.head), tuple(world @ pb.tail)] for pb in obj.pose.bones])
+        # parentless bones are often a placement joint at the origin, not part of the body
+        poses.append([[tuple(world @ pb.head), tuple(world @ pb.tail)] for pb in obj.pose.bones if pb.parent])
     with open(path + ".tmp", "w", encoding="utf-8") as f:
         f.write(stick_figure_svg(poses, title=f"{obj.name}: frames {frames[0]}-{frames[-1]}"))
     os.replace(path + ".tmp", path)

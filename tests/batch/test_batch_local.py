@@ -2,8 +2,11 @@
 LocalCluster of 2 workers, with one worker killed while it runs a take; then a rerun that redoes
 nothing; then a batch with a broken file and a missing one; then Ctrl-C in the middle of a run."""
 
+import html
 import json
 import os
+import re
+import shutil
 import signal
 import subprocess
 import time
@@ -119,15 +122,22 @@ def test_rerun_redoes_nothing(twelve):
     assert {n: os.path.getmtime(os.path.join(out, n, "take.json")) for n in _takes(out)} == before
 
 
-def test_broken_and_missing_files_are_reported_and_the_others_done(tmp_path):
-    broken = tmp_path / "broken.bvh"
+@pytest.fixture(scope="module")
+def with_broken(tmp_path_factory):
+    """A batch of two good clips, a broken file and a missing one: (out dir, summary)."""
+    root = tmp_path_factory.mktemp("broken")
+    broken = root / "broken.bvh"
     broken.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 nonsense\n")
-    missing = tmp_path / "gone.bvh"
-    out = str(tmp_path / "out")
-    status, summary, stderr = run_batch(bandai(SHORT_BANDAI[0]), str(broken), str(missing), bandai(SHORT_BANDAI[1]),
-                                        "--pipeline", "compress", "--out-dir", out, "--workers", "2",
-                                        "--retries", "2")
+    out = str(root / "out")
+    status, summary, stderr = run_batch(bandai(SHORT_BANDAI[0]), str(broken), str(root / "gone.bvh"),
+                                        bandai(SHORT_BANDAI[1]), "--pipeline", "compress", "--out-dir", out,
+                                        "--workers", "2", "--retries", "2")
     assert status == 0, stderr
+    return out, summary
+
+
+def test_broken_and_missing_files_are_reported_and_the_others_done(with_broken):
+    out, summary = with_broken
     assert (summary["done"], summary["failed"]) == (2, 2)
     rows = {r["name"]: r for r in summary["results"]}
     assert rows["broken"]["status"] == "failed" and rows["gone"]["status"] == "failed"
@@ -164,3 +174,42 @@ def test_ctrl_c_keeps_finished_takes_and_the_rerun_does_only_the_rest(tmp_path):
     assert status == 0, stderr
     assert summary["done"] == 6 and summary["skipped"] == len(finished) and summary["ran"] == 6 - len(finished)
     assert {n: os.path.getmtime(os.path.join(out, n, "take.json")) for n in finished} == before
+
+
+def test_the_report_opens_from_file_in_headless_chromium(with_broken, tmp_path):
+    """Chromium (Debian's package, installed by .ci/setup) loads the report from file:// with no
+    server: failed rows first with their errors, every thumbnail image loaded."""
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        pytest.fail("chromium is missing: .ci/setup installs Debian's chromium and chromium-driver")
+    out, summary = with_broken
+    with open(os.path.join(out, "report.html")) as f:
+        page = f.read()
+    # the same page with a probe that records, once loaded, what the browser made of it
+    probe = page.replace("</body>", PROBE + "</body>")
+    check = os.path.join(out, "report-check.html")
+    with open(check, "w") as f:
+        f.write(probe)
+    flags = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--allow-file-access-from-files",
+             f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000"]
+    dom = subprocess.run(flags + ["--dump-dom", "file://" + check], stdout=subprocess.PIPE,
+                         stderr=subprocess.DEVNULL, text=True, timeout=120).stdout
+    found = re.search(r'data-probe="([^"]*)"', dom)
+    assert found, dom[:500]
+    probe = json.loads(html.unescape(found.group(1)))
+    assert probe["statuses"] == ["failed", "failed", "done", "done"]
+    assert all(e for e in probe["errors"][:2])
+    assert probe["images"] == [[160, 120], [160, 120]]  # both thumbnails loaded from file://
+    shot = tmp_path / "report.png"
+    subprocess.run(flags + [f"--screenshot={shot}", "--window-size=1000,700", "file://" + os.path.join(out, "report.html")],
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=120)
+    assert shot.stat().st_size > 5000
+
+
+PROBE = """<script>window.addEventListener("load", () => {
+  const rows = [...document.querySelectorAll("tbody tr")];
+  document.body.setAttribute("data-probe", JSON.stringify({
+    statuses: rows.map(r => r.className),
+    errors: rows.map(r => (r.querySelector(".err") || {}).textContent || ""),
+    images: [...document.images].map(i => [i.naturalWidth, i.naturalHeight])}));
+});</script>"""
