@@ -11,10 +11,12 @@ or key (JSON) ``control.load-left`` goes to the control step, a plain ``frames``
 that has a ``--frames`` option.
 """
 
+import contextlib
 import csv
 import dataclasses
 import glob
 import hashlib
+import io
 import json
 import os
 import re
@@ -202,10 +204,13 @@ def step_options(parser, steps):
         for word in ("--out", "--json"):
             if word in step.args:
                 raise PlanError(f"pipeline step {step.command!r}: the batch sets {word} itself")
+        said = io.StringIO()
         try:
-            command.parse_args(["input.bvh"] + step.args)
+            with contextlib.redirect_stderr(said):  # argparse's usage text: one line is enough
+                command.parse_args(["input.bvh"] + step.args)
         except SystemExit:
-            raise PlanError(f"pipeline step '{step}': bad options (see `python -m humananim "
+            reason = said.getvalue().strip().splitlines()[-1].split("error: ", 1)[-1] if said.getvalue().strip() else ""
+            raise PlanError(f"pipeline step '{step}': {reason or 'bad options'} (see `python -m humananim "
                             f"{step.command} --help`)") from None
         known.append({s for a in command._actions for s in a.option_strings})
     return known
