@@ -80,16 +80,28 @@ def _in_batch_python(args):
     if not args.python:
         raise UsageError(f"the batch runs in a Python with bpy and dask: pass --python PATH or set {PYTHON_ENV} "
                          "(see docs/batch.md)")
-    argv = sys.argv[sys.argv.index("batch"):] if "batch" in sys.argv else None
-    if argv is None:
-        raise UsageError("cannot find the batch's arguments on the command line")
-    argv = [a for a in argv if a != "--json"] + ["--json"]
+    argv = batch_argv_of(args)
     run = subprocess.run([args.python, "-m", "humananim"] + argv, stdout=subprocess.PIPE, text=True)
     if run.returncode != 0:
         raise UsageError(f"the batch in {args.python} ended with status {run.returncode}")
     summary = json.loads(run.stdout)
     summary["delegated_to"] = args.python
     return summary
+
+
+def batch_argv_of(args):
+    """The `batch` command line of parsed arguments (to run the same batch elsewhere), with --json."""
+    argv = ["batch", *args.inputs]
+    for option in ("pipeline", "step"):
+        for text in getattr(args, option):
+            argv += [f"--{option}", text]
+    argv += ["--out-dir", os.path.abspath(args.out_dir), "--timeout", f"{args.timeout:g}", "--retries",
+             str(args.retries), "--start", args.start, "--python", args.python]
+    if args.workers:
+        argv += ["--workers", str(args.workers)]
+    if args.scheduler:
+        argv += ["--scheduler", args.scheduler]
+    return argv + [flag for flag, on in (("--force", args.force), ("--no-progress", args.no_progress)) if on] + ["--json"]
 
 
 def text_summary(s):

@@ -3,6 +3,7 @@ background, the polling function (what the UI's timer calls; timers never fire h
 the progress on and ends with the report; Stop ends a batch as Ctrl-C would and Start again does
 only the rest; the panel draws in both states."""
 
+import json
 import os
 import sys
 import tempfile
@@ -131,3 +132,20 @@ def test_start_without_a_batch_python_is_one_clear_message(tmp_path, monkeypatch
     monkeypatch.setattr(batch_blender.batch_job, "_in_bpy_module", lambda: False)  # as inside Blender itself
     with pytest.raises(RuntimeError, match="set Batch Python"):
         bpy.ops.humananim.batch_start()
+
+
+def test_blender_command_hands_the_batch_to_the_batch_python(tmp_path, monkeypatch, capsys):
+    """`blender --command humananim batch ...` inside Blender (no dask there): the same batch runs
+    in --python's interpreter and its summary is the command's."""
+    from humananim.humananim_addon import cli
+    from humananim.humananim_addon.batch import command
+    monkeypatch.setattr(command, "_has_bpy_module", lambda: False)
+    monkeypatch.delenv("HUMANANIM_BATCH_PYTHON", raising=False)
+    out = str(tmp_path / "out")
+    argv = ["batch", bandai(SHORT_BANDAI[0]), "--pipeline", "info", "--out-dir", out, "--workers", "1", "--json"]
+    assert cli.blender_command(argv) == 2  # no batch interpreter given: one line, status 2
+    assert capsys.readouterr().err.strip().startswith("humananim batch: error: the batch runs in a Python with bpy")
+    assert cli.blender_command(argv + ["--python", sys.executable]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["delegated_to"] == sys.executable and summary["done"] == 1
+    assert os.path.isfile(os.path.join(out, f"dataset-1_{SHORT_BANDAI[0]}", "take.json"))
