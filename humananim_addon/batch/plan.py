@@ -138,9 +138,11 @@ def option_words(key, value):
     return [flag, repr(value) if isinstance(value, float) else str(value)]
 
 
-def take_name(file, used):
-    """A folder name for the take: the file's stem, made safe, with -2, -3 ... on repeats."""
-    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", os.path.splitext(os.path.basename(file))[0]).strip("._") or "take"
+def take_name(file, used, name=None):
+    """A folder name for the take: its manifest name or the file's stem, made safe, with -2, -3 ...
+    on repeats."""
+    stem = name or os.path.splitext(os.path.basename(file))[0]
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", stem).strip("._") or "take"
     name, n = stem, 2
     while name in used:
         name, n = f"{stem}-{n}", n + 1
@@ -160,7 +162,7 @@ def plan(sources, steps, parser=None):
     known = step_options(parser, steps) if parser else None
     used, takes = set(), []
     for file, name, options in entries:
-        take = Take(take_name(name or file, used), os.path.abspath(file), options)
+        take = Take(take_name(file, used, name), os.path.abspath(file), options)
         for index, step in enumerate(steps):
             words = list(step.args)
             for key, value in options.items():

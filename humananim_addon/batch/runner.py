@@ -21,6 +21,7 @@ import shutil
 import socket
 import subprocess
 import sys
+import threading
 import time
 import uuid
 from concurrent.futures import CancelledError
@@ -151,9 +152,12 @@ _STARTERS = {}
 
 
 def _starter(python):
-    starter = _STARTERS.get(python)
+    """The starter of this worker thread (a worker with several threads has one per thread: the
+    protocol is one take at a time)."""
+    key = (python, threading.get_ident())
+    starter = _STARTERS.get(key)
     if starter is None or not starter.alive():
-        starter = _STARTERS[python] = TakeStarter(python)
+        starter = _STARTERS[key] = TakeStarter(python)
     return starter
 
 

@@ -81,10 +81,11 @@ def test_csv_manifest_routes_per_take_options_to_their_steps(tmp_path):
 def test_json_manifest_with_flags_lists_and_numbers(tmp_path):
     _bvh(tmp_path, "a.bvh")
     (tmp_path / "takes.json").write_text(json.dumps({"takes": [
-        {"file": "a.bvh", "control.tracking-only": True, "control.frames": [1, 30], "compress.cm": 0.3,
+        {"file": "a.bvh", "name": "walk.v2", "control.tracking-only": True, "control.frames": [1, 30], "compress.cm": 0.3,
          "control.ground": None}]}))
     (take,) = plan([str(tmp_path / "takes.json")], parse_pipeline(["control -> compress"]), PARSER)
     assert take.steps == [["control", "--tracking-only", "--frames", "1", "30"], ["compress", "--cm", "0.3"]]
+    assert take.name == "walk.v2"  # a manifest's name is kept whole
 
 
 def test_manifest_mistakes_are_one_line_errors(tmp_path):
