@@ -105,7 +105,8 @@ def take_summary(record, skipped=False):
     out = {"name": record["name"], "file": record["file"], "status": record["status"],
            "skipped": skipped, "attempts": record.get("attempts"), "error": record.get("error"),
            "wall_seconds": record.get("wall_seconds"), "work_seconds": record.get("work_seconds"),
-           "worker": record.get("worker"), "thumbnail": record.get("thumbnail"),
+           "worker": record.get("worker"), "started_at": record.get("started_at"),
+           "finished_at": record.get("finished_at"), "thumbnail": record.get("thumbnail"),
            "result_file": record.get("result_file"), "outputs": record.get("outputs", []), "steps": steps,
            "qa_passed": qa_state(steps),
            "qa_warnings": [f"{s['command']}: {w}" for s in steps for w in (s["qa"] or {}).get("warnings", [])]}

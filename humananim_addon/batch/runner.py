@@ -42,7 +42,7 @@ def run_take(take, out_dir, python, timeout, retries, start="fork"):
     "fork" forks the take from this worker's warm take starter, "spawn" starts a new interpreter."""
     take = Take(**take)
     final = take.folder(out_dir)
-    error, attempts, t0 = None, 0, time.monotonic()
+    error, attempts, t0, started_at = None, 0, time.monotonic(), time.time()
     for attempts in range(1, retries + 2):
         partial = os.path.join(out_dir, PARTIAL, f"{take.name}.{uuid.uuid4().hex[:8]}")
         os.makedirs(partial)
@@ -59,7 +59,8 @@ def run_take(take, out_dir, python, timeout, retries, start="fork"):
         if status == 0 and record and record.get("status") == "done":
             os.remove(spec)
             record["outputs"] = [f for f in record["outputs"] if f != "spec.json"]
-            record.update(attempts=attempts, wall_seconds=round(time.monotonic() - t0, 3), worker=_where())
+            record.update(attempts=attempts, wall_seconds=round(time.monotonic() - t0, 3), worker=_where(),
+                          started_at=round(started_at, 3), finished_at=round(time.time(), 3))
             write_json_atomic(os.path.join(partial, RECORD), record)
             _publish(partial, final, out_dir)
             return record
