@@ -23,9 +23,11 @@ def _worker_count(scheduler_file):
         return len(client.scheduler_info()["workers"])
 
 
-@pytest.fixture
-def cluster(tmp_path):
-    """(address, scheduler process) of a scheduler and two single-threaded workers."""
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    """(address, scheduler process) of a scheduler and two single-threaded workers, for this
+    module's tests (the last one kills the scheduler)."""
+    tmp_path = tmp_path_factory.mktemp("cluster")
     scheduler_file = str(tmp_path / "scheduler.json")
     logs = open(tmp_path / "cluster.log", "w")
     procs = [subprocess.Popen([DASK, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
