@@ -28,9 +28,10 @@ def add_commands(sub, add_common_options):
     b.add_argument("--force", action="store_true", help="redo takes that are already complete")
     b.add_argument("--python", default=os.environ.get(PYTHON_ENV),
                    help=f"interpreter for the takes, with bpy, dask and humananim (default: ${PYTHON_ENV}, or this one)")
-    b.add_argument("--start", choices=("fork", "spawn"), default="fork" if hasattr(os, "fork") else "spawn",
-                   help="fork each take from a worker's warm process with Blender imported (default where the "
-                        "system can fork), or spawn a new interpreter per take")
+    b.add_argument("--start", choices=("fork", "spawn"), default="fork" if sys.platform.startswith("linux") else "spawn",
+                   help="fork each take from a worker's warm process with Blender imported (default on Linux), "
+                        "or spawn a new interpreter per take (default elsewhere: macOS and Windows can't fork "
+                        "a process that has loaded Blender safely)")
     b.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
     add_common_options(b)
     return {"batch": cmd_batch}
