@@ -19,7 +19,7 @@ from ..solver.hands import manipulation, self_collision
 from ..solver.hands.checks import grasp_measures
 from ..solver.hands.primitives import fit_primitive, kind
 from ..solver.trajectories import Trajectories
-from . import actions
+from . import action_api, actions
 from .armature import armature_to_world, skeleton_from_armature
 from .properties import settings_registration
 
@@ -728,57 +728,14 @@ def correct_controls(obj, scene, skeleton, frames, targets, bases):
     return bases
 
 
-def _key_channel(fcurves_find, path, index, group, frames, values, interpolation="LINEAR"):
-    """Keys `values` on `frames` in the F-curve (found or made), its keys inside the frames'
-    range replaced; keys outside the range stay."""
-    fc = fcurves_find(path, index, group)
-    lo, hi = frames[0] - 0.5, frames[-1] + 0.5
-    points = fc.keyframe_points
-    for i in range(len(points) - 1, -1, -1):
-        if lo <= points[i].co[0] <= hi:
-            points.remove(points[i], fast=True)
-    for f, v in zip(frames, values):
-        kp = points.insert(float(f), float(v), options={"FAST"})
-        kp.interpolation = interpolation
-    fc.update()
-
-
-class _ActionKeys:
-    """A NEW action for the control rig: a copy of the source (so every other control keeps its
-    keys), or a fresh one; `find(path, index, group)` gives its F-curve for the rig."""
-
-    def __init__(self, obj, source, name, copy_source):
-        from . import action_api
-        self.obj, self.api = obj, action_api
-        if source is not None and copy_source:
-            self.action = source.copy()
-            self.action.name = name
-            self.slot = action_api.object_slot(self.action, obj) if action_api.SLOTTED else None
-            self.writer = None
-        else:
-            self.action = bpy.data.actions.new(name)
-            self.writer = action_api.ChannelWriter(self.action, obj)
-            self.slot = self.writer.slot
-        self._curves = {(fc.data_path, fc.array_index): fc
-                        for fc in (action_api.fcurves_of(self.action, obj) if self.writer is None else ())}
-
-    def has(self, path, index):
-        return (path, index) in self._curves
-
-    def find(self, path, index, group):
-        key = (path, index)
-        if key in self._curves:
-            return self._curves[key]
-        if self.writer is not None:
-            fc = self.writer.new_fcurve(path, index, group)
-        elif not self.api.SLOTTED:
-            fc = self.action.fcurves.new(path, index=index, action_group=group)
-        else:
-            layer = self.action.layers[0] if len(self.action.layers) else self.action.layers.new("Layer")
-            strip = layer.strips[0] if len(layer.strips) else layer.strips.new(type="KEYFRAME")
-            fc = strip.channelbag(self.slot, ensure=True).fcurves.new(path, index=index)
-        self._curves[key] = fc
-        return fc
+def _new_action_keys(obj, source, name, copy_source):
+    """A writer into a NEW action for the control rig: a copy of the source (so every other
+    control keeps its keys), or a fresh one."""
+    if source is not None and copy_source:
+        action = source.copy()
+        action.name = name
+        return action_api.ChannelWriter(action, obj, existing=True)
+    return action_api.ChannelWriter(bpy.data.actions.new(name), obj)
 
 
 def write_controls(obj, scene, crig, frames, bases, name, keys=None):
@@ -789,25 +746,24 @@ def write_controls(obj, scene, crig, frames, bases, name, keys=None):
     source = ad.action if ad else None
     first = keys is None
     if first:
-        keys = _ActionKeys(obj, source, name, copy_source=output != "NLA")
+        keys = _new_action_keys(obj, source, name, copy_source=output != "NLA")
     for c, b in bases.items():
         pb = obj.pose.bones[c]
         path = actions.bone_path(c)
         q = rotations.make_continuous(rotations.from_matrix(b[:, :3, :3]))
         prop, values = actions.rotation_channels(q, pb.rotation_mode)
         for i in range(values.shape[1]):
-            _key_channel(keys.find, f"{path}.{prop}", i, c, frames, values[:, i])
+            keys.replace_keys(f"{path}.{prop}", i, c, frames, values[:, i])
         loc = b[:, :3, 3]
         keyed = keys.has(f"{path}.location", 0)  # the source's location keys are replaced too
         if not obj.data.bones[c].use_connect and (keyed or not np.allclose(loc, 0.0, atol=1e-7)):
             for i in range(3):
-                _key_channel(keys.find, f"{path}.location", i, c, frames, loc[:, i])
+                keys.replace_keys(f"{path}.location", i, c, frames, loc[:, i])
     if first:
         for (bone, prop), value in crig.switches.items():
             path = f'{actions.bone_path(bone)}["{bpy.utils.escape_identifier(prop)}"]'
             before = _value_before(obj, source, path, frames[0] - 1, obj.pose.bones[bone][prop])
-            fc = keys.find(path, 0, bone)
-            _key_channel(keys.find, path, 0, bone, frames, np.full(len(frames), float(value)), "CONSTANT")
+            fc = keys.replace_keys(path, 0, bone, frames, np.full(len(frames), float(value)), "CONSTANT")
             if abs(before - value) > 1e-9 and not any(abs(k.co[0] - (frames[0] - 1)) < 0.5 for k in fc.keyframe_points):
                 kp = fc.keyframe_points.insert(float(frames[0] - 1), float(before), options={"FAST"})
                 kp.interpolation = "CONSTANT"
@@ -815,14 +771,13 @@ def write_controls(obj, scene, crig, frames, bases, name, keys=None):
         if source is not None:
             source.use_fake_user = True
         if output == "NLA":
-            keys.api.push_to_nla(obj, keys.action, keys.slot, f"HumanAnim: {name}", frames[0])
+            action_api.push_to_nla(obj, keys.action, keys.slot, f"HumanAnim: {name}", frames[0])
         else:
-            keys.api.assign_action(obj, keys.action, keys.slot)
+            action_api.assign_action(obj, keys.action, keys.slot)
     return keys
 
 
 def _value_before(obj, source, path, frame, current):
-    from . import action_api
     for fc in (action_api.fcurves_of(source, obj) if source is not None else ()):
         if fc.data_path == path:
             return float(fc.evaluate(frame))
