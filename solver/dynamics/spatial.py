@@ -87,6 +87,8 @@ def log_scale(s, aw):
     """The factor taking a unit quaternion's vector part (norm s, |w| = aw) to its rotation vector:
     2 atan2(s, aw) / s, and 2 / aw below s = 1e-8 (the limit, without dividing by a vanishing s)."""
     small = s < 1e-8
+    if not small.any():  # the usual case: no vanishing rotation
+        return 2.0 * np.arctan2(s, aw) / s
     return np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / np.where(small, 1.0, s))
 
 
