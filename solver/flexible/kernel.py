@@ -1,18 +1,17 @@
 """The fused time step of the flexible character: the hot loop of Simulator.run.
 
-The reference step (Simulator.accelerations / Simulator.step) is written for reading: 60-110 small
-numpy calls a step. On a 10-coordinate character each call costs about a microsecond and the
-arithmetic almost nothing, so a step's time is its number of calls. Here the same equations are laid
-out so a semi-implicit step on the ground is 27 calls on preallocated buffers (a LAPACK solve
-among them), all in the ground plane's frame (the world frame when there is no ground or several
-planes):
+The same equations as the reference step (Simulator.accelerations / Simulator.step, written for
+reading, and checked against this one by tests/solver/test_flexible_kernel_paths.py), laid out as
+a few products on preallocated buffers, which benchmarks/flexible.py measures several times
+faster than the reference step. Everything is in the ground plane's frame (the world frame when
+there is no ground or several planes):
 
 - The point Jacobians in body velocities, G = [I, -[y]x, B] (3P x n), and the body points y are
   linear in gamma: one product [1, gamma] . GY gives both, one more rotates them into the plane
   frame (Gq = R' G, R' = R_plane R), coordinate by coordinate: rows (x of all points, y of all, z).
 - One product of [du, the y column, u, u with gamma_dot doubled] with Gq gives the points' G du
   (du: the corrector's increment, else 0), positions, velocities and v + y_dot (the velocity terms
-  are w x (v_point + y_dot)) as rows of one table.
+  are w x (v_point + y_dot)) as rows of one table (PointTable).
 - One 8 x 15 matrix FW times that table (plus anchors and a row of ones) gives the penalty springs
   and dampers of all points (masks, not index lists), mu f_n, the height over the plane and
   w x (v_point + y_dot) + G du / h - g (so - M du / h comes with the inertial forces). What
@@ -25,14 +24,12 @@ planes):
   per-row weights W next to the masses (W itself one 6 x 3 product of (touching, sliding, mass));
   the unit rows E pick the modes' constant share A0.
 - The new state and the rigid motion's increment are one product of [z, du]; the rigid motion
-  (quaternion, translation) is a few dozen float operations in plain Python, cheaper than numpy
-  calls on 3- and 4-vectors.
-- One LAPACK Cholesky solve (dposv) a step, in place on preallocated buffers (lapack.py); the
-  implicit corrector reuses its factor (dpotrs).
-- Many points (Kernel.big): the products are past the point where their arithmetic, not their
-  count, is the cost. M(gamma) then comes from its polynomial in gamma (sums over the points made
-  once: M = sum_ab c_a c_b M_ab, c = [1, gamma]; rotation-free, since R'^T R' = I) and the
-  ground's share of A from the touching points alone.
+  (quaternion, translation: q <- q exp(phi), t += R(q exp(phi / 2)) d) is done on Python floats.
+- One Cholesky solve a step (lapack.py), in place on preallocated buffers; the implicit
+  corrector reuses its factor.
+- Many points (Kernel.big): M(gamma) comes from its polynomial in gamma (sums over the points
+  made once: M = sum_ab c_a c_b M_ab, c = [1, gamma]; rotation-free, since R'^T R' = I) and the
+  ground's share of A from the touching points alone, instead of products over all points.
 
 Everything constant during a run (the gamma polynomial of G and y, the plane frame, the mode gains,
 the pose schedule of the controller) is prepared once."""
@@ -78,11 +75,7 @@ def rigid_move(q, t, mv):
     norm = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
     w, x, y, z = w * norm, x * norm, y * norm, z * norm
     q[0], q[1], q[2], q[3] = w, x, y, z
-    # rot_list, inline (a call costs as much as a few products here)
-    x2, y2, z2 = x + x, y + y, z + z
-    xx, yy, zz, xy, xz, yz = x * x2, y * y2, z * z2, x * y2, x * z2, y * z2
-    wx, wy, wz = w * x2, w * y2, w * z2
-    return [1 - (yy + zz), xy - wz, xz + wy, xy + wz, 1 - (xx + zz), yz - wx, xz - wy, yz + wx, 1 - (xx + yy)]
+    return rot_list(w, x, y, z)
 
 
 def rot_list(w, x, y, z):
@@ -555,11 +548,12 @@ class _Step:
 
     def _update_state(self, T):
         """[z, du] -> [z_new, rigid increment] by the update map T, then the rigid motion."""
-        T.dot(self.z_x, out=self.ZM)
-        self.z[:] = self.ZM[:self.nz]
-        zml = self.ZM.tolist()
-        self.zl = zml[:self.nz]
-        self.R = rigid_move(self.q, self.t, zml[self.nz:])
+        ZM, nz = self.ZM, self.nz
+        T.dot(self.z_x, out=ZM)
+        self.z[:] = ZM[:nz]
+        zml = ZM.tolist()
+        self.zl = zml[:nz]
+        self.R = rigid_move(self.q, self.t, zml[nz:])
         return zml
 
     def _fallback_solve(self, A, b, time):
@@ -616,10 +610,10 @@ class _Step:
     def _point_kinematics(self):
         """G and y at gamma (body frame), Gq = R' G (plane frame), then the table's G du, y, v and
         v + y_dot, and FW's outputs (springs and dampers from the anchors, mu f_n, height, a')."""
-        n, Gb3 = self.n, self.Gb3
+        n, Gb3, one_gamma = self.n, self.Gb3, self.one_gamma
         if self.big:                                             # y, then the columns -[y]x and y of G
             yb = self.yb
-            self.one_gamma.dot(self.kernel.Yp, out=yb.reshape(-1))
+            one_gamma.dot(self.kernel.Yp, out=yb.reshape(-1))
             Gb3[:, :, n] = yb
             Gb3[0, :, 4] = yb[2]
             np.negative(yb[1], out=Gb3[0, :, 5])
@@ -628,32 +622,32 @@ class _Step:
             Gb3[2, :, 3] = yb[1]
             np.negative(yb[0], out=Gb3[2, :, 4])
         else:
-            self.one_gamma.dot(self.kernel.GY, out=self.Gb)
+            one_gamma.dot(self.kernel.GY, out=self.Gb)
         self.Rq.dot(self.Gb2, out=self.Gqe)
         np.multiply(self.u, self.ones_twos, out=self.U2)
         self.U3T.dot(self.GqeT, out=self.kinematics)
-        self.FW.dot(self.table.inputs, out=self.table.outputs)
+        tab = self.table
+        self.FW.dot(tab.inputs, out=tab.outputs)
 
     def _point_forces(self, kind, tx, ty, time):
         """The point forces F = m (g - a') + the ground's (+ its - h/2 K u in the predictor) + the
         springs'. Returns whether the ground is touched."""
-        tab = self.table
+        tab, F = self.table, self.F
         touching = False
         if self.contact:
             touching = self._ground_contact(tx, ty)
+        np.multiply(tab.accel, self.neg_m, out=F)               # m (g - w x (v + y_dot) - G du / h)
         if touching:
-            np.multiply(tab.accel, self.neg_m, out=self.F)     # m (g - w x (v + y_dot) - G du / h)
-            np.add(self.F, tab.force, out=self.F)
+            np.add(F, tab.force, out=F)
             if kind == 1:
+                kv = self.kv
                 self.CW.dot(self.SB, out=self.MW)
-                np.multiply(tab.v, self.KU, out=self.kv)         # - h/2 K u of the ground springs
-                np.add(self.F, self.kv, out=self.F)
-        else:
-            np.multiply(tab.accel, self.neg_m, out=self.F)
-            if self.general:
-                touching = self.kernel._general_contacts(self.Rq, self.t, tab.y, tab.v, self.F, kind == 1, self.h)
+                np.multiply(tab.v, self.KU, out=kv)              # - h/2 K u of the ground springs
+                np.add(F, kv, out=F)
+        elif self.general:
+            touching = self.kernel._general_contacts(self.Rq, self.t, tab.y, tab.v, F, kind == 1, self.h)
         if self.springs:
-            self.F[:, self.kernel.spring_idx] += self.kernel._spring_forces(self.t, tab.y, tab.v, time)
+            F[:, self.kernel.spring_idx] += self.kernel._spring_forces(self.t, tab.y, tab.v, time)
         self.touching = touching
         return touching
 
@@ -661,48 +655,52 @@ class _Step:
         """Which points touch the plane; new anchors where a point crossed it; the normal force
         one-sided; friction capped at mu f_n (Coulomb), the anchor slid so the spring alone gives
         the capped force next time. Returns whether any point touches."""
-        tab = self.table
-        self.SB = SB = self.SBs[self.turn]
-        touch, sliding, anchored = SB[0], SB[1], self.SBs[1 - self.turn][0]
-        self.turn = 1 - self.turn
+        tab, onesP, turn = self.table, self.onesP, self.turn
+        self.SB = SB = self.SBs[turn]
+        touch, sliding, anchored = SB[0], SB[1], self.SBs[1 - turn][0]
+        self.turn = 1 - turn
         np.less(tab.height, 0.0, out=touch)
         if not self.all_collide:
             np.multiply(touch, self.collides, out=touch)
-        count = touch.dot(self.onesP)
+        count = touch.dot(onesP)
         if not count > 0:
             return False
         self.touch = touch
+        anchor, friction, cap = tab.anchor, tab.friction, tab.cap
         if touch.dot(anchored) < count:                          # the point of entry: where it crossed the plane
-            np.greater(touch, anchored, out=self.new_touch)
-            self.tp01[0, 0], self.tp01[1, 0] = tx, ty
-            np.copyto(tab.anchor, tab.y[0:2] + self.tp01, where=self.new_touch)
-            self.FW[0:2].dot(tab.inputs, out=tab.friction)
+            new, origin = self.new_touch, self.tp01
+            np.greater(touch, anchored, out=new)
+            origin[0, 0], origin[1, 0] = tx, ty
+            np.copyto(anchor, tab.y[0:2] + origin, where=new)
+            self.FW[0:2].dot(tab.inputs, out=friction)
         np.maximum(tab.normal_cap, 0.0, out=tab.normal_cap)     # the ground only pushes
         np.multiply(tab.force_cap, touch, out=tab.force_cap)
-        np.hypot(tab.friction[0], tab.friction[1], out=self.ftn)
-        np.greater(self.ftn, tab.cap, out=sliding)
-        if sliding.dot(self.onesP):                              # Coulomb: cap the friction force
-            np.greater(sliding, 0.0, out=self.sliding)
-            self.scale.fill(1.0)
-            np.divide(tab.cap, self.ftn, out=self.scale, where=self.sliding)
-            tab.friction[...] *= self.scale
-            self.MV[0, 14], self.MV[1, 14] = tx, ty
-            self.MV.dot(tab.rows, out=self.moved)
-            np.copyto(tab.anchor, self.moved, where=self.sliding)
+        ftn = self.ftn
+        np.hypot(friction[0], friction[1], out=ftn)
+        np.greater(ftn, cap, out=sliding)
+        if sliding.dot(onesP):                                   # Coulomb: cap the friction force
+            slides, scale, MV = self.sliding, self.scale, self.MV
+            np.greater(sliding, 0.0, out=slides)
+            scale.fill(1.0)
+            np.divide(cap, ftn, out=scale, where=slides)
+            friction[...] *= scale
+            MV[0, 14], MV[1, 14] = tx, ty
+            MV.dot(tab.rows, out=self.moved)
+            np.copyto(anchor, self.moved, where=slides)
         return True
 
     def _generalised_forces(self, kind, zl):
         """b = Gq^T F + Qp z (Q z but in the predictor) into x, Q z into mode_forces; returns the
         modes' power |Q z . gamma_dot|."""
         n, D = self.n, self.D
-        x, qm = self.x, self.mode_forces
+        x, qm, bx = self.x, self.mode_forces, self.bx
         if self.big:
-            np.add(self.F_flat.dot(self.GQF), self.z.dot(self.GQZ), out=self.bx)
+            np.add(self.F_flat.dot(self.GQF), self.z.dot(self.GQZ), out=bx)
             self.Q.dot(self.z, out=qm)
             qml = qm.tolist()
         else:
-            self.F_z.dot(self.GQ, out=self.bx)                    # [Gq^T F + Qp z, -, Q z]
-            qml = self.bx.tolist()[n + 1:]
+            self.F_z.dot(self.GQ, out=bx)                         # [Gq^T F + Qp z, -, Q z]
+            qml = bx.tolist()[n + 1:]
         power = sum(map(abs, map(mul, qml, zl[7 + D:])))
         if kind != 1:                                            # Q z, not Qp z
             x[6:] += self.kernel.half_h_stiff * self.gamma_dot

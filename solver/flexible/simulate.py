@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import math
 
 import numpy as np
-from scipy.linalg.lapack import dposv as _dposv
+from scipy.linalg import cho_factor, cho_solve
 
 from ..progress import run_to_end
 from .body import FlexibleError, check_modes, quat_from_rotvec, quat_matrix, quat_multiply, skew
@@ -121,12 +121,12 @@ class Result:
 
 
 def solve_spd(A, b):
-    """A x = b for the (symmetric positive definite) system matrix by LAPACK's Cholesky solver,
-    called directly: on 10x10 systems numpy's solve costs several times more in overhead."""
-    c, x, info = _dposv(A, b, lower=0, overwrite_a=0, overwrite_b=0)
-    if info != 0:
-        x, info = np.linalg.solve(A, b), 0
-    return x
+    """A x = b for the (symmetric positive definite) system matrix by its Cholesky factorisation;
+    by np.linalg.solve when it is not positive definite."""
+    try:
+        return cho_solve(cho_factor(A, check_finite=False), b, check_finite=False)
+    except np.linalg.LinAlgError:
+        return np.linalg.solve(A, b)
 
 
 class Simulator:
