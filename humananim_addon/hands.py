@@ -117,27 +117,31 @@ def evaluated_basis(obj, skeleton):
     return actions.rigid_basis(m, skeleton)
 
 
-def object_shape(target, scene):
-    """The grasp primitive of a mesh object (its evaluated mesh, world, metres)."""
-    if target is None or target.type != "MESH":
-        raise HumanAnimError("select a mesh object to grasp")
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    ev = target.evaluated_get(depsgraph)
+def evaluated_mesh(obj, scene):
+    """The vertices (V, 3), world, metres, and triangles (T, 3) of an object's evaluated mesh."""
+    ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
     mesh = ev.to_mesh()
     try:
         mesh.calc_loop_triangles()
-        n = len(mesh.vertices)
-        if n < 4 or len(mesh.loop_triangles) < 4:
-            raise HumanAnimError(f"'{target.name}' has too few faces to grasp")
-        co = np.empty(n * 3)
+        co = np.empty(len(mesh.vertices) * 3)
         mesh.vertices.foreach_get("co", co)
         tri = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
         mesh.loop_triangles.foreach_get("vertices", tri)
     finally:
         ev.to_mesh_clear()
-    m = np.array(target.matrix_world)
+    m = np.array(obj.matrix_world)
     verts = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
-    return fit_primitive(verts * scene.unit_settings.scale_length, tri.reshape(-1, 3))
+    return verts * scene.unit_settings.scale_length, tri.reshape(-1, 3)
+
+
+def object_shape(target, scene):
+    """The grasp primitive of a mesh object (its evaluated mesh, world, metres)."""
+    if target is None or target.type != "MESH":
+        raise HumanAnimError("select a mesh object to grasp")
+    verts, tri = evaluated_mesh(target, scene)
+    if len(verts) < 4 or len(tri) < 4:
+        raise HumanAnimError(f"'{target.name}' has too few faces to grasp")
+    return fit_primitive(verts, tri)
 
 
 def skin_of(obj):
@@ -155,23 +159,13 @@ def hand_sensors_from_skin(obj, scene, skeleton, world):
     if skin is None:
         return {}
     index = {g.index: skeleton.find(g.name) for g in skin.vertex_groups}
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    ev = skin.evaluated_get(depsgraph)
-    mesh = ev.to_mesh()
-    try:
-        n = len(mesh.vertices)
-        co = np.empty(n * 3)
-        mesh.vertices.foreach_get("co", co)
-    finally:
-        ev.to_mesh_clear()
-    owner = np.full(n, -1)
+    verts, _ = evaluated_mesh(skin, scene)
+    owner = np.full(len(verts), -1)
     for v in skin.data.vertices:  # the strongest group of each vertex
         if v.groups:
             g = max(v.groups, key=lambda e: e.weight)
             j = index.get(g.group)
             owner[v.index] = -1 if j is None else j
-    m = np.array(skin.matrix_world)
-    verts = (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]) * scene.unit_settings.scale_length
     from ..solver.hands.sensors import default_hand_sensors, sensors_from_mesh
     return {s: sensors_from_mesh(skeleton, default_hand_sensors(skeleton, s), world, verts, owner)
             for s in ("L", "R") if skeleton.role_index(sided("hand", s)) is not None}
