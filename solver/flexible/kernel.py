@@ -348,7 +348,6 @@ class _Step:
         self.ZM = np.empty(nz + 6)                               # [z_new, rigid increment]
         self.zl = self.z.tolist()
         self.turn = 0
-        self.touching = False
 
     # -- the buffers ------------------------------------------------------------------------------------
     def _state_vector(self, state):
@@ -648,7 +647,6 @@ class _Step:
             touching = self.kernel._general_contacts(self.Rq, self.t, tab.y, tab.v, F, kind == 1, self.h)
         if self.springs:
             F[:, self.kernel.spring_idx] += self.kernel._spring_forces(self.t, tab.y, tab.v, time)
-        self.touching = touching
         return touching
 
     def _ground_contact(self, tx, ty):
