@@ -169,11 +169,11 @@ def write_action(obj, skeleton, traj, name, output="ACTION", source=None, extra_
         if j not in channels:
             continue  # rest pose throughout: no channel needed
         if not skeleton.connected[j] and not np.allclose(trans, 0.0, atol=1e-9):
-            _write_channels(writer, f"{path}.location", bone, frames, trans)
+            writer.key_columns(f"{path}.location", bone, frames, trans)
         prop, values = channels[j]
-        _write_channels(writer, f"{path}.{prop}", bone, frames, values)
+        writer.key_columns(f"{path}.{prop}", bone, frames, values)
     for (data_path, group), values in (extra_channels or {}).items():
-        _write_channels(writer, data_path, group, frames, np.asarray(values, float).reshape(len(frames), -1))
+        writer.key_columns(data_path, group, frames, values)
     if source is not None:
         source.use_fake_user = True
     if output == "NLA":
@@ -213,13 +213,8 @@ def rotation_channels(quaternions, mode):
 
 
 def _write_channels(writer, data_path, group, frames, values):
-    linear = bpy.types.Keyframe.bl_rna.properties["interpolation"].enum_items["LINEAR"].value
-    for i in range(values.shape[1]):
-        fc = writer.new_fcurve(data_path, i, group)
-        fc.keyframe_points.add(len(frames))
-        fc.keyframe_points.foreach_set("co", np.column_stack((frames, values[:, i])).ravel())
-        fc.keyframe_points.foreach_set("interpolation", np.full(len(frames), linear, dtype=np.int32))
-        fc.update()
+    """ChannelWriter.key_columns under the name walking.py calls."""
+    writer.key_columns(data_path, group, frames, values)
 
 
 def bone_path(bone):

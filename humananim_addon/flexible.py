@@ -506,8 +506,8 @@ def _bake_transform(obj, worlds, frames, name):
         old.use_fake_user = True  # the source stays, unassigned but kept
     action = bpy.data.actions.new(name)
     writer = action_api.ChannelWriter(action, obj)
-    _write(writer, "location", "Object Transforms", frames, np.array(locs))
-    _write(writer, prop, "Object Transforms", frames, np.asarray(values))
+    writer.key_columns("location", "Object Transforms", frames, np.array(locs))
+    writer.key_columns(prop, "Object Transforms", frames, values)
     action_api.assign_action(obj, action, writer.slot)
     return action
 
@@ -518,32 +518,12 @@ def _bake_keys(key, names, frames, gamma):
     if old is not None:
         old.use_fake_user = True
     action = bpy.data.actions.new(f"{key.user.name if key.user else key.name} Modes")
-    if action_api.SLOTTED:
-        slot = action.slots.new(id_type="KEY", name=key.name)
-        bag = action.layers.new("Layer").strips.new(type="KEYFRAME").channelbag(slot, ensure=True)
-        new = lambda path, i, group: bag.fcurves.new(path, index=i)  # noqa: E731
-    else:
-        slot = None
-        action.id_root = "KEY"
-        new = lambda path, i, group: action.fcurves.new(path, index=i, action_group=group)  # noqa: E731
-    writer = type("KeyWriter", (), {"new_fcurve": staticmethod(new)})
+    writer = action_api.ChannelWriter(action, key, id_type="KEY")
     for k, name in enumerate(names):
-        _write(writer, f'key_blocks["{bpy.utils.escape_identifier(name)}"].value', "Shape Keys", frames, gamma[:, k:k + 1])
-    ad = key.animation_data or key.animation_data_create()
-    ad.action = action
-    if slot is not None:
-        ad.action_slot = slot
+        writer.key_columns(f'key_blocks["{bpy.utils.escape_identifier(name)}"].value', "Shape Keys", frames,
+                           gamma[:, k:k + 1])
+    action_api.assign_action(key, action, writer.slot)
     return action
-
-
-def _write(writer, path, group, frames, values):
-    linear = bpy.types.Keyframe.bl_rna.properties["interpolation"].enum_items["LINEAR"].value
-    for i in range(values.shape[1]):
-        fc = writer.new_fcurve(path, i, group)
-        fc.keyframe_points.add(len(frames))
-        fc.keyframe_points.foreach_set("co", np.column_stack((frames, values[:, i])).ravel())
-        fc.keyframe_points.foreach_set("interpolation", np.full(len(frames), linear, dtype=np.int32))
-        fc.update()
 
 
 # -- optimise ---------------------------------------------------------------------------------------

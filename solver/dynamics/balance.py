@@ -38,7 +38,7 @@ def zmp(model, data, q, v, a, f_ext=None, ground_height=0.0, gravity=None, exact
 def convex_hull(points):
     """Counter-clockwise convex hull (m, 2) of points (k, 2) by Andrew's monotone chain; collinear
     and duplicate points are dropped, so degenerate sets give 1 or 2 vertices."""
-    # plain floats: the few sole points of a step cost far less than numpy calls per point
+    # distinct points as (x, y) tuples, sorted by x then y
     pts = sorted(set(map(tuple, np.asarray(points, dtype=float).reshape(-1, 2).tolist())))
     if len(pts) <= 2:
         return np.array(pts, dtype=float).reshape(-1, 2)
@@ -127,7 +127,7 @@ def closest_boundary_xy(pts, px, py):
         ex, ey = bx - ax, by - ay
         length2 = ex * ex + ey * ey
         t = ((px - ax) * ex + (py - ay) * ey) / (length2 if length2 > 0 else 1.0)
-        t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)  # min(max(t, 0), 1) without two calls
+        t = min(max(t, 0.0), 1.0)
         cx, cy = ax + t * ex, ay + t * ey
         dist = math.sqrt((cx - px) * (cx - px) + (cy - py) * (cy - py))
         if best is None or dist < best:

@@ -9,7 +9,7 @@ a change of frame; the base is a free rigid body whose 6x6 articulated inertia i
 """
 
 import numpy as np
-from scipy.linalg import lapack
+from scipy.linalg import cho_factor, cho_solve
 
 from . import spatial
 from .inertia_matrix import bias_forces, crba
@@ -71,12 +71,8 @@ def forward_dynamics_dense(model, data, q, v, tau, f_ext=None, gravity=None):
 
 
 def cholesky_solve(a, b):
-    """Solve a x = b for symmetric positive definite a by LAPACK's potrf/potrs directly (the
-    scipy.linalg wrappers cost more than the factorisation at this size)."""
-    c, info = lapack.dpotrf(a, lower=1)
-    if info != 0:
-        raise np.linalg.LinAlgError("the matrix is not positive definite")
-    return lapack.dpotrs(c, b, lower=1)[0]
+    """Solve a x = b for symmetric positive definite a by its Cholesky factorisation."""
+    return cho_solve(cho_factor(a, lower=True, check_finite=False), b, check_finite=False)
 
 
 def rk4_step(model, data, q, v, tau, dt, f_ext=None, gravity=None, forward=aba):

@@ -17,7 +17,7 @@ def update_frames(model: Model, data: Data, q):
     """World frames (nb, 4, 4), spatial transforms and world inertias for configuration q; cached
     in `data` until q changes (the world inertias are computed on first use, Data.inertia)."""
     q = np.asarray(q, dtype=float)
-    key = q.tobytes()  # a bytes comparison is ~10x cheaper than np.array_equal on a small q
+    key = q.tobytes()  # the configuration's bytes: the cache key
     if key == data.key:
         return data
     nb = model.nb
@@ -30,15 +30,15 @@ def update_frames(model: Model, data: Data, q):
     local[0, :3, 3] = q[:3]
     frames = local
     for a in model.doubling:
-        frames = frames.take(a, axis=0) @ frames  # (take: a third of fancy indexing's cost)
+        frames = frames[a] @ frames
     frames = frames[:nb]
     data.frames = frames
     rot = frames[:, :3, :3]
     lever = frames[:, :3, 3].dot(spatial._SKEW_MAP).reshape(nb, 3, 3) @ rot
     parts = np.concatenate((rot.reshape(nb, 9), lever.reshape(nb, 9), data.zero_column), axis=1)
-    # parts[:, motion_gather] (whose result is laid out column by column: the products on it keep
-    # their arithmetic only on that layout) by take, a third of fancy indexing's cost
-    data.motion = parts.T.take(model.motion_gather, axis=0).T.reshape(nb, 6, 6)
+    # parts[:, motion_gather], laid out column by column (the products on it keep their
+    # arithmetic only on that layout)
+    data.motion = parts.T[model.motion_gather].T.reshape(nb, 6, 6)
     data.set_force_transforms(parts)  # gathered when the world inertias are first asked for
     data.subspace = None
     data.velocity = None
@@ -89,11 +89,8 @@ def points_on_bodies(model, joints, points):
 
 def body_points(data, bodies, homogeneous):
     """World positions (k, 3) at data's frames of points fixed in bodies (k,), given as
-    (x, y, z, 1) rows (k, 4): each body's frame rows against its point, summed by one product
-    (einsum's cost several times that on the control loop's small stacks)."""
-    n = len(bodies)
-    rows = data.frames.take(bodies, axis=0)[:, :3, :] * homogeneous[:, None, :]
-    return rows.reshape(3 * n, 4).dot(ONES4).reshape(n, 3)
+    (x, y, z, 1) rows (k, 4)."""
+    return np.einsum("kij,kj->ki", data.frames[bodies][:, :3, :], homogeneous)
 
 
 def point_positions(model, data, q, joints, points):
@@ -205,40 +202,23 @@ def integrate(model, q, v, dt=1.0):
     nb = model.nb
     full = model.expand(v if dt == 1.0 else v * dt)
     out = np.empty(len(q))
-    # the root's translation along its own axes (quat_to_matrix(quats[0]) @ step, on floats)
-    s0, s1, s2 = full[0, 3:].tolist()
-    if not (s0 or s1 or s2):  # the root stays (a step of the joints alone): q + 0.0 is q
-        out[:3] = q[:3]
-    else:
-        p0, p1, p2, w, x, y, z = q[:7].tolist()
-        r0, r1, r2 = spatial.quat_rows(w, x, y, z)
-        out[:3] = (p0 + (r0[0] * s0 + r0[1] * s1 + r0[2] * s2), p1 + (r1[0] * s0 + r1[1] * s1 + r1[2] * s2),
-                   p2 + (r2[0] * s0 + r2[1] * s1 + r2[2] * s2))
-    # quats * exp(w / 2), exp inlined (spatial.quat_exp's arithmetic in fewer numpy calls), the
-    # products as one 2-D product of their outer products (spatial._QMUL_OUTER) and the norms as
-    # products with ones: a reduction over a small last axis costs ~4x as much. (0-d constants:
-    # numpy 1 converts a Python float operand at every call.)
+    # the root's translation along its own axes
+    out[:3] = q[:3] + spatial.quat_to_matrix(q[3:7]) @ full[0, 3:]
+    # Kept fused (benchmarks/dynamics.py: the plain form made a closed-loop step about 10 % slower).
+    # The plain formula: q <- normalize(spatial.quat_multiply(q, spatial.quat_exp(w))) per body,
+    # here with quat_exp's arithmetic inlined, the products as one 2-D product of the quaternions'
+    # outer products (spatial._QMUL_OUTER) and the norms as products with ones.
     turn = full[:, :3]
     angle = np.sqrt((turn * turn).dot(ONES3))
-    half = _HALF * angle
-    small = angle < _SMALL_TURN
+    half = 0.5 * angle
+    small = angle < 1e-6  # sin(a/2)/a by its Taylor series there (and no division by zero)
     exp = np.empty((nb, 4))
     exp[:, 0] = np.cos(half)
-    n_small = np.count_nonzero(small)  # (one call where .all() and .any() each cost two)
-    if n_small == nb:  # np.where's branch alone (a figure at rest: no body turns)
-        exp[:, 1:] = (_HALF - angle * angle / _48)[:, None] * turn
-    elif not n_small:  # (the divisor below is angle itself)
-        exp[:, 1:] = (np.sin(half) / angle)[:, None] * turn
-    else:  # (divided by angle where it is kept; at least _SMALL_TURN, no division by zero, where
-        # np.where drops it: angle + small's values without its bool-to-float cast)
-        exp[:, 1:] = np.where(small, _HALF - angle * angle / _48, np.sin(half) / np.maximum(angle, _SMALL_TURN))[:, None] * turn
+    exp[:, 1:] = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / np.maximum(angle, 1e-6))[:, None] * turn
     quats = q[3:].reshape(nb, 4)
     turned = (quats[:, :, None] * exp[:, None, :]).reshape(nb, 16).dot(spatial._QMUL_OUTER)
     out[3:] = (turned / np.sqrt((turned * turned).dot(ONES4))[:, None]).ravel()
     return out
-
-
-_HALF, _SMALL_TURN, _48 = np.array(0.5), np.array(1e-6), np.array(48.0)
 
 
 def difference(model, q0, q1):

@@ -46,8 +46,7 @@ def skew(w):
 
 
 def quat_rows(w, x, y, z):
-    """quat_to_matrix of one unit quaternion on floats, as three row tuples (the control loop's
-    root: a few floats cost less than numpy's calls on a 3x3)."""
+    """quat_to_matrix of one unit quaternion given as four floats, as three row tuples of floats."""
     return ((w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)),
             (2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x)),
             (2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z))
@@ -63,7 +62,7 @@ def quat_to_matrix(q):
 def quat_exp(w):
     """Unit quaternions exp(w / 2) for rotation vectors w (..., 3): the rotation by |w| about w."""
     w = np.asarray(w, dtype=float)
-    angle = np.sqrt(np.add.reduce(w * w, -1))[..., None]  # (einsum costs ~3x more on small stacks)
+    angle = np.linalg.norm(w, axis=-1, keepdims=True)
     half = 0.5 * angle
     # sin(x/2)/x, with its Taylor series near zero to stay exact (angle + small: no division by
     # zero in the branch np.where drops)
@@ -86,20 +85,11 @@ def quat_log(q):
 
 def log_scale(s, aw):
     """The factor taking a unit quaternion's vector part (norm s, |w| = aw) to its rotation vector:
-    2 atan2(s, aw) / s, and 2 / aw below s = 1e-8. np.where's arithmetic, bit for bit, with only
-    the branch computed when every entry takes the same one (the control loop calls it per step)."""
-    small = s < _LOG_SMALL  # (0-d constants: numpy 1 converts a Python float operand at every call)
-    n_small = np.count_nonzero(small)  # (one call where .all() and .any() each cost two)
-    if not n_small:  # (the divisor below is s itself)
-        return _TWO * np.arctan2(s, aw) / s
-    if n_small == small.size:
-        return _TWO / np.maximum(aw, _TINY)
-    # (divided by s where it is kept; at least _LOG_SMALL, no division by zero, where np.where
-    # drops it: s + small's values without its bool-to-float cast)
-    return np.where(small, _TWO / np.maximum(aw, _TINY), _TWO * np.arctan2(s, aw) / np.maximum(s, _LOG_SMALL))
-
-
-_LOG_SMALL, _TWO, _TINY = np.array(1e-8), np.array(2.0), np.array(1e-300)
+    2 atan2(s, aw) / s, and 2 / aw below s = 1e-8 (the limit, without dividing by a vanishing s)."""
+    small = s < 1e-8
+    if not small.any():  # the usual case: no vanishing rotation
+        return 2.0 * np.arctan2(s, aw) / s
+    return np.where(small, 2.0 / np.maximum(aw, 1e-300), 2.0 * np.arctan2(s, aw) / np.where(small, 1.0, s))
 
 
 # quaternion product a * b = (a @ _QMUL).reshape(4, 4) @ b: the left-multiplication matrix of a
@@ -109,7 +99,7 @@ for _r, _row in enumerate(((0, 1, 2, 3), (1, 0, 3, 2), (2, 3, 0, 1), (3, 2, 1, 0
         _QMUL[_k, 4 * _r + _c] = ((1, -1, -1, -1), (1, 1, -1, 1), (1, 1, 1, -1), (1, -1, 1, 1))[_r][_c]
 del _r, _row, _c, _k
 # ... and a * b = outer(a, b).reshape(16) @ _QMUL_OUTER (outer's entry 4 j + l = a_j b_l), for
-# stacks one 2-D product (a reduction over a small last axis costs ~4x as much); conj(a) * b
+# stacks one 2-D product; conj(a) * b
 # = outer(a, b).reshape(16) @ _CONJ_QMUL_OUTER
 _QMUL_OUTER = np.ascontiguousarray(_QMUL.reshape(4, 4, 4).transpose(0, 2, 1).reshape(16, 4))
 _CONJ_QMUL_OUTER = _QMUL_OUTER * np.repeat([1.0, -1.0, -1.0, -1.0], 4)[:, None]

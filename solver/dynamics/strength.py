@@ -55,8 +55,7 @@ class StrengthModel:
 
     def limits(self, angles, velocities):
         """(tau_min, tau_max) (..., J, 3) for joint angles and angular velocities (..., J, 3)."""
-        # np.minimum/np.maximum: np.clip's dispatch costs more than the arithmetic on a body's DOFs
-        angle = np.maximum(0.3, np.cos(0.6 * np.minimum(np.maximum(np.asarray(angles, float), -np.pi), np.pi)))
+        angle = np.maximum(0.3, np.cos(0.6 * np.clip(np.asarray(angles, float), -np.pi, np.pi)))
         w = np.asarray(velocities, float) / self.max_velocity
         return torque_range(self.scale * self.peak * angle, w)
 
@@ -77,14 +76,10 @@ def torque_range(top, w):
     shortens (max((1 - w) / (1 + 4 w), 0.1)), the other lengthens (1.3 - 0.3 / (1 + 10 w)); both
     are 1 at rest."""
     p = np.abs(w)
-    c = _HILL  # (0-d arrays: numpy 1 converts a Python float operand at every call, ~0.5 us)
-    short = np.maximum((c[1.0] - p) / (c[1.0] + p / c[0.25]), c[0.1])
-    long = c[1.3] - c[0.3] / (c[1.0] + c[10.0] * p)
-    pos = w >= c[0.0]
+    short = np.maximum((1.0 - p) / (1.0 + 4.0 * p), 0.1)
+    long = 1.3 - 0.3 / (1.0 + 10.0 * p)
+    pos = w >= 0.0
     return -top * np.where(pos, long, short), top * np.where(pos, short, long)
-
-
-_HILL = {x: np.array(x) for x in (0.0, 0.1, 0.25, 0.3, 1.0, 1.3, 10.0)}  # torque_range's constants
 
 
 def default_strength(model, scale=1.0, gravity=9.81):

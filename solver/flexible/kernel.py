@@ -1,18 +1,17 @@
 """The fused time step of the flexible character: the hot loop of Simulator.run.
 
-The reference step (Simulator.accelerations / Simulator.step) is written for reading: 60-110 small
-numpy calls a step. On a 10-coordinate character each call costs about a microsecond and the
-arithmetic almost nothing, so a step's time is its number of calls. Here the same equations are laid
-out so a semi-implicit step on the ground is 27 calls on preallocated buffers (a LAPACK solve
-among them), all in the ground plane's frame (the world frame when there is no ground or several
-planes):
+The same equations as the reference step (Simulator.accelerations / Simulator.step, written for
+reading, and checked against this one by tests/solver/test_flexible_kernel_paths.py), laid out as
+a few products on preallocated buffers, which benchmarks/flexible.py measures several times
+faster than the reference step. Everything is in the ground plane's frame (the world frame when
+there is no ground or several planes):
 
 - The point Jacobians in body velocities, G = [I, -[y]x, B] (3P x n), and the body points y are
   linear in gamma: one product [1, gamma] . GY gives both, one more rotates them into the plane
   frame (Gq = R' G, R' = R_plane R), coordinate by coordinate: rows (x of all points, y of all, z).
 - One product of [du, the y column, u, u with gamma_dot doubled] with Gq gives the points' G du
   (du: the corrector's increment, else 0), positions, velocities and v + y_dot (the velocity terms
-  are w x (v_point + y_dot)) as rows of one table.
+  are w x (v_point + y_dot)) as rows of one table (PointTable).
 - One 8 x 15 matrix FW times that table (plus anchors and a row of ones) gives the penalty springs
   and dampers of all points (masks, not index lists), mu f_n, the height over the plane and
   w x (v_point + y_dot) + G du / h - g (so - M du / h comes with the inertial forces). What
@@ -25,14 +24,12 @@ planes):
   per-row weights W next to the masses (W itself one 6 x 3 product of (touching, sliding, mass));
   the unit rows E pick the modes' constant share A0.
 - The new state and the rigid motion's increment are one product of [z, du]; the rigid motion
-  (quaternion, translation) is a few dozen float operations in plain Python, cheaper than numpy
-  calls on 3- and 4-vectors.
-- One LAPACK Cholesky solve (dposv) a step, in place on preallocated buffers (lapack.py); the
-  implicit corrector reuses its factor (dpotrs).
-- Many points (Kernel.big): the products are past the point where their arithmetic, not their
-  count, is the cost. M(gamma) then comes from its polynomial in gamma (sums over the points made
-  once: M = sum_ab c_a c_b M_ab, c = [1, gamma]; rotation-free, since R'^T R' = I) and the
-  ground's share of A from the touching points alone.
+  (quaternion, translation: q <- q exp(phi), t += R(q exp(phi / 2)) d) is done on Python floats.
+- One Cholesky solve a step (lapack.py), in place on preallocated buffers; the implicit
+  corrector reuses its factor.
+- Many points (Kernel.big): M(gamma) comes from its polynomial in gamma (sums over the points
+  made once: M = sum_ab c_a c_b M_ab, c = [1, gamma]; rotation-free, since R'^T R' = I) and the
+  ground's share of A from the touching points alone, instead of products over all points.
 
 Everything constant during a run (the gamma polynomial of G and y, the plane frame, the mode gains,
 the pose schedule of the controller) is prepared once."""
@@ -78,11 +75,7 @@ def rigid_move(q, t, mv):
     norm = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
     w, x, y, z = w * norm, x * norm, y * norm, z * norm
     q[0], q[1], q[2], q[3] = w, x, y, z
-    # rot_list, inline (a call costs as much as a few products here)
-    x2, y2, z2 = x + x, y + y, z + z
-    xx, yy, zz, xy, xz, yz = x * x2, y * y2, z * z2, x * y2, x * z2, y * z2
-    wx, wy, wz = w * x2, w * y2, w * z2
-    return [1 - (yy + zz), xy - wz, xz + wy, xy + wz, 1 - (xx + zz), yz - wx, xz - wy, yz + wx, 1 - (xx + yy)]
+    return rot_list(w, x, y, z)
 
 
 def rot_list(w, x, y, z):
@@ -214,382 +207,33 @@ class Kernel:
         (yields progress in [0, 1]) returning (records, consumed energy, condition numbers, final
         State). snapshot(state, time) is recorded at the start, every `record_every` steps and at
         the end."""
-        from .simulate import State
-        sim = self.sim
-        P, D, n, nz = self.P, self.D, self.n, self.nz
-        P3 = 3 * P
-        h = sim.settings.dt
-        integrator = sim.settings.integrator
-        thesis, midpoint = integrator == "thesis", integrator == "implicit"
-        GY, Q, A0, limit = self.GY, self.Q, self.A0, self.limit
-        big, Yp = self.big, self.Yp
-        half_h_stiff = self.half_h_stiff
-        T_upd = self.T_thesis if thesis else self.T_step
-        T_mid = self.T_mid
-        # [F (3P, plane frame, coordinate-major) | 0 (D) | z (nz) | b, then x (n), 0, Q z (D)]
-        Wd = self.width                                          # G's row width: [G (n) | y | 0 (D)]
-        ALL = np.zeros(P3 + D + nz + Wd)
-        Fq = ALL[:P3].reshape(3, P)
-        Fz = ALL[:P3 + D + nz]
-        z = ALL[P3 + D:P3 + D + nz]
-        ZX = ALL[P3 + D:P3 + D + nz + n]
-        bx = ALL[P3 + D + nz:]
-        x = bx[:n]
-        qm = np.empty(D) if big else bx[n + 1:]                 # the mode forces Q z (not Qp z)
-        z[0] = 1.0
-        g1, gam, u, gd = z[:1 + D], z[1:1 + D], z[1 + D:], z[7 + D:]
-        gam[:] = state.gamma
-        u[0:3], u[3:6], gd[:] = state.v, state.w, state.gdot
-        t = [float(c) for c in state.t]
-        q = [float(c) for c in state.quat]
-        Rl = rot_list(*q)
-        # G and y in the body frame, then [Gq; E; Qp^T | Q^T] (plane frame) stacked for
-        # [b, Q z] = [F, 0, z] . GQ; E (D rows of unit vectors) carries the modes' constant share A0
-        # of the system matrix into the same product as Gq^T W Gq
-        Gb = self.G_const.copy()
-        Gb2 = Gb.reshape(3, P * Wd)
-        Gb3 = Gb.reshape(3, P, Wd)
-        yb = np.empty((3, P))
-        zrow = P3 + D
-        GQ = np.zeros((zrow + nz, Wd))
-        GQ[P3 + np.arange(D), 6 + np.arange(D)] = 1.0
-        GQ[zrow:, 6:n] = self.Qp.T
-        if big:
-            Q = Q.copy()                                         # its column 0: the PD targets
-        else:
-            GQ[zrow:, n + 1:] = Q.T
-        Gqe = GQ[:P3].reshape(3, P * Wd)
-        GqeT = Gqe.reshape(P3, Wd).T
-        Gq2 = GQ[:P3, :n]
-        GqA = GQ[:zrow, :n]
-        Gq3 = Gq2.reshape(3, P, n)
-        GQF, GQZ = GQ[:P3], GQ[zrow:]
-        Fflat = Fq.reshape(-1)
-        WGA = np.zeros((zrow, n))                                # [W Gq; A0 rows]
-        WGA[P3 + np.arange(D), 6 + np.arange(D)] = np.diag(A0)[6:]
-        WG = WGA[:P3]
-        WG3 = WG.reshape(3, P, n)
-        Ab = np.empty((n, n))                                   # the system matrix, then its factor
-        chol = CholeskySolver(Ab, x)
-        extra = [None, None, None]                              # A's general-contact, limit, ground terms
-        if big:
-            # many points: M(gamma) = sum m G^T G (rotation-free: R'^T R' = I) from its polynomial
-            # in gamma (constant sums over the points, self.M_cc), the ground's share of A from the
-            # touching points alone
-            Mpoly = self.M_cc
-            Mh_poly = Mpoly / h
-            Mh_poly[0] += A0.ravel()                            # c_0 c_0 = 1
-            MONO = np.empty((1 + D) ** 2)                       # c c
-            MONO2 = MONO.reshape(1 + D, 1 + D)
-            Abf = Ab.reshape(-1)
-            EW = np.empty((3, P))
-        # the table: rows anchors (2), G du (3, the corrector's increment), y (3), v (3), v + y_dot (3),
-        # 1, contact force (3), mu f_n, the plane's distance s, a' = w x (v + y_dot) + G du / h - g
-        # (3); all in the plane frame
-        BIG = np.zeros((23, P))
-        BIG[14] = 1.0
-        VYC = BIG[2:14].reshape(4, P3)
-        U3T = np.zeros((4, Wd))                                  # rows: du, the y column, u, u with 2 gamma_dot
-        U3T[1, n] = 1.0
-        DU = U3T[0, :n]                                          # zero but in the corrector
-        U2 = U3T[2:4, :n]
-        ones_twos = np.ones((2, n))
-        ones_twos[1, 6:] = 2.0
-        anchor, Yq, Vq, B15 = BIG[0:2], BIG[5:8], BIG[8:11], BIG[:15]
-        f, fcap, cap, dist, acc = BIG[15:18], BIG[15:19], BIG[18], BIG[19], BIG[20:23]
-        fnc, fB, ft = BIG[17:19], BIG[15:23], BIG[15:17]
-        # one matrix FW (8 x 15) takes BIG[:15] to the contact forces, mu f_n, s and a'; stored
-        # transposed, its last four rows (the v + y_dot and 1 columns: w x, the body origin, g) and
-        # R' after them are what changes: one assignment a step from Python floats
-        PS = np.zeros(120 + 9)
-        FT = PS[:120].reshape(15, 8)
-        FW = FT.T
-        Rq = PS[120:].reshape(3, 3)
-        FW[4, 7] = 1.0                                           # s = y_z + t_z
-        FW[5:8, 2:5] = np.eye(3) / h                             # a' += G du / h: - M du / h in F
-        g0, g1_, g2 = (-self.g_plane).tolist()
-        mrow = self.m[None, :]
-        negm = -mrow
-        m_h = mrow / h
-        mq_step = (self.m / h)[None, :, None]                 # the masses' weights in A / h
-        mq_thesis = self.m[None, :, None]
-        Rp, flat, org = self.Rp, self.flat, self.origin
-        Rpl = Rp.ravel().tolist()
-        contact = self.single
-        turn = 0
-        onesP = np.ones(P)
-        k = muk = 0.0
-        if contact:
-            c = self.contacts
-            k, cn, ct, mu = c.k, c.cn, c.ct, c.mu
-            muk = mu * k
-            collidesf = c.collides.astype(float)
-            all_collide = bool(c.collides.all())
-            for i, damping in enumerate((ct, ct, cn)):
-                FW[i, 8 + i] = -damping
-                FW[i, 5 + i] = -k
-            FW[0, 0] = FW[1, 1] = k
-            FW[3, :11] = mu * FW[2, :11]
-            MV = np.zeros((2, 23))                             # a slid anchor: x_t + (f_t + ct v_t) / k
-            MV[0, [5, 15, 8]] = 1.0, 1.0 / k, ct / k
-            MV[1, [6, 16, 9]] = 1.0, 1.0 / k, ct / k
-            ftn = np.empty(P)
-            moved = np.empty((2, P))
-            hk = 0.5 * h * k
-            a_stick = 0.5 * ct + 0.25 * h * k                  # per h: (h/2 ct + h^2/4 k) / h
-            n_stick = 0.5 * (cn - ct)
-            n_slide = 0.5 * cn + 0.25 * h * k
-            # (stick, slide, mass) -> the -h/2 K u multipliers (3 rows) and the weights of A / h (3);
-            # taken from (touching, sliding, mass): stick = touching - sliding
-            CW = np.array([[-hk, 0, 0], [-hk, 0, 0], [-hk, -hk, 0],
-                           [a_stick, 0, 1 / h], [a_stick, 0, 1 / h], [a_stick + n_stick, n_slide, 1 / h]])
-            CW[:, 1] -= CW[:, 0]
-            # (touching, sliding, mass) rows: two tables used in turn, so the last evaluation's
-            # touching points (where anchors are set) stay at hand without a copy
-            SBs = (np.zeros((3, P)), np.zeros((3, P)))
-            for SB in SBs:
-                SB[2] = self.m
-            MW = np.empty((6, P))
-            KU, W3e = MW[:3], MW[3:, :, None]
-            newb = np.empty(P, bool)
-            slideb = np.empty(P, bool)
-            scale = np.empty(P)
-            tp01 = np.empty((2, 1))
-            kv = np.empty((3, P))
-        general = self.contacts is not None and not contact
-        springs = self.springs
-        ctl = sim.controller
-        current = -1
+        h = self.sim.settings.dt
+        step = _Step(self, state)
+        ctl = self.sim.controller
+        pose_now = pose_mid = None
         if ctl is not None:
             times = start_time + np.arange(steps) * h
             pose_now = self.schedule(times)
-            pose_mid = self.schedule(times + 0.5 * h) if midpoint else None
-            kpt = self.targets()
-
-        def set_pose(index):
-            GQ[zrow, 6:n] = kpt[index]
-            if big:
-                Q[:, 0] = kpt[index]
-            else:
-                GQ[zrow, n + 1:] = kpt[index]
-            return index
-
-        def evaluate(Rl, zl, time, kind):
-            """b at the current z and rigid frame into bx (and Q z after it), for kind 0 (thesis: b),
-            1 (predictor: (b - h/2 K u), with the system matrix (M + h/2 C + h^2/4 K) / h returned)
-            or 2 (corrector: b - M du / h, du in DU). Returns (A or None, power)."""
-            nonlocal turn
-            # the rotation into the plane frame, the body origin in it, w in it
-            if flat:
-                Rql = Rl
-                tx, ty, tz = t[0] - org[0], t[1] - org[1], t[2] - org[2]
-            else:
-                Rql = [Rpl[3 * i] * Rl[j] + Rpl[3 * i + 1] * Rl[3 + j] + Rpl[3 * i + 2] * Rl[6 + j]
-                       for i in range(3) for j in range(3)]
-                ox, oy, oz = t[0] - org[0], t[1] - org[1], t[2] - org[2]
-                tx = Rpl[0] * ox + Rpl[1] * oy + Rpl[2] * oz
-                ty = Rpl[3] * ox + Rpl[4] * oy + Rpl[5] * oz
-                tz = Rpl[6] * ox + Rpl[7] * oy + Rpl[8] * oz
-            w0, w1, w2 = zl[4 + D:7 + D]
-            a0 = Rql[0] * w0 + Rql[1] * w1 + Rql[2] * w2      # w in the plane frame
-            a1 = Rql[3] * w0 + Rql[4] * w1 + Rql[5] * w2
-            a2 = Rql[6] * w0 + Rql[7] * w1 + Rql[8] * w2
-            # FW's columns of v + y_dot (w x) and of 1 (the body origin's share of the springs and s;
-            # -g), then R'
-            PS[88:] = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, a2, -a1, 0.0, 0.0, 0.0, 0.0, 0.0, -a2, 0.0, a0,
-                       0.0, 0.0, 0.0, 0.0, 0.0, a1, -a0, 0.0,
-                       -k * tx, -k * ty, -k * tz, -muk * tz, tz, g0, g1_, g2] + Rql
-            # G, y (body), then plane frame; positions, velocities, v + y_dot
-            if big:                                            # y, then the columns -[y]x and y of G
-                g1.dot(Yp, out=yb.reshape(-1))
-                Gb3[:, :, n] = yb
-                Gb3[0, :, 4] = yb[2]
-                np.negative(yb[1], out=Gb3[0, :, 5])
-                np.negative(yb[2], out=Gb3[1, :, 3])
-                Gb3[1, :, 5] = yb[0]
-                Gb3[2, :, 3] = yb[1]
-                np.negative(yb[0], out=Gb3[2, :, 4])
-            else:
-                g1.dot(GY, out=Gb)
-            Rq.dot(Gb2, out=Gqe)
-            np.multiply(u, ones_twos, out=U2)
-            U3T.dot(GqeT, out=VYC)
-            FW.dot(B15, out=fB)                                 # springs and dampers from the anchors; s; a'
-            touching = False
-            if contact:
-                SB = SBs[turn]
-                touchf, slidef, anchored = SB[0], SB[1], SBs[1 - turn][0]
-                turn = 1 - turn
-                np.less(dist, 0.0, out=touchf)
-                if not all_collide:
-                    np.multiply(touchf, collidesf, out=touchf)
-                count = touchf.dot(onesP)                      # (np.count_nonzero wraps in Python)
-                touching = count > 0
-            if touching:
-                if touchf.dot(anchored) < count:               # the point of entry: where it crossed the plane
-                    np.greater(touchf, anchored, out=newb)
-                    tp01[0, 0], tp01[1, 0] = tx, ty
-                    np.copyto(anchor, Yq[0:2] + tp01, where=newb)
-                    FW[0:2].dot(B15, out=ft)
-                np.maximum(fnc, 0.0, out=fnc)                   # the ground only pushes
-                np.multiply(fcap, touchf, out=fcap)
-                np.hypot(f[0], f[1], out=ftn)
-                np.greater(ftn, cap, out=slidef)
-                if slidef.dot(onesP):                          # Coulomb: cap the friction force
-                    np.greater(slidef, 0.0, out=slideb)
-                    scale.fill(1.0)
-                    np.divide(cap, ftn, out=scale, where=slideb)
-                    ft[...] *= scale
-                    # slide the anchor so the spring alone gives the capped force next time
-                    MV[0, 14], MV[1, 14] = tx, ty
-                    MV.dot(BIG, out=moved)
-                    np.copyto(anchor, moved, where=slideb)
-                np.multiply(acc, negm, out=Fq)                 # m (g - w x (v + y_dot) - G du / h)
-                np.add(Fq, f, out=Fq)
-                if kind == 1:
-                    CW.dot(SB, out=MW)
-                    np.multiply(Vq, KU, out=kv)                # - h/2 K u of the ground springs
-                    np.add(Fq, kv, out=Fq)
-            else:
-                np.multiply(acc, negm, out=Fq)
-                if general:
-                    touching = self._general_contacts(Rq, t, Yq, Vq, Fq, kind == 1, h)
-            if springs:
-                Fq[:, self.spring_idx] += self._spring_forces(t, Yq, Vq, time)
-            if big:
-                np.add(Fflat.dot(GQF), z.dot(GQZ), out=bx)
-                Q.dot(z, out=qm)
-                qml = qm.tolist()
-            else:
-                Fz.dot(GQ, out=bx)                              # [Gq^T F + Qp z, -, Q z]
-                qml = bx.tolist()[n + 1:]
-            power = sum(map(abs, map(mul, qml, zl[7 + D:])))
-            if kind != 1:                                       # Q z, not Qp z
-                x[6:] += half_h_stiff * gd
-            gl = zl[1:1 + D]
-            lim = None
-            if gl and (max(gl) > 1.0 or min(gl) < -1.0):
-                # amplitudes live in [-1, 1] (thesis 4.3): a stiff one-sided spring beyond
-                over = gam - np.clip(gam, -1.0, 1.0)
-                lim = limit * (over != 0)
-                x[6:] -= limit * over
-                power = float(np.abs((qm - limit * over) * gd).sum())
-                if kind == 1:
-                    x[6:] -= 0.5 * h * lim * gd
-            if big:
-                np.multiply.outer(g1, g1, out=MONO2)
-            if kind != 1:
-                return None, power
-            if big:
-                extra[2] = None
-                if touching and contact:                       # the ground's weights beyond m / h
-                    idx = np.flatnonzero(touchf)
-                    np.subtract(W3e[:, :, 0], m_h, out=EW)
-                    Gt = Gq3[:, idx, :]
-                    extra[2] = Gt.reshape(-1, n).T.dot((Gt * EW[:, idx, None]).reshape(-1, n))
-            elif touching and contact:
-                np.multiply(Gq3, W3e, out=WG3)
-            else:
-                np.multiply(Gq3, mq_step, out=WG3)
-            extra[0] = self._general_matrix(Gq3, h) if touching and general else None
-            extra[1] = lim
-            return system_matrix(), power
-
-        def system_matrix():
-            """(M + h/2 C + h^2/4 K) / h into Ab from W Gq and the extra terms of the last evaluate."""
-            if big:
-                MONO.dot(Mh_poly, out=Abf)                      # M / h + A0
-            else:
-                GqA.T.dot(WGA, out=Ab)                          # Gq^T W Gq + A0
-            if extra[0] is not None:
-                np.add(Ab, extra[0], out=Ab)
-            if extra[2] is not None:
-                np.add(Ab, extra[2], out=Ab)
-            if extra[1] is not None:
-                Ab[6 + np.arange(D), 6 + np.arange(D)] += 0.25 * h * extra[1]
-            return Ab
-
-        def mass_matrix():
-            """M at the last evaluation's gamma."""
-            if big:
-                MONO.dot(Mpoly, out=Abf)
-                return Ab
-            np.multiply(Gq3, mq_thesis, out=WG3)
-            Gq2.T.dot(WG, out=Ab)
-            return Ab
-
-        def diverged(time):
-            raise FlexibleError(f"the simulation diverged at {time:.3f} s: try a smaller time step, "
-                                f"the implicit integrator, or softer ground/modes")
-
-        def fallback_solve(A, b, time):
-            if not (np.isfinite(A).all() and np.isfinite(b).all()):
-                diverged(time)
-            try:
-                return np.linalg.solve(A, b)
-            except np.linalg.LinAlgError:
-                diverged(time)
-
-        def current_state():
-            return State(np.array(t), np.array(q), gam.copy(), u[0:3].copy(), u[3:6].copy(), gd.copy())
-
+            pose_mid = self.schedule(times + 0.5 * h) if step.midpoint else None
         every = record_every or max(steps, 1)
         chunk = max(steps // 50, 1)
-        records = [snapshot(current_state(), start_time)]
+        records = [snapshot(step.current_state(), start_time)]
         consumed, conds = 0.0, []
-        ZM = np.empty(nz + 6)                                    # [z_new, rigid increment]
-        ZMz = ZM[:nz]
-        zl = z.tolist()
         for i in range(steps):
             time = start_time + i * h
-            if ctl is not None and pose_now[i] != current:
-                current = set_pose(pose_now[i])
-            if thesis:
-                _, power = evaluate(Rl, zl, time, 0)
-                mass_matrix()
-                if not chol.solve():                           # x <- M^-1 b (T_thesis scales by h)
-                    x[:] = fallback_solve(mass_matrix().copy(), x, time)
-            else:
-                A, power = evaluate(Rl, zl, time, 1)
-                factored = chol.solve()                        # x <- A^-1 x in place, A <- its factor
-                if not factored:                               # a degenerate body, or numbers blew up
-                    A = system_matrix().copy()
-                    x[:] = fallback_solve(A, x, time)
-                if midpoint:
-                    # predictor u* = u + du; the implicit midpoint rule's corrector: one Newton step
-                    # about the midpoint, with the predictor's matrix (its Cholesky factor reused)
-                    DU[:] = x                                  # du rides in U3T: G du for - M du / h
-                    z0, t0, q0 = z.copy(), t[:], q[:]
-                    T_mid.dot(ZX, out=ZM)
-                    z[:] = ZMz
-                    zml = ZM.tolist()
-                    Rm = rigid_move(q, t, zml[nz:])
-                    if ctl is not None and pose_mid[i] != current:
-                        current = set_pose(pose_mid[i])
-                    _, power = evaluate(Rm, zml[:nz], time + 0.5 * h, 2)
-                    if factored:
-                        chol.resolve()                         # x <- A^-1 x with the predictor's factor
-                    else:
-                        x[:] = fallback_solve(A, x, time)
-                    np.add(DU, x, out=x)                       # u_new - u
-                    DU.fill(0.0)
-                    z[:] = z0
-                    t[:], q[:] = t0, q0
-            T_upd.dot(ZX, out=ZM)
-            z[:] = ZMz
-            zml = ZM.tolist()
-            zl = zml[:nz]
-            Rl = rigid_move(q, t, zml[nz:])
-            if not (i & 7 and i + 1 < steps) and not u.dot(u) < 1e12:
-                diverged(time)                                 # also NaN (every 8 steps is soon enough)
+            if pose_now is not None:
+                step.pose(pose_now[i])
+            power = step.advance(time, None if pose_mid is None else pose_mid[i])
+            if not (i & 7 and i + 1 < steps) and not step.u.dot(step.u) < 1e12:
+                step.diverged(time)                            # also NaN (every 8 steps is soon enough)
             consumed += power * h
             if cond_every and i % cond_every == 0:
-                conds.append(np.linalg.cond(mass_matrix()))
+                conds.append(np.linalg.cond(step.mass_matrix()))
             if (i + 1) % every == 0 or i + 1 == steps:
-                records.append(snapshot(current_state(), start_time + (i + 1) * h))
+                records.append(snapshot(step.current_state(), start_time + (i + 1) * h))
             if i % chunk == 0:
                 yield i / max(steps, 1)
-        return records, consumed, conds, current_state()
+        return records, consumed, conds, step.current_state()
 
     # -- general (slower) paths: several ground planes, springs (plane frame = world here) ------------
     def _general_contacts(self, Rq, t, Yq, Vq, Fq, predictor, h):
@@ -634,3 +278,487 @@ class Kernel:
             direction = d / dist if dist > 1e-12 else np.zeros(3)
             out[j] = sp.stiffness * (dist - sp.rest_length) * direction - sp.damping * v[j]
         return Rp @ out.T
+
+
+class PointTable:
+    """The table of per-point quantities of a step, one column per point, all in the plane frame.
+    Its first 15 rows are what the penalty matrix FW takes (FW.dot(inputs) -> outputs), the
+    others what it gives."""
+
+    def __init__(self, P):
+        self.rows = rows = np.zeros((23, P))
+        self.anchor = rows[0:2]           # the friction springs' anchors (tangential x, y)
+        self.G_du = rows[2:5]             # G du: the corrector's increment at the points
+        self.y = rows[5:8]                # positions from the body origin
+        self.v = rows[8:11]               # velocities
+        self.v_ydot = rows[11:14]         # v + y_dot (the velocity terms are w x (v + y_dot))
+        rows[14] = 1.0                    # ones: the body origin's and gravity's share
+        self.inputs = rows[:15]
+        self.kinematics = rows[2:14]      # G du, y, v, v + y_dot: one product with the Jacobians
+        self.force = rows[15:18]          # the ground's penalty force
+        self.friction = rows[15:17]       # its tangential part
+        self.normal = rows[17]            # its normal part
+        self.normal_cap = rows[17:19]     # f_n and mu f_n
+        self.force_cap = rows[15:19]      # f and mu f_n
+        self.cap = rows[18]               # mu f_n: the Coulomb cap of the friction
+        self.height = rows[19]            # the height over the plane
+        self.accel = rows[20:23]          # a' = w x (v + y_dot) + G du / h - g
+        self.outputs = rows[15:23]
+
+
+class _Step:
+    """The buffers and named steps of one Kernel.run (see the module docstring for the layout).
+
+    The state lives in z = [1, gamma, v, w, gamma_dot] (`z`, views `gamma`, `u` = [v, w, gamma_dot],
+    `gamma_dot`) and the rigid frame's translation `t` and quaternion `q` (lists of floats)."""
+
+    def __init__(self, kernel, state):
+        self.kernel = kernel
+        sim = kernel.sim
+        P, D, n, nz = kernel.P, kernel.D, kernel.n, kernel.nz
+        self.P, self.D, self.n, self.nz = P, D, n, nz
+        self.h = h = sim.settings.dt
+        integrator = sim.settings.integrator
+        self.thesis, self.midpoint = integrator == "thesis", integrator == "implicit"
+        self.big = big = kernel.big
+        self.T_update = kernel.T_thesis if self.thesis else kernel.T_step
+        self._state_vector(state)
+        self._jacobian_buffers()
+        self._penalty_matrix()
+        self._ground_weights()
+        self.Ab = Ab = np.empty((n, n))                          # the system matrix, then its factor
+        self.chol = CholeskySolver(Ab, self.x)
+        self.extra = [None, None, None]                          # A's general-contact, limit, ground terms
+        if big:
+            # many points: M(gamma) = sum m G^T G (rotation-free: R'^T R' = I) from its polynomial
+            # in gamma (constant sums over the points, kernel.M_cc), the ground's share of A from
+            # the touching points alone
+            self.Mpoly = kernel.M_cc
+            self.Mh_poly = kernel.M_cc / h
+            self.Mh_poly[0] += kernel.A0.ravel()                 # c_0 c_0 = 1
+            self.MONO = np.empty((1 + D) ** 2)                   # c c
+            self.MONO2 = self.MONO.reshape(1 + D, 1 + D)
+            self.Abf = Ab.reshape(-1)
+            self.EW = np.empty((3, P))
+        self.general = kernel.contacts is not None and not kernel.single
+        self.springs = kernel.springs
+        self.current_pose = -1
+        if sim.controller is not None:
+            self.kpt = kernel.targets()
+        self.ZM = np.empty(nz + 6)                               # [z_new, rigid increment]
+        self.zl = self.z.tolist()
+        self.turn = 0
+
+    # -- the buffers ------------------------------------------------------------------------------------
+    def _state_vector(self, state):
+        """ALL = [F (3P, plane frame, coordinate-major) | 0 (D) | z (nz) | b, then x (n), 0, Q z (D)]:
+        [F, 0, z] is the left factor of the product that gives b, [z, x] the state update's input."""
+        P, D, n, nz = self.P, self.D, self.n, self.nz
+        P3 = 3 * P
+        self.width = Wd = self.kernel.width                      # G's row width: [G (n) | y | 0 (D)]
+        ALL = np.zeros(P3 + D + nz + Wd)
+        self.F = ALL[:P3].reshape(3, P)                          # point forces
+        self.F_flat = ALL[:P3]
+        self.F_z = ALL[:P3 + D + nz]
+        self.z = z = ALL[P3 + D:P3 + D + nz]
+        self.z_x = ALL[P3 + D:P3 + D + nz + n]
+        self.bx = bx = ALL[P3 + D + nz:]
+        self.x = bx[:n]                                          # b, then the solution
+        self.mode_forces = np.empty(D) if self.big else bx[n + 1:]   # Q z (not Qp z)
+        z[0] = 1.0
+        self.one_gamma, self.gamma, self.u, self.gamma_dot = z[:1 + D], z[1:1 + D], z[1 + D:], z[7 + D:]
+        self.gamma[:] = state.gamma
+        self.u[0:3], self.u[3:6], self.gamma_dot[:] = state.v, state.w, state.gdot
+        self.t = [float(c) for c in state.t]
+        self.q = [float(c) for c in state.quat]
+        self.R = rot_list(*self.q)
+
+    def _jacobian_buffers(self):
+        """G and y in the body frame, then [Gq; E; Qp^T | Q^T] (plane frame) stacked in GQ for
+        [b, Q z] = [F, 0, z] . GQ; E (D rows of unit vectors) carries the modes' constant share A0
+        of the system matrix into the same product as Gq^T W Gq."""
+        k = self.kernel
+        P, D, n, nz, Wd = self.P, self.D, self.n, self.nz, self.width
+        P3 = 3 * P
+        self.Gb = Gb = k.G_const.copy()
+        self.Gb2 = Gb.reshape(3, P * Wd)
+        self.Gb3 = Gb.reshape(3, P, Wd)
+        self.yb = np.empty((3, P))
+        self.zrow = zrow = P3 + D
+        self.GQ = GQ = np.zeros((zrow + nz, Wd))
+        GQ[P3 + np.arange(D), 6 + np.arange(D)] = 1.0
+        GQ[zrow:, 6:n] = k.Qp.T
+        self.Q = k.Q
+        if self.big:
+            self.Q = k.Q.copy()                                  # its column 0: the PD targets
+        else:
+            GQ[zrow:, n + 1:] = k.Q.T
+        self.Gqe = GQ[:P3].reshape(3, P * Wd)
+        self.GqeT = self.Gqe.reshape(P3, Wd).T
+        self.Gq2 = GQ[:P3, :n]
+        self.GqA = GQ[:zrow, :n]
+        self.Gq3 = self.Gq2.reshape(3, P, n)
+        self.GQF, self.GQZ = GQ[:P3], GQ[zrow:]
+        self.WGA = WGA = np.zeros((zrow, n))                     # [W Gq; A0 rows]
+        WGA[P3 + np.arange(D), 6 + np.arange(D)] = np.diag(k.A0)[6:]
+        self.WG = WGA[:P3]
+        self.WG3 = self.WG.reshape(3, P, n)
+        # the left factor of the point kinematics: rows du, the y column, u, u with 2 gamma_dot
+        self.U3T = U3T = np.zeros((4, Wd))
+        U3T[1, n] = 1.0
+        self.DU = U3T[0, :n]                                     # zero but in the corrector
+        self.U2 = U3T[2:4, :n]
+        self.ones_twos = np.ones((2, n))
+        self.ones_twos[1, 6:] = 2.0
+        self.table = PointTable(P)
+        self.kinematics = self.table.kinematics.reshape(4, P3)
+
+    def _penalty_matrix(self):
+        """FW (8 x 15) takes the table's inputs to the contact forces, mu f_n, the height and a'.
+        Stored transposed, its columns of v + y_dot (w x) and of 1 (the body origin, g) and R'
+        after them are what changes: one assignment a step from Python floats (`frame_entries`)."""
+        k = self.kernel
+        h = self.h
+        self.PS = PS = np.zeros(120 + 9)
+        self.FW = FW = PS[:120].reshape(15, 8).T
+        self.frame_entries = PS[88:]                             # FW[:, 11:15] transposed, then R'
+        self.Rq = PS[120:].reshape(3, 3)
+        FW[4, 7] = 1.0                                           # height = y_z + t_z
+        FW[5:8, 2:5] = np.eye(3) / h                             # a' += G du / h: - M du / h in F
+        self.g_plane = (-k.g_plane).tolist()
+        m = k.m[None, :]
+        self.neg_m, self.m_h = -m, m / h
+        self.mq_step = (k.m / h)[None, :, None]                  # the masses' weights in A / h
+        self.mq_thesis = k.m[None, :, None]
+        self.Rpl = k.Rp.ravel().tolist()
+        self.contact = k.single
+        self.onesP = np.ones(self.P)
+        self.k = self.muk = 0.0
+        if not self.contact:
+            return
+        c = k.contacts
+        self.k, cn, ct, mu = c.k, c.cn, c.ct, c.mu
+        self.muk = mu * c.k
+        self.collides = c.collides.astype(float)
+        self.all_collide = bool(c.collides.all())
+        for i, damping in enumerate((ct, ct, cn)):
+            FW[i, 8 + i] = -damping
+            FW[i, 5 + i] = -c.k
+        FW[0, 0] = FW[1, 1] = c.k
+        FW[3, :11] = mu * FW[2, :11]
+        self.MV = MV = np.zeros((2, 23))                         # a slid anchor: x_t + (f_t + ct v_t) / k
+        MV[0, [5, 15, 8]] = 1.0, 1.0 / c.k, ct / c.k
+        MV[1, [6, 16, 9]] = 1.0, 1.0 / c.k, ct / c.k
+
+    def _ground_weights(self):
+        """(touching, sliding, mass) per point -> the ground springs' - h/2 K u multipliers (3 rows)
+        and the weights W of A / h (3 rows), by one product with CW."""
+        if not self.contact:
+            return
+        c, h, P = self.kernel.contacts, self.h, self.P
+        k, cn, ct = c.k, c.cn, c.ct
+        hk = 0.5 * h * k
+        a_stick = 0.5 * ct + 0.25 * h * k                        # per h: (h/2 ct + h^2/4 k) / h
+        n_stick = 0.5 * (cn - ct)
+        n_slide = 0.5 * cn + 0.25 * h * k
+        # from (stick, slide, mass), taken from (touching, sliding, mass): stick = touching - sliding
+        self.CW = CW = np.array([[-hk, 0, 0], [-hk, 0, 0], [-hk, -hk, 0],
+                                 [a_stick, 0, 1 / h], [a_stick, 0, 1 / h], [a_stick + n_stick, n_slide, 1 / h]])
+        CW[:, 1] -= CW[:, 0]
+        # (touching, sliding, mass) rows: two tables used in turn, so the last evaluation's
+        # touching points (where anchors are set) stay at hand without a copy
+        self.SBs = (np.zeros((3, P)), np.zeros((3, P)))
+        for SB in self.SBs:
+            SB[2] = self.kernel.m
+        self.MW = np.empty((6, P))
+        self.KU, self.W3e = self.MW[:3], self.MW[3:, :, None]
+        self.new_touch = np.empty(P, bool)
+        self.sliding = np.empty(P, bool)
+        self.scale = np.empty(P)
+        self.tp01 = np.empty((2, 1))
+        self.kv = np.empty((3, P))
+        self.ftn = np.empty(P)
+        self.moved = np.empty((2, P))
+
+    # -- the state ----------------------------------------------------------------------------------------
+    def current_state(self):
+        from .simulate import State
+        u = self.u
+        return State(np.array(self.t), np.array(self.q), self.gamma.copy(), u[0:3].copy(), u[3:6].copy(),
+                     self.gamma_dot.copy())
+
+    def pose(self, index):
+        """The controller's targets of pose `index` into Q's PD column (if it is not there yet)."""
+        if index == self.current_pose:
+            return
+        n, kpt = self.n, self.kpt
+        self.GQ[self.zrow, 6:n] = kpt[index]
+        if self.big:
+            self.Q[:, 0] = kpt[index]
+        else:
+            self.GQ[self.zrow, n + 1:] = kpt[index]
+        self.current_pose = index
+
+    def diverged(self, time):
+        raise FlexibleError(f"the simulation diverged at {time:.3f} s: try a smaller time step, "
+                            f"the implicit integrator, or softer ground/modes")
+
+    # -- one step -----------------------------------------------------------------------------------------
+    def advance(self, time, mid_pose=None):
+        """One step of the integrator from `time`; returns the mode power. `mid_pose`: the
+        controller's pose half a step on (the implicit midpoint's corrector)."""
+        x = self.x
+        if self.thesis:
+            _, power = self.evaluate(self.R, self.zl, time, 0)
+            self.mass_matrix()
+            if not self.chol.solve():                            # x <- M^-1 b (T_thesis scales by h)
+                x[:] = self._fallback_solve(self.mass_matrix().copy(), x, time)
+        else:
+            A, power = self.evaluate(self.R, self.zl, time, 1)
+            factored = self.chol.solve()                         # x <- A^-1 x in place, A <- its factor
+            if not factored:                                     # a degenerate body, or numbers blew up
+                A = self.system_matrix().copy()
+                x[:] = self._fallback_solve(A, x, time)
+            if self.midpoint:
+                power = self._midpoint_corrector(time, mid_pose, A, factored)
+        self._update_state(self.T_update)
+        return power
+
+    def _midpoint_corrector(self, time, mid_pose, A, factored):
+        """The implicit midpoint rule's corrector: one Newton step about the midpoint of the
+        predictor u* = u + du, with the predictor's matrix (its Cholesky factor reused). Leaves
+        u_new - u in x and the state as it was; returns the power at the midpoint."""
+        x, z, t, q = self.x, self.z, self.t, self.q
+        self.DU[:] = x                                           # du rides in U3T: G du for - M du / h
+        z0, t0, q0 = z.copy(), t[:], q[:]
+        zml = self._update_state(self.kernel.T_mid)
+        if mid_pose is not None:
+            self.pose(mid_pose)
+        _, power = self.evaluate(self.R, zml[:self.nz], time + 0.5 * self.h, 2)
+        if factored:
+            self.chol.resolve()                                  # x <- A^-1 x with the predictor's factor
+        else:
+            x[:] = self._fallback_solve(A, x, time)
+        np.add(self.DU, x, out=x)                                # u_new - u
+        self.DU.fill(0.0)
+        z[:] = z0
+        t[:], q[:] = t0, q0
+        return power
+
+    def _update_state(self, T):
+        """[z, du] -> [z_new, rigid increment] by the update map T, then the rigid motion."""
+        ZM, nz = self.ZM, self.nz
+        T.dot(self.z_x, out=ZM)
+        self.z[:] = ZM[:nz]
+        zml = ZM.tolist()
+        self.zl = zml[:nz]
+        self.R = rigid_move(self.q, self.t, zml[nz:])
+        return zml
+
+    def _fallback_solve(self, A, b, time):
+        if not (np.isfinite(A).all() and np.isfinite(b).all()):
+            self.diverged(time)
+        try:
+            return np.linalg.solve(A, b)
+        except np.linalg.LinAlgError:
+            self.diverged(time)
+
+    # -- the equations of motion at the current state -----------------------------------------------
+    def evaluate(self, Rl, zl, time, kind):
+        """b at the current z and rigid frame into bx (and Q z after it), for kind 0 (thesis: b),
+        1 (predictor: (b - h/2 K u), with the system matrix (M + h/2 C + h^2/4 K) / h returned)
+        or 2 (corrector: b - M du / h, du in DU). Returns (A or None, power)."""
+        tx, ty = self._plane_frame(Rl, zl)
+        self._point_kinematics()
+        touching = self._point_forces(kind, tx, ty, time)
+        power = self._generalised_forces(kind, zl)
+        lim, power = self._joint_limits(kind, zl, power)
+        if self.big:
+            np.multiply.outer(self.one_gamma, self.one_gamma, out=self.MONO2)
+        if kind != 1:
+            return None, power
+        self._system_weights(touching, lim)
+        return self.system_matrix(), power
+
+    def _plane_frame(self, Rl, zl):
+        """R' = R_plane R, the body origin and w in the plane frame, written into FW's changing
+        columns (w x; the origin's share of the springs and of the height; -g) and R'. Returns
+        the origin's tangential coordinates."""
+        t, org, Rpl, D = self.t, self.kernel.origin, self.Rpl, self.D
+        if self.kernel.flat:
+            Rql = Rl
+            tx, ty, tz = t[0] - org[0], t[1] - org[1], t[2] - org[2]
+        else:
+            Rql = [Rpl[3 * i] * Rl[j] + Rpl[3 * i + 1] * Rl[3 + j] + Rpl[3 * i + 2] * Rl[6 + j]
+                   for i in range(3) for j in range(3)]
+            ox, oy, oz = t[0] - org[0], t[1] - org[1], t[2] - org[2]
+            tx = Rpl[0] * ox + Rpl[1] * oy + Rpl[2] * oz
+            ty = Rpl[3] * ox + Rpl[4] * oy + Rpl[5] * oz
+            tz = Rpl[6] * ox + Rpl[7] * oy + Rpl[8] * oz
+        w0, w1, w2 = zl[4 + D:7 + D]
+        a0 = Rql[0] * w0 + Rql[1] * w1 + Rql[2] * w2            # w in the plane frame
+        a1 = Rql[3] * w0 + Rql[4] * w1 + Rql[5] * w2
+        a2 = Rql[6] * w0 + Rql[7] * w1 + Rql[8] * w2
+        k, muk = self.k, self.muk
+        g0, g1, g2 = self.g_plane
+        self.frame_entries[:] = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, a2, -a1, 0.0, 0.0, 0.0, 0.0, 0.0, -a2, 0.0, a0,
+                                 0.0, 0.0, 0.0, 0.0, 0.0, a1, -a0, 0.0,
+                                 -k * tx, -k * ty, -k * tz, -muk * tz, tz, g0, g1, g2] + Rql
+        return tx, ty
+
+    def _point_kinematics(self):
+        """G and y at gamma (body frame), Gq = R' G (plane frame), then the table's G du, y, v and
+        v + y_dot, and FW's outputs (springs and dampers from the anchors, mu f_n, height, a')."""
+        n, Gb3, one_gamma = self.n, self.Gb3, self.one_gamma
+        if self.big:                                             # y, then the columns -[y]x and y of G
+            yb = self.yb
+            one_gamma.dot(self.kernel.Yp, out=yb.reshape(-1))
+            Gb3[:, :, n] = yb
+            Gb3[0, :, 4] = yb[2]
+            np.negative(yb[1], out=Gb3[0, :, 5])
+            np.negative(yb[2], out=Gb3[1, :, 3])
+            Gb3[1, :, 5] = yb[0]
+            Gb3[2, :, 3] = yb[1]
+            np.negative(yb[0], out=Gb3[2, :, 4])
+        else:
+            one_gamma.dot(self.kernel.GY, out=self.Gb)
+        self.Rq.dot(self.Gb2, out=self.Gqe)
+        np.multiply(self.u, self.ones_twos, out=self.U2)
+        self.U3T.dot(self.GqeT, out=self.kinematics)
+        tab = self.table
+        self.FW.dot(tab.inputs, out=tab.outputs)
+
+    def _point_forces(self, kind, tx, ty, time):
+        """The point forces F = m (g - a') + the ground's (+ its - h/2 K u in the predictor) + the
+        springs'. Returns whether the ground is touched."""
+        tab, F = self.table, self.F
+        touching = False
+        if self.contact:
+            touching = self._ground_contact(tx, ty)
+        np.multiply(tab.accel, self.neg_m, out=F)               # m (g - w x (v + y_dot) - G du / h)
+        if touching:
+            np.add(F, tab.force, out=F)
+            if kind == 1:
+                kv = self.kv
+                self.CW.dot(self.SB, out=self.MW)
+                np.multiply(tab.v, self.KU, out=kv)              # - h/2 K u of the ground springs
+                np.add(F, kv, out=F)
+        elif self.general:
+            touching = self.kernel._general_contacts(self.Rq, self.t, tab.y, tab.v, F, kind == 1, self.h)
+        if self.springs:
+            F[:, self.kernel.spring_idx] += self.kernel._spring_forces(self.t, tab.y, tab.v, time)
+        return touching
+
+    def _ground_contact(self, tx, ty):
+        """Which points touch the plane; new anchors where a point crossed it; the normal force
+        one-sided; friction capped at mu f_n (Coulomb), the anchor slid so the spring alone gives
+        the capped force next time. Returns whether any point touches."""
+        tab, onesP, turn = self.table, self.onesP, self.turn
+        self.SB = SB = self.SBs[turn]
+        touch, sliding, anchored = SB[0], SB[1], self.SBs[1 - turn][0]
+        self.turn = 1 - turn
+        np.less(tab.height, 0.0, out=touch)
+        if not self.all_collide:
+            np.multiply(touch, self.collides, out=touch)
+        count = touch.dot(onesP)
+        if not count > 0:
+            return False
+        self.touch = touch
+        anchor, friction, cap = tab.anchor, tab.friction, tab.cap
+        if touch.dot(anchored) < count:                          # the point of entry: where it crossed the plane
+            new, origin = self.new_touch, self.tp01
+            np.greater(touch, anchored, out=new)
+            origin[0, 0], origin[1, 0] = tx, ty
+            np.copyto(anchor, tab.y[0:2] + origin, where=new)
+            self.FW[0:2].dot(tab.inputs, out=friction)
+        np.maximum(tab.normal_cap, 0.0, out=tab.normal_cap)     # the ground only pushes
+        np.multiply(tab.force_cap, touch, out=tab.force_cap)
+        ftn = self.ftn
+        np.hypot(friction[0], friction[1], out=ftn)
+        np.greater(ftn, cap, out=sliding)
+        if sliding.dot(onesP):                                   # Coulomb: cap the friction force
+            slides, scale, MV = self.sliding, self.scale, self.MV
+            np.greater(sliding, 0.0, out=slides)
+            scale.fill(1.0)
+            np.divide(cap, ftn, out=scale, where=slides)
+            friction[...] *= scale
+            MV[0, 14], MV[1, 14] = tx, ty
+            MV.dot(tab.rows, out=self.moved)
+            np.copyto(anchor, self.moved, where=slides)
+        return True
+
+    def _generalised_forces(self, kind, zl):
+        """b = Gq^T F + Qp z (Q z but in the predictor) into x, Q z into mode_forces; returns the
+        modes' power |Q z . gamma_dot|."""
+        n, D = self.n, self.D
+        x, qm, bx = self.x, self.mode_forces, self.bx
+        if self.big:
+            np.add(self.F_flat.dot(self.GQF), self.z.dot(self.GQZ), out=bx)
+            self.Q.dot(self.z, out=qm)
+            qml = qm.tolist()
+        else:
+            self.F_z.dot(self.GQ, out=bx)                         # [Gq^T F + Qp z, -, Q z]
+            qml = bx.tolist()[n + 1:]
+        power = sum(map(abs, map(mul, qml, zl[7 + D:])))
+        if kind != 1:                                            # Q z, not Qp z
+            x[6:] += self.kernel.half_h_stiff * self.gamma_dot
+        return power
+
+    def _joint_limits(self, kind, zl, power):
+        """Amplitudes live in [-1, 1] (thesis 4.3): a stiff one-sided spring beyond, its forces
+        added to b. Returns (its stiffness per mode or None when no amplitude is outside, the
+        modes' power with it)."""
+        gl = zl[1:1 + self.D]
+        if not (gl and (max(gl) > 1.0 or min(gl) < -1.0)):
+            return None, power
+        limit, gam, x = self.kernel.limit, self.gamma, self.x
+        over = gam - np.clip(gam, -1.0, 1.0)
+        lim = limit * (over != 0)
+        x[6:] -= limit * over
+        power = float(np.abs((self.mode_forces - limit * over) * self.gamma_dot).sum())
+        if kind == 1:
+            x[6:] -= 0.5 * self.h * lim * self.gamma_dot
+        return lim, power
+
+    def _system_weights(self, touching, lim):
+        """The per-row weights W of Gq (masses, and the ground's stiffness and damping where it is
+        touched) and A's extra terms (general contacts, joint limits, the ground on many points)."""
+        contact, extra = self.contact, self.extra
+        if self.big:
+            extra[2] = None
+            if touching and contact:                             # the ground's weights beyond m / h
+                idx = np.flatnonzero(self.touch)
+                np.subtract(self.W3e[:, :, 0], self.m_h, out=self.EW)
+                Gt = self.Gq3[:, idx, :]
+                extra[2] = Gt.reshape(-1, self.n).T.dot((Gt * self.EW[:, idx, None]).reshape(-1, self.n))
+        elif touching and contact:
+            np.multiply(self.Gq3, self.W3e, out=self.WG3)
+        else:
+            np.multiply(self.Gq3, self.mq_step, out=self.WG3)
+        extra[0] = self.kernel._general_matrix(self.Gq3, self.h) if touching and self.general else None
+        extra[1] = lim
+
+    def system_matrix(self):
+        """(M + h/2 C + h^2/4 K) / h into Ab from W Gq and the extra terms of the last evaluate."""
+        Ab, extra = self.Ab, self.extra
+        if self.big:
+            self.MONO.dot(self.Mh_poly, out=self.Abf)            # M / h + A0
+        else:
+            self.GqA.T.dot(self.WGA, out=Ab)                     # Gq^T W Gq + A0
+        if extra[0] is not None:
+            np.add(Ab, extra[0], out=Ab)
+        if extra[2] is not None:
+            np.add(Ab, extra[2], out=Ab)
+        if extra[1] is not None:
+            D = self.D
+            Ab[6 + np.arange(D), 6 + np.arange(D)] += 0.25 * self.h * extra[1]
+        return Ab
+
+    def mass_matrix(self):
+        """M at the last evaluation's gamma."""
+        if self.big:
+            self.MONO.dot(self.Mpoly, out=self.Abf)
+            return self.Ab
+        np.multiply(self.Gq3, self.mq_thesis, out=self.WG3)
+        self.Gq2.T.dot(self.WG, out=self.Ab)
+        return self.Ab

@@ -1,11 +1,10 @@
 """Cholesky solves of the kernel's small system in place, on preallocated buffers.
 
-scipy.linalg.lapack.dposv called the usual way copies A into a new Fortran-ordered array, the
-right side into another and returns new arrays: on a 10 x 10 system the copies cost a third of
-the call. A is symmetric, so its C-ordered buffer seen transposed (A.T, a Fortran-ordered view
-of the same memory) is A itself: with overwrite_a and overwrite_b the wrapper factors A in its own
-buffer and leaves the solution in b's, with no copies. (Calling LAPACK through ctypes instead
-was measured no faster: the factorisation itself, not the wrapper, is most of the time.)"""
+The plain formula is x = cho_solve(cho_factor(A), b) (scipy.linalg). Kept in place instead
+(benchmarks/flexible.py, side by side: the plain form made the thesis workload 9-25 % slower):
+scipy.linalg.lapack.dposv, the same LAPACK routine, with overwrite_a and overwrite_b, on A seen
+transposed (A.T, a Fortran-ordered view of the same memory, is A itself for a symmetric A), so
+the factor stays in A's buffer and the solution in b's, with no copies."""
 
 from scipy.linalg.lapack import dposv, dpotrs
 
@@ -27,7 +26,7 @@ class CholeskySolver:
         factor, x, info = dposv(self.At, self.b, lower=0, overwrite_a=1, overwrite_b=1)
         if info:
             return False
-        if x is not self.b:                       # the wrapper had to copy after all
+        if x is not self.b:                       # a copy after all: the solution back into b
             self.b[...] = x
         self._factor = factor
         return True

@@ -18,8 +18,9 @@ Integrators:
   the same test); meant for the many forward simulations of the annealing.
 
 Simulator.run takes its steps with the fused kernel (kernel.py): the same equations as
-accelerations()/step() below (the readable reference, kept for checking it: reference_run()) in
-a third as many numpy calls. The condition number of M is sampled every `cond_every` steps
+accelerations()/step() below (the readable reference, kept for checking it: reference_run()),
+laid out as a few products on preallocated buffers (benchmarks/flexible.py measures the kernel's
+speed-up over the reference). The condition number of M is sampled every `cond_every` steps
 (§4.10.3)."""
 
 from dataclasses import dataclass, field
@@ -27,7 +28,7 @@ from dataclasses import dataclass, field
 import math
 
 import numpy as np
-from scipy.linalg.lapack import dposv as _dposv
+from scipy.linalg import cho_factor, cho_solve
 
 from ..progress import run_to_end
 from .body import FlexibleError, check_modes, quat_from_rotvec, quat_matrix, quat_multiply, skew
@@ -121,12 +122,12 @@ class Result:
 
 
 def solve_spd(A, b):
-    """A x = b for the (symmetric positive definite) system matrix by LAPACK's Cholesky solver,
-    called directly: on 10x10 systems numpy's solve costs several times more in overhead."""
-    c, x, info = _dposv(A, b, lower=0, overwrite_a=0, overwrite_b=0)
-    if info != 0:
-        x, info = np.linalg.solve(A, b), 0
-    return x
+    """A x = b for the (symmetric positive definite) system matrix by its Cholesky factorisation;
+    by np.linalg.solve when it is not positive definite."""
+    try:
+        return cho_solve(cho_factor(A, check_finite=False), b, check_finite=False)
+    except np.linalg.LinAlgError:
+        return np.linalg.solve(A, b)
 
 
 class Simulator:
@@ -424,7 +425,7 @@ class Simulator:
 
     def iter_run(self, state, duration, record_every=None, start_time=0.0, track_energy=False):
         """run() as a step generator (yields progress in [0, 1], returns the Result). The steps
-        are taken by the fused kernel (kernel.py), the same equations as step() in fewer calls."""
+        are taken by the fused kernel (kernel.py), the same equations as step()."""
         steps = int(round(duration / self.settings.dt))
         if self.contacts is not None:
             self.contacts.reset()

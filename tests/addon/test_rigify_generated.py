@@ -52,3 +52,27 @@ def test_simulating_a_control_rig_is_refused_with_the_reason(rig):
     with pytest.raises(RuntimeError, match="not children of the pelvis"):
         bpy.ops.humananim.simulate()
     assert len(bpy.data.actions) == n_actions
+
+
+def test_deform_bone_to_its_fk_control_by_following_constraints(rig):
+    """The rig layer's discovery: DEF-forearm.L follows ORG- and MCH- bones through constraints;
+    the control found turns it (with the IK/FK switch it names), the rig's switches are left as
+    they were, and a control maps to itself."""
+    from humananim.humananim_addon.rig import controls
+    pbs = rig.pose.bones
+    drivers = controls.switch_drivers(rig)
+    before = {k: pbs[k[0]][k[1]] for k in controls.switches_of(drivers, set(pbs.keys()))}
+    assert controls.driven(pbs["DEF-forearm.L"]) and not controls.is_control(rig, "DEF-forearm.L")
+    found = controls.fk_control(rig, "DEF-forearm.L")
+    assert found is not None and found.name == "forearm_fk.L"
+    assert controls.is_control(rig, found.name) and found.switches
+    assert {k: pbs[k[0]][k[1]] for k in before} == before
+    for (bone, prop), value in found.switches.items():
+        pbs[bone][prop] = value
+    assert controls.carries(rig, "DEF-forearm.L", found.name)
+    rest = np.array(rig.data.bones["DEF-forearm.L"].matrix_local)
+    control_rest = np.array(rig.data.bones[found.name].matrix_local)
+    np.testing.assert_allclose(rest @ found.offset, control_rest, atol=1e-5)
+    same = controls.fk_control(rig, "forearm_fk.L")
+    assert same.name == "forearm_fk.L" and not same.switches
+    np.testing.assert_allclose(same.offset, np.eye(4))
