@@ -30,18 +30,10 @@ def motion_from_action(obj, scene, action, frame_range=None, skeleton=None):
     from .armature import skeleton_from_armature
     skeleton = skeleton or skeleton_from_armature(obj, scene, require=False)
     traj = read_action(obj, scene, skeleton, action, frame_range)
-    world = skeleton.world_frames(traj.basis, traj.armature_to_world)
+    world = traj.world_frames(skeleton)
     heads = world[..., :3, 3]
     tails = heads + world[..., :3, 1] * skeleton.lengths[:, None]
     return qa.Motion(heads, traj.rotations, skeleton.names, traj.fps, skeleton.parents, tails, traj.frames), skeleton
-
-
-def rest_height(obj, skeleton):
-    """Ground to the highest point of the rest pose (heads and tails), metres."""
-    rest = skeleton.rest
-    points = np.concatenate((rest[:, :3, 3], rest[:, :3, 3] + rest[:, :3, 1] * skeleton.lengths[:, None]))
-    world = np.array(obj.matrix_world.to_3x3().normalized(), float)
-    return float(np.ptp(points @ world.T[:, 2])) if len(points) else 0.0
 
 
 def action_digest(action):
@@ -82,12 +74,12 @@ def measure_result(obj, scene, action, sources=(), frame_range=None, ground=None
         rng = frame_range if frame_range and _covers(source, frame_range) else None
         inputs.append(motion_from_action(obj, scene, source, rng, skeleton)[0])
     checks = None
-    if digests is not None and sources:
-        before = "".join(digests.get(s.name, "") for s in sources)
-        checks = (before, "".join(action_digest(s) for s in sources))
+    known = [s for s in sources if digests and s.name in digests]  # a source loaded later is not checked
+    if known:
+        checks = ("".join(digests[s.name] for s in known), "".join(action_digest(s) for s in known))
     from ..solver.qa import feet_from_roles
-    report = qa.measure(result, inputs, feet_from_roles(skeleton.roles, skeleton.names), ground,
-                        rest_height(obj, skeleton), checks)
+    # the height is measured on the posed figure: a BVH's rest pose may lie on its side
+    report = qa.measure(result, inputs, feet_from_roles(skeleton.roles, skeleton.names), ground, None, checks)
     report.update(action=action.name, sources=[s.name for s in sources])
     return _stored(obj, report, action) if store else report
 

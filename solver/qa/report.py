@@ -4,8 +4,8 @@ WHAT = {
     "nonfinite": "NaN or infinite values",
     "slide": "planted foot slides",
     "penetration": "below the ground",
-    "pop_velocity": "joint rotation pops (velocity above the input's)",
-    "pop_acceleration": "joint rotation pops (acceleration above the input's)",
+    "pop_velocity": "joint rotation pops (angular velocity above the input's own)",
+    "pop_acceleration": "joint rotation pops (angular acceleration above the input's own)",
     "bone_length": "bone lengths change",
     "figure_height": "figure height outside a human's",
     "source_untouched": "the source motion changed",
@@ -34,7 +34,10 @@ def describe(name, m):
         extra = f", {m['frames_below']} frames below"
     if name.startswith("pop") and m.get("input") is not None:
         extra = f" ({m['result']:g} against the input's {m['input']:g})"
-    return f"{WHAT[name] if not m['passed'] else name}: {m['value']:g} {m['unit']} (limit {limit}){where}{extra}"
+    what = WHAT[name] if not m["passed"] else name
+    if name.startswith("pop") and m.get("input") is None:
+        what = what.replace("the input's own", "a human's")
+    return f"{what}: {m['value']:g} {m['unit']} (limit {limit}){where}{extra}"
 
 
 def warnings(report):
