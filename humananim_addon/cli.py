@@ -179,10 +179,14 @@ def write_atomically(out, write):
 def save_blend(out, summary=None, obj=None, ground=None):
     """Save the session's .blend at `out` (atomically). With the command's `summary` and armature
     `obj`, first measure the result (the motion QA: summary["qa"], also stored on the object)."""
-    import bpy
     if summary is not None:
         summary["qa"] = qa_of_result(summary, obj, ground)
-    return write_atomically(out, lambda tmp: bpy.ops.wm.save_as_mainfile(filepath=tmp))
+    return write_atomically(out, _save_mainfile)
+
+
+def _save_mainfile(path):
+    import bpy
+    bpy.ops.wm.save_as_mainfile(filepath=path)
 
 
 _SOURCE_DIGESTS = {}  # {action name: digest} when the command's file was loaded

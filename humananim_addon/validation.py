@@ -18,6 +18,8 @@ def source_action(obj, props):
 def frame_range(props, action):
     """The job's frames (0 means the action's own first or last frame), inside the action."""
     first, last = action.frame_range
+    if len({round(k.co[0], 6) for fc in _fcurves(action) for k in fc.keyframe_points}) < 2:
+        raise MotionError(f"'{action.name}' has a single keyed frame: at least 3 are needed")
     start = props.frame_start or first
     end = props.frame_end or last
     if end <= start:
@@ -54,3 +56,8 @@ def check_job(obj, props, events="pushes"):
     if load_frame and not start <= load_frame <= end:
         raise MotionError(f"the loads' pick-up frame {load_frame} is outside the frame range {start:g}-{end:g}")
     return action, start, end
+
+
+def _fcurves(action):
+    from .qa import _all_fcurves
+    return _all_fcurves(action)
