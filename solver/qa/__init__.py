@@ -4,7 +4,7 @@ in `thresholds` and warnings naming frames and bones. numpy only; see docs/qa.md
 
 from . import thresholds
 from .measures import Motion, angular_rates, checksum, contact_slides, estimate_floor, feet_from_roles, measure
-from .report import describe, summary_line, text, warnings
+from .report import describe, rows, summary_line, text, warnings
 
 __all__ = ["Motion", "measure", "feet_from_roles", "checksum", "warnings", "summary_line", "text", "describe",
-           "thresholds", "angular_rates", "contact_slides", "estimate_floor"]
+           "thresholds", "rows", "angular_rates", "contact_slides", "estimate_floor"]

@@ -203,7 +203,8 @@ def depths(m, floor):
 
 def _penetration(m, sources, floor):
     """Depth below the floor against what each frame may have: the threshold, or the input's own
-    depth on that frame plus a margin (the input's 90th percentile where frames do not align)."""
+    depth on that frame plus a margin (on every frame the input's deepest, where the result's
+    frames are not the input's: a retimed or joined clip)."""
     if floor is None or m.frame_count == 0:
         return _item(None, "cm", T.PENETRATION_CM, None)
     depth, bones = depths(m, floor)
@@ -212,7 +213,7 @@ def _penetration(m, sources, floor):
     for s in sources:
         if s.frame_count:
             d = depths(s, floor)[0] * 100
-            own = np.maximum(own, d if len(d) == len(own) else np.percentile(d, 90))
+            own = np.maximum(own, d if len(d) == len(own) else d.max())
     allowed = np.maximum(T.PENETRATION_CM, own + T.PENETRATION_MARGIN_CM) if sources else \
         np.full(m.frame_count, T.PENETRATION_CM)
     over = depth - allowed

@@ -61,3 +61,28 @@ def summary_line(report):
 def text(report):
     """The summary line and one indented line per warning."""
     return "\n".join([summary_line(report)] + [f"  WARNING: {w}" for w in report["warnings"]])
+
+
+LABELS = {"nonfinite": "NaN / inf", "slide": "Foot slide", "penetration": "Below ground",
+          "pop_velocity": "Pop (velocity)", "pop_acceleration": "Pop (acceleration)", "bone_length": "Bone length",
+          "figure_height": "Figure height", "source_untouched": "Source untouched"}
+
+
+def rows(report):
+    """The QA panel's rows: (label, text, failed, bone or None, first frame or None) per measure
+    that was measured, the failed ones first."""
+    out = []
+    for name, m in report.get("measures", {}).items():
+        if name == "source_untouched":
+            if m["passed"] is not None:
+                out.append((LABELS[name], "yes" if m["passed"] else "NO: the source changed", not m["passed"], None,
+                            None))
+            continue
+        if m["value"] is None:
+            continue
+        limit = m["limit"]
+        limit = f"{limit[0]:g}-{limit[1]:g}" if isinstance(limit, list) else f"{limit:g}"
+        frames = m.get("frames") or []
+        out.append((LABELS[name], f"{m['value']:.3g} {m['unit']} (limit {limit})", m["passed"] is False,
+                    m.get("bone"), frames[0] if frames else None))
+    return sorted(out, key=lambda r: not r[2])

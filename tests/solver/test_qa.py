@@ -177,3 +177,20 @@ def test_one_frame_and_empty_results_do_not_fail():
     report = qa.measure(figure(1), figure(1), FEET, ground=0.0)
     assert report["measures"]["pop_velocity"]["value"] == 0.0
     assert report["measures"]["slide"]["value"] == 0.0
+
+
+def test_a_retimed_result_may_reach_the_inputs_deepest_on_any_frame():
+    src = figure()
+    src.tails[9, 2, 2] = -0.04  # one 4 cm dip in the input
+    short = figure(20)
+    short.tails[3, 2, 2] = -0.045  # the dip, now at another frame of a shorter result
+    pen = qa.measure(short, src, FEET, ground=0.0)["measures"]["penetration"]
+    assert pen["value"] == pytest.approx(4.5) and pen["limit"] == pytest.approx(5.0) and pen["passed"] is True
+
+
+def test_the_panel_rows_put_failures_first():
+    report = qa.measure(sliding(1.0), figure(), FEET, ground=0.0, source_checksums=("a", "a"))
+    rows = qa.rows(report)
+    assert rows[0][:3] == ("Foot slide", "29 mm (limit 20)", True) and rows[0][3:] == ("LeftFoot", 1.0)
+    assert ("Source untouched", "yes", False, None, None) in rows
+    assert all(not r[2] for r in rows[1:])
