@@ -273,16 +273,28 @@ def bone_lengths(m):
 
 
 def _bone_lengths(m, sources):
+    """The largest change of a bone's length against the input's first frame. A joint that moves
+    against its parent in the input (root motion; position channels on a hip) is no bone and is
+    left out; without an input, the root's children are left out and the result's first frame
+    is the reference."""
     if m.parents is None or m.frame_count == 0:
         return _item(None, "%", T.BONE_LENGTH_PCT, None)
     lengths = bone_lengths(m)
-    ref_motion = next((s for s in sources if s.frame_count and s.heads.shape[1] == m.heads.shape[1]), m)
-    ref = bone_lengths(ref_motion)[0]
-    use = np.isfinite(ref) & (ref > T.BONE_MIN_LENGTH_M)
+    parents = np.asarray(m.parents)
+    ref_motion = next((s for s in sources if s.frame_count and s.heads.shape[1] == m.heads.shape[1]), None)
+    if ref_motion is not None:
+        own = bone_lengths(ref_motion)
+        ref = own[0]
+        dev = np.abs(own / np.where(ref > 0, ref, 1.0) - 1.0)
+        rigid = np.where(np.isfinite(dev), dev, 0.0).max(axis=0) * 100 < T.BONE_LENGTH_PCT / 2
+    else:
+        ref = lengths[0]
+        rigid = parents[np.maximum(parents, 0)] >= 0
+    use = np.isfinite(ref) & (ref > T.BONE_MIN_LENGTH_M) & rigid & (parents >= 0)
     if not use.any():
         return _item(0.0, "%", T.BONE_LENGTH_PCT, True)
     change = np.where(use, np.abs(lengths / np.where(use, ref, 1.0) - 1.0) * 100, 0.0)
-    t, j = np.unravel_index(int(change.argmax()), change.shape)
+    t, j = np.unravel_index(int(np.nan_to_num(change).argmax()), change.shape)
     value = float(change[t, j])
     return _item(value, "%", T.BONE_LENGTH_PCT, bool(value <= T.BONE_LENGTH_PCT),
                  m.names[j] if value > 0 else None, [m.frames[t]] if value > 0 else [])

@@ -194,3 +194,12 @@ def test_the_panel_rows_put_failures_first():
     assert rows[0][:3] == ("Foot slide", "29 mm (limit 20)", True) and rows[0][3:] == ("LeftFoot", 1.0)
     assert ("Source untouched", "yes", False, None, None) in rows
     assert all(not r[2] for r in rows[1:])
+
+
+def test_a_joint_that_translates_in_the_input_is_no_bone():
+    src = figure()
+    src.heads[:, 1:] += np.outer(np.linspace(0, 0.1, 30), [0.0, 0.0, 1.0])[:, None]  # the foot slides up the hips
+    bl = qa.measure(src, src, FEET, ground=0.0)["measures"]["bone_length"]
+    assert bl["value"] == pytest.approx(0.0) and bl["passed"]
+    # without an input the root's children are left out: here the foot, whose parent is the root
+    assert qa.measure(src, None, FEET, ground=0.0)["measures"]["bone_length"]["value"] == pytest.approx(0.0)
