@@ -59,9 +59,11 @@ def digest_actions():
     return {a.name: action_digest(a) for a in bpy.data.actions}
 
 
-def measure_result(obj, scene, action, sources=(), frame_range=None, ground=None, digests=None, store=True):
+def measure_result(obj, scene, action, sources=(), frame_range=None, ground=None, digests=None, store=True,
+                   aligned=None):
     """The QA report of `action` (the result) on `obj` against the `sources` (actions), stored
-    on the object. `digests` ({name: digest} taken before the work) checks the sources untouched."""
+    on the object. `digests` ({name: digest} taken before the work) checks the sources untouched;
+    `aligned` says the result's frames are the source's (default: when their counts agree)."""
     try:
         result, skeleton = motion_from_action(obj, scene, action, frame_range)
     except HumanAnimError as error:
@@ -79,7 +81,8 @@ def measure_result(obj, scene, action, sources=(), frame_range=None, ground=None
         checks = ("".join(digests[s.name] for s in known), "".join(action_digest(s) for s in known))
     from ..solver.qa import feet_from_roles
     # the height is measured on the posed figure: a BVH's rest pose may lie on its side
-    report = qa.measure(result, inputs, feet_from_roles(skeleton.roles, skeleton.names), ground, None, checks)
+    report = qa.measure(result, inputs, feet_from_roles(skeleton.roles, skeleton.names), ground, None, checks,
+                        aligned)
     report.update(action=action.name, sources=[s.name for s in sources])
     return _stored(obj, report, action) if store else report
 
@@ -107,7 +110,13 @@ def measure_summary(obj, scene, summary, digests=None, ground=None, store=True):
     names = list(dict.fromkeys(n for n in names + [summary.get("action_b")] if n))
     sources = [] if summary.get("replaced") else [bpy.data.actions[n] for n in names if n in bpy.data.actions]
     rng = summary.get("frame_range")
-    return measure_result(obj, scene, action, sources, tuple(rng) if rng else None, ground, digests, store)
+    # a retimed (warp), joined (blend, synthesize) or generated result's frames are not the source's
+    aligned = False if any(k in summary for k in RETIMED_KEYS) else None
+    return measure_result(obj, scene, action, sources, tuple(rng) if rng else None, ground, digests, store,
+                          aligned)
+
+
+RETIMED_KEYS = ("constraints", "transition", "source_actions", "requests")
 
 
 def store(obj, report):

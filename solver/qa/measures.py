@@ -77,23 +77,29 @@ def checksum(*arrays):
     return h.hexdigest()[:16]
 
 
-def measure(result, source=None, feet=None, ground=None, rest_height=None, source_checksums=None):
+def measure(result, source=None, feet=None, ground=None, rest_height=None, source_checksums=None, aligned=None):
     """The QA report of `result` (a Motion) against `source` (a Motion, a list of them, or None
     for a motion made from nothing, e.g. a generated walk).
 
     feet: {side: [joint indices]} (feet_from_roles); ground: floor height in metres (default: a
     robust floor of the source's feet); rest_height: the figure's rest height in metres (default:
-    measured on the result); source_checksums: (before, after) digests of the source."""
+    measured on the result); source_checksums: (before, after) digests of the source; aligned:
+    whether the result's frames are the source's frames (default: when the counts agree; a
+    retimed or joined result is not)."""
     sources = [] if source is None else list(source) if isinstance(source, (list, tuple)) else [source]
     feet = feet or {}
     finite = result.finite_frames()
     clean = result.subset(finite)
     clean_sources = [s.subset(s.finite_frames()) for s in sources]
+    if aligned is None:
+        aligned = len(sources) == 1 and sources[0].frame_count == result.frame_count
+    pair = clean_sources[0] if aligned and clean_sources and clean_sources[0].frame_count == clean.frame_count \
+        else None
     floor = ground if ground is not None else estimate_floor(clean_sources[0] if clean_sources else clean, feet)
     measures = {
         "nonfinite": _nonfinite(result, finite),
-        "slide": _slide(clean, clean_sources, feet),
-        "penetration": _penetration(clean, clean_sources, floor),
+        "slide": _slide(clean, clean_sources, feet, pair),
+        "penetration": _penetration(clean, clean_sources, floor, pair),
         "pop_velocity": _pops(clean, clean_sources, "velocity"),
         "pop_acceleration": _pops(clean, clean_sources, "acceleration"),
         "bone_length": _bone_lengths(clean, clean_sources),
@@ -166,9 +172,15 @@ def contact_slides(m, feet):
     return out
 
 
-def _slide(m, sources, feet):
+def _slide(m, sources, feet, pair=None):
+    """The worst planted-foot slide against what it may be: SLIDE_MM, or the input's own slide
+    plus a margin. With a frame-aligned input (`pair`) the contacts are the input's and each is
+    held to the input's own slide in it; otherwise contacts are found on the result and held to
+    the input's worst."""
     if not feet:
         return _item(None, "mm", T.SLIDE_MM, None, note="no feet named by the body roles")
+    if pair is not None:
+        return _aligned_slide(m, pair, feet)
     slides = contact_slides(m, feet)
     own = max([s[0] for src in sources for s in contact_slides(src, feet).values()] or [0.0]) * 1000
     limit = max(T.SLIDE_MM, own + T.SLIDE_MARGIN_MM) if sources else T.SLIDE_MM
@@ -179,6 +191,27 @@ def _slide(m, sources, feet):
                  [a, b] if a is not None else [], foot=side,
                  per_foot={s: round(v[0] * 1000, 3) for s, v in slides.items()},
                  input=round(own, 3) if sources else None)
+
+
+def _aligned_slide(m, src, feet):
+    worst = None  # (over the allowance, slide, allowed, own, side, bone, a, b)
+    per_foot = {}
+    mine, theirs = foot_points(m, feet), foot_points(src, feet)
+    for side in feet:
+        per_foot[side] = 0.0
+        for (p, bone), (q, _) in zip(mine[side], theirs[side]):
+            for a, b in planted_runs(q, src.fps):
+                slide = np.linalg.norm(p[a:b + 1, :2] - p[a, :2], axis=1).max() * 1000
+                own = np.linalg.norm(q[a:b + 1, :2] - q[a, :2], axis=1).max() * 1000
+                allowed = max(T.SLIDE_MM, own + T.SLIDE_MARGIN_MM)
+                per_foot[side] = max(per_foot[side], slide)
+                if worst is None or slide - allowed > worst[0]:
+                    worst = (slide - allowed, slide, allowed, own, side, bone, m.frames[a], m.frames[b])
+    if worst is None:
+        return _item(0.0, "mm", T.SLIDE_MM, True, per_foot={s: 0.0 for s in feet}, input=0.0)
+    _, slide, allowed, own, side, bone, a, b = worst
+    return _item(slide, "mm", round(allowed, 3), bool(slide <= allowed), bone, [a, b], foot=side,
+                 per_foot={s: round(v, 3) for s, v in per_foot.items()}, input=round(own, 3))
 
 
 # --- below the ground -------------------------------------------------------------------------
@@ -201,9 +234,9 @@ def depths(m, floor):
     return floor - z[np.arange(len(z)), low], [bones[i] for i in low]
 
 
-def _penetration(m, sources, floor):
+def _penetration(m, sources, floor, pair=None):
     """Depth below the floor against what each frame may have: the threshold, or the input's own
-    depth on that frame plus a margin (on every frame the input's deepest, where the result's
+    depth on that frame plus a margin (on every frame the input's deepest where the result's
     frames are not the input's: a retimed or joined clip)."""
     if floor is None or m.frame_count == 0:
         return _item(None, "cm", T.PENETRATION_CM, None)
@@ -213,7 +246,7 @@ def _penetration(m, sources, floor):
     for s in sources:
         if s.frame_count:
             d = depths(s, floor)[0] * 100
-            own = np.maximum(own, d if len(d) == len(own) else d.max())
+            own = np.maximum(own, d if s is pair else d.max())
     allowed = np.maximum(T.PENETRATION_CM, own + T.PENETRATION_MARGIN_CM) if sources else \
         np.full(m.frame_count, T.PENETRATION_CM)
     over = depth - allowed
@@ -252,14 +285,20 @@ def _pops(m, sources, kind):
             if s.frame_count > 2 and s.rotations.shape[1] == m.rotations.shape[1]]
     if refs:
         own = np.max([r.max(axis=0) for r in refs], axis=0)
-        excess, limit = res - own, margin
+        allowed = T.POP_RATIO * own + margin  # a retimed motion may be a little faster
+        excess, limit = res - allowed, None
     else:
         own, excess, limit = None, res, cap
-    t, j = np.unravel_index(int(excess.argmax()), excess.shape)
-    value = float(excess[t, j])
+    worst = excess if excess.max() > 0.0 else res  # the worst pop, else the fastest joint
+    t, j = np.unravel_index(int(worst.argmax()), worst.shape)
     frame = m.frames[t + 1]  # the frame that arrives with the jump
-    return _item(max(value, 0.0), unit, round(limit, 3), bool(value <= limit), m.names[j], [frame],
-                 result=round(float(res[t, j]), 3), input=None if own is None else round(float(own[j]), 3))
+    if own is None:
+        value = float(res[t, j])
+        return _item(value, unit, round(cap, 3), bool(value <= cap), m.names[j], [frame], result=round(value, 3),
+                     input=None)
+    value = float(res[t, j])
+    return _item(value, unit, round(float(allowed[j]), 3), bool(excess[t, j] <= 0.0), m.names[j], [frame],
+                 result=round(value, 3), input=round(float(own[j]), 3))
 
 
 # --- bone lengths and height ------------------------------------------------------------------
@@ -273,10 +312,9 @@ def bone_lengths(m):
 
 
 def _bone_lengths(m, sources):
-    """The largest change of a bone's length against the input's first frame. A joint that moves
-    against its parent in the input (root motion; position channels on a hip) is no bone and is
-    left out; without an input, the root's children are left out and the result's first frame
-    is the reference."""
+    """The largest change of a bone's length against the input's first frame (the result's own
+    without an input). The root's children (root motion lives there) and joints that move against
+    their parent in the input (position channels) are no bones and are left out."""
     if m.parents is None or m.frame_count == 0:
         return _item(None, "%", T.BONE_LENGTH_PCT, None)
     lengths = bone_lengths(m)
@@ -289,8 +327,8 @@ def _bone_lengths(m, sources):
         rigid = np.where(np.isfinite(dev), dev, 0.0).max(axis=0) * 100 < T.BONE_LENGTH_PCT / 2
     else:
         ref = lengths[0]
-        rigid = parents[np.maximum(parents, 0)] >= 0
-    use = np.isfinite(ref) & (ref > T.BONE_MIN_LENGTH_M) & rigid & (parents >= 0)
+        rigid = np.ones(len(parents), bool)
+    use = np.isfinite(ref) & (ref > T.BONE_MIN_LENGTH_M) & rigid & (parents >= 0) & (parents[np.maximum(parents, 0)] >= 0)
     if not use.any():
         return _item(0.0, "%", T.BONE_LENGTH_PCT, True)
     change = np.where(use, np.abs(lengths / np.where(use, ref, 1.0) - 1.0) * 100, 0.0)

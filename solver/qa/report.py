@@ -4,8 +4,8 @@ WHAT = {
     "nonfinite": "NaN or infinite values",
     "slide": "planted foot slides",
     "penetration": "below the ground",
-    "pop_velocity": "joint rotation pops (angular velocity above the input's own)",
-    "pop_acceleration": "joint rotation pops (angular acceleration above the input's own)",
+    "pop_velocity": "joint rotation pops (angular velocity beyond the input's own)",
+    "pop_acceleration": "joint rotation pops (angular acceleration beyond the input's own)",
     "bone_length": "bone lengths change",
     "figure_height": "figure height outside a human's",
     "source_untouched": "the source motion changed",
@@ -33,7 +33,7 @@ def describe(name, m):
     if name == "penetration" and m.get("frames_below"):
         extra = f", {m['frames_below']} frames below"
     if name.startswith("pop") and m.get("input") is not None:
-        extra = f" ({m['result']:g} against the input's {m['input']:g})"
+        extra = f" (the input's own: {m['input']:g})"
     what = WHAT[name] if not m["passed"] else name
     if name.startswith("pop") and m.get("input") is None:
         what = what.replace("the input's own", "a human's")

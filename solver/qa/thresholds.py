@@ -25,8 +25,10 @@ PENETRATION_FRAME_CM = 0.5
 FLOOR_PERCENTILE = 10.0
 
 # Pops: a joint's angular velocity (rotation between frames) and acceleration (change of that
-# rotation between frames) may exceed the input's own largest by these margins; with no input
-# motion (a generated walk) they may not exceed the absolute caps.
+# rotation between frames) may reach POP_RATIO times the input's own largest for that joint plus
+# these margins (a retimed clip may be a little faster); with no input motion (a generated walk)
+# they may not exceed the absolute caps.
+POP_RATIO = 1.25
 POP_VELOCITY_MARGIN_DEG_S = 150.0  # 5 deg per frame at 30 fps
 POP_ACCELERATION_MARGIN_DEG_S2 = 4500.0  # 5 deg per frame per frame at 30 fps
 POP_VELOCITY_CAP_DEG_S = 900.0  # 30 deg per frame at 30 fps
@@ -52,6 +54,6 @@ def as_dict(fps=30.0):
     """Every threshold, for reports and docs."""
     return {"slide_mm": SLIDE_MM, "slide_margin_mm": SLIDE_MARGIN_MM,
             "penetration_cm": PENETRATION_CM, "penetration_margin_cm": PENETRATION_MARGIN_CM,
-            "bone_length_pct": BONE_LENGTH_PCT, "figure_height_m": list(FIGURE_HEIGHT_M),
+            "bone_length_pct": BONE_LENGTH_PCT, "pop_ratio": POP_RATIO, "figure_height_m": list(FIGURE_HEIGHT_M),
             "contact_height_m": CONTACT_HEIGHT_M, "contact_speed_m_s": CONTACT_SPEED_M_S,
             **{k: round(v, 4) for k, v in per_frame(fps).items()}}

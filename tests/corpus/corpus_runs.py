@@ -77,8 +77,9 @@ def arguments(command, path, out_dir):
     start, end = window(path)
     frames, _ = clip_frames(path)
     mid = (start + end) // 2
+    # the warp moves the middle 5 % of its distance to the clip's start later: a mild retiming
     values = {"name": Path(path).stem, "start": start, "end": end, "mid": mid,
-              "mid2": min(end - 1, mid + max(1, frames // 20)), "clip": str(path)}
+              "mid2": min(end - 1, mid + max(1, (mid - 1) // 20)), "clip": str(path)}
     args = [command, str(path)] + [a.format(**values) for a in COMMANDS[command]]
     if command != "info":
         args += ["--out", str(Path(out_dir) / f"{command}-{Path(path).stem}.blend")]

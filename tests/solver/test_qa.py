@@ -46,6 +46,15 @@ def test_a_sliding_planted_foot_is_measured_exactly():
     assert any("'LeftFoot' at frames 1-30" in w and "29 mm" in w for w in report["warnings"])
 
 
+def test_a_fast_slide_on_the_inputs_contacts_is_measured():
+    # 20 mm a frame is too fast to be found as a contact on the result alone: the input's
+    # contact (the foot standing still) is where it is measured
+    slide = qa.measure(sliding(20.0), figure(), FEET, ground=0.0)["measures"]["slide"]
+    assert slide["value"] == pytest.approx(580.0) and slide["passed"] is False
+    retimed = qa.measure(sliding(20.0), figure(), FEET, ground=0.0, aligned=False)["measures"]["slide"]
+    assert retimed["value"] == 0.0
+
+
 def test_slide_limit_allows_the_inputs_own_skating():
     report = qa.measure(sliding(1.0), sliding(1.0), FEET, ground=0.0)
     assert report["measures"]["slide"]["input"] == pytest.approx(29.0)
@@ -103,17 +112,24 @@ def test_the_floor_is_robust_to_a_few_dips_and_sinking_is_measured_against_the_i
 def test_a_snap_is_a_pop_in_velocity_and_acceleration():
     report = qa.measure(turning(2.0, snap_at=15, snap_deg=20.0), turning(2.0), FEET, ground=0.0)
     vel, acc = report["measures"]["pop_velocity"], report["measures"]["pop_acceleration"]
-    assert vel["value"] == pytest.approx(20.0) and vel["result"] == pytest.approx(22.0)
-    assert vel["input"] == pytest.approx(2.0)
+    # allowed: 1.25 x the input's own + 5 deg per frame (at 30 fps)
+    assert vel["value"] == pytest.approx(22.0) and vel["input"] == pytest.approx(2.0)
+    assert vel["limit"] == pytest.approx(7.5)
     assert (vel["bone"], vel["frames"], vel["passed"]) == ("LeftFoot", [16.0], False)
     assert acc["value"] == pytest.approx(20.0) and acc["input"] == pytest.approx(0.0, abs=1e-9)
+    assert acc["limit"] == pytest.approx(5.0) and acc["passed"] is False
     assert acc["bone"] == "LeftFoot" and acc["frames"] in ([15.0], [16.0])  # the step in, or out
     assert any("pops" in w and "'LeftFoot' at frame 16" in w for w in report["warnings"])
 
 
+def test_a_retimed_motion_a_little_faster_is_no_pop():
+    report = qa.measure(turning(12.0), turning(10.0), FEET, ground=0.0)
+    assert report["measures"]["pop_velocity"]["passed"] is True  # 12 <= 1.25 x 10 + 5
+
+
 def test_motion_as_fast_as_the_input_is_no_pop():
     report = qa.measure(turning(10.0), turning(10.0), FEET, ground=0.0)
-    assert report["measures"]["pop_velocity"]["value"] == pytest.approx(0.0, abs=1e-9)
+    assert report["measures"]["pop_velocity"]["value"] == pytest.approx(10.0)
     assert report["measures"]["pop_velocity"]["passed"] is True
 
 
