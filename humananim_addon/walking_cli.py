@@ -125,7 +125,7 @@ def _check_speeds(option, text, keyed=False):
                 speed = item
             POSITIVE(speed)
     except Exception:
-        raise UsageError(f"{option} {text!r}: expected " + ("S:V pairs (distance >= 0 m, speed > 0 m/s)" if keyed
+        raise UsageError(f"{option} {text!r}: expected " + ("DISTANCE:SPEED pairs (distance >= 0 m, speed > 0 m/s)" if keyed
                                                            else "speeds > 0 m/s") + " separated by commas") from None
 
 

@@ -7,7 +7,7 @@ limit means the same motion at 24, 30 or 120 fps; reports give them per frame.""
 # own lowest level in the clip and moves slower than CONTACT_SPEED_M_S over the ground, for at
 # least CONTACT_MIN_SECONDS in a row.
 CONTACT_HEIGHT_M = 0.02
-CONTACT_SPEED_M_S = 0.4
+CONTACT_SPEED_M_S = 0.2
 CONTACT_MIN_SECONDS = 0.1
 
 # A planted point may drift this far over the ground within one contact, or no more than the

@@ -64,7 +64,7 @@ COMMANDS = {
     "info": [],
     "simulate": ["--frames", "{start}", "{end}"],
     "control": ["--frames", "{start}", "{end}", "--load-left", "3", "--load-right", "3"],
-    "filter": ["--denoise-hz", "6"],
+    "filter": ["--denoise-hz", "8"],
     "compress": [],
     "warp": ["--map", "{mid}:{mid2}"],
     "blend": ["--with", "{clip}"],
