@@ -57,7 +57,8 @@ def test_a_squeezed_warp_is_a_warning_naming_bone_and_frame(cmu_rig):
     assert 100 <= pop["frames"][0] <= 103
     assert any(f"'{pop['bone']}'" in w for w in report["warnings"])
     # the message an operator gives: a WARNING with the worst measure
-    summary = {"action": report["action"], "source_action": report["sources"][0], "armature": cmu_rig.name}
+    summary = {"action": report["action"], "source_action": report["sources"][0], "armature": cmu_rig.name,
+               "constraints": [[102, 300]]}
     message = with_qa(type("Op", (), {})(), bpy.context, cmu_rig, summary, "warped")
     assert message.level == "WARNING" and "WARNING(S)" in message and report["warnings"][0] in message
     bpy.ops.humananim.qa_jump(frame=int(pop["frames"][0]))
