@@ -74,7 +74,7 @@ def test_command_on_corpus_clip_is_within_the_thresholds(clip, command, tmp_path
     if command == "info":  # raw capture against the absolute caps: the unit and height are what matters
         assert summary["bvh_unit"] in ("m", "cm") and 1.0 < summary["figure_height_m"] < 2.3
         return
-    assert qa["measures"]["source_untouched"]["passed"] is True
+    assert qa["measures"]["source_untouched"]["passed"] is not False  # None: a walk has no source
     failing = [name for name, m in qa["measures"].items() if m["passed"] is False]
     reason = known(command, failing)
     if reason:
