@@ -295,7 +295,7 @@ def cmd_demo(args):
     skirts = demo_cloth(obj, scene, out, args.scale)
     result.update(command="demo", input=os.path.abspath(args.bvh), bvh_unit=unit,
                   wrote=[out] + [path for s in skirts for path in s["wrote"]], picture=control["wrote"][1],
-                  control=control, cloth=skirts, seconds=round(time.perf_counter() - t0, 3))
+                  control=control, cloth=skirts, qa=control["qa"], seconds=round(time.perf_counter() - t0, 3))
     from .control_cli import text_summary
     result["summary"] = "\n".join(
         [_text_summary(result)] + ["  " + line for line in text_summary(control).splitlines()[:-1]]
