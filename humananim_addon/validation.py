@@ -7,11 +7,11 @@ import math
 from ..solver.errors import MotionError
 
 
-def source_action(obj, props):
+def source_action(obj, props, what="use"):
     """The settings' source action, else the armature's active one."""
     action = getattr(props, "action", None) or (obj.animation_data.action if obj.animation_data else None)
     if action is None:
-        raise MotionError(f"'{obj.name}' has no action: choose a source action")
+        raise MotionError(f"'{obj.name}' has no action to {what}: choose a source action")
     return action
 
 
@@ -47,7 +47,7 @@ def loads(props):
 
 def check_job(obj, props, events="pushes"):
     """All of the above for a simulation or control job: (action, start, end)."""
-    action = source_action(obj, props)
+    action = source_action(obj, props, {"pushes": "simulate", "impulses": "control"}[events])
     start, end = frame_range(props, action)
     what = {"pushes": "push", "impulses": "impulse"}[events]
     events_in_range(getattr(props, events), start, end, what)
