@@ -4,7 +4,6 @@ on stderr (no traceback), nothing written; and the motion QA in every command's 
 import json
 import os
 
-import numpy as np
 import pytest
 
 from conftest import CMU_CLIPS
