@@ -8,6 +8,7 @@ import importlib
 import contextlib
 import json
 import logging
+import math
 import os
 import sys
 import time
@@ -22,8 +23,44 @@ class UsageError(Exception):
     """A mistake in the command line or its files: reported in one line."""
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with its usage mistakes as one line on stderr (exit status 2), like every other
+    mistake; --help still prints the usage."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def number(low=None, high=None, above=False, integer=False, what=None):
+    """An argparse type: a finite number (an integer with `integer`) >= low (> low with `above`)
+    and <= high. NaN, infinities and out-of-range values are usage mistakes."""
+    bound = " ".join(filter(None, [f"{'>' if above else '>='} {low:g}" if low is not None else "",
+                                   f"<= {high:g}" if high is not None else ""]))
+    what = what or f"a{'' if integer else ' finite'} {'whole ' if integer else ''}number" + (f" {bound}" if bound else "")
+
+    def convert(text):
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        if not math.isfinite(value) or (low is not None and (value <= low if above else value < low)) \
+                or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return value
+    convert.__name__ = "number"  # argparse names the type in its messages
+    return convert
+
+
+FINITE = number()
+POSITIVE = number(0.0, above=True)
+NON_NEGATIVE = number(0.0)
+FRACTION = number(0.0, 1.0)
+COUNT = number(1, integer=True)
+FRAME = number(integer=True, what="a whole frame number")
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(prog="humananim", description="HumanAnim batch jobs")
+    parser = OneLineParser(prog="humananim", description="HumanAnim batch jobs")
     sub = parser.add_subparsers(dest="command", required=True, metavar="command")
     info = sub.add_parser("info", help="bones, body roles, segment masses, frames of a rig")
     info.add_argument("file", help="a .blend or .bvh file")
@@ -38,18 +75,19 @@ def build_parser():
     sim.add_argument("file", help="a .blend or .bvh file")
     sim.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
     sim.add_argument("--action", help="source action (default: the armature's active action)")
-    sim.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
-    sim.add_argument("--tracking", type=float, default=1.0, help="0 ragdoll .. 1 full tracking (default 1)")
+    sim.add_argument("--frames", nargs=2, type=FRAME, metavar=("START", "END"), help="frame range")
+    sim.add_argument("--tracking", type=FRACTION, default=1.0, help="0 ragdoll .. 1 full tracking (default 1)")
     sim.add_argument("--controller", choices=("inverse_dynamics", "pd"), default="inverse_dynamics")
-    sim.add_argument("--balance-assist", type=float, default=1.0,
+    sim.add_argument("--balance-assist", type=NON_NEGATIVE, default=1.0,
                      help="share of the pelvis force the feet can't give that is applied anyway (default 1)")
-    sim.add_argument("--strength", type=float, default=1.0, help="muscle strength scale (default 1)")
-    sim.add_argument("--ground", type=float, help="ground height in metres (default: the lowest "
+    sim.add_argument("--strength", type=POSITIVE, default=1.0, help="muscle strength scale (default 1)")
+    sim.add_argument("--ground", type=FINITE, help="ground height in metres (default: the lowest "
                                                   "point the feet reach in the motion)")
-    sim.add_argument("--load-left", type=float, default=0.0, help="kg carried in the left hand")
-    sim.add_argument("--load-right", type=float, default=0.0, help="kg carried in the right hand")
+    sim.add_argument("--load-left", type=NON_NEGATIVE, default=0.0, help="kg carried in the left hand")
+    sim.add_argument("--load-right", type=NON_NEGATIVE, default=0.0, help="kg carried in the right hand")
     sim.add_argument("--push", action="append", default=[], metavar="FRAME:BONE:FX,FY,FZ[:SECONDS]",
-                     help="a push of the force vector (N, world axes) on a bone; repeatable")
+                     help="a push of the force vector (N, world axes) on a bone; repeatable; BONE may hold "
+                          "colons (10:mixamorig:Spine2:0,-300,0) or be in double quotes")
     sim.add_argument("--output", choices=("ACTION", "NLA"), default="ACTION")
     sim.add_argument("--out", default=os.path.join("out", "simulate.blend"), help="the .blend to write")
     _common(sim)
@@ -60,9 +98,11 @@ def build_parser():
 
 
 def _common(p):
-    p.add_argument("--mass", type=float, help="total body mass in kg (default 70)")
-    p.add_argument("--scale", type=float, help="metres per BVH unit (default: guessed)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--mass", type=POSITIVE, help="total body mass in kg (default 70)")
+    p.add_argument("--scale", type=POSITIVE, help="metres per BVH unit (default: guessed from the figure's "
+                                                   "height; a figure no common unit makes 1.0-2.3 m tall is refused)")
+    p.add_argument("--json", action="store_true", help="print one JSON object (its 'qa' key: the motion QA)")
+    p.add_argument("--strict", action="store_true", help="exit with status 3 when the result fails the motion QA")
 
 
 def main(argv=None):
@@ -70,17 +110,104 @@ def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
     from ..solver.errors import HumanAnimError
+    name = f"humananim {args.command}"
     try:
+        check_writable(args)
         with _chatter_to_stderr(), _registered():
             result = COMMANDS[args.command](args)
+            if "qa" not in result:
+                result["qa"] = qa_of_result(result)
     except (HumanAnimError, UsageError) as error:
-        print(f"humananim {args.command}: error: {error}", file=sys.stderr)
+        print(f"{name}: error: {one_line(error)}", file=sys.stderr)
         return 2
+    qa = result["qa"]
+    for line in qa.get("warnings", []):
+        print(f"{name}: warning: QA: {line}", file=sys.stderr)
     if args.json:
         print(json.dumps(result, indent=1))
     else:
-        print(_text_summary(result))
-    return 0
+        print(_text_summary(result) + "\n" + qa_text(qa))
+    return 3 if getattr(args, "strict", False) and qa.get("passed") is False else 0
+
+
+def one_line(error):
+    """An error's message on one line (Blender's own messages may span several)."""
+    return " ".join(str(error).split())
+
+
+def check_writable(args):
+    """--out and --picture can be written (checked before the work, so a long job does not end
+    in an error): the nearest existing folder on the way must be writable."""
+    for option in ("out", "picture"):
+        path = getattr(args, option, None)
+        if not path:
+            continue
+        path = os.path.abspath(path)
+        if os.path.isdir(path):
+            raise UsageError(f"--{option} {path}: is a folder, expected a file name")
+        folder = os.path.dirname(path)
+        while not os.path.exists(folder):
+            folder = os.path.dirname(folder)
+        if not os.path.isdir(folder) or not os.access(folder, os.W_OK | os.X_OK):
+            raise UsageError(f"--{option} {path}: cannot write there ({folder} is not a writable folder)")
+
+
+def write_atomically(out, write):
+    """Call write(temporary path) for a file beside `out`, then rename it over `out`: a command
+    that fails leaves nothing half-written and an older `out` as it was."""
+    out = os.path.abspath(out)
+    folder, base = os.path.split(out)
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as error:
+        raise UsageError(f"cannot write {out}: {error.strerror}") from None
+    stem, ext = os.path.splitext(base)
+    tmp = os.path.join(folder, f".{stem}.{os.getpid()}.tmp{ext}")
+    try:
+        write(tmp)
+        os.replace(tmp, out)
+    except (OSError, RuntimeError) as error:
+        raise UsageError(f"cannot write {out}: {getattr(error, 'strerror', None) or one_line(error)}") from None
+    finally:
+        for leftover in (tmp, tmp + "1"):  # and Blender's backup of an earlier save
+            if os.path.exists(leftover):
+                os.remove(leftover)
+    return out
+
+
+def save_blend(out, summary=None, obj=None, ground=None):
+    """Save the session's .blend at `out` (atomically). With the command's `summary` and armature
+    `obj`, first measure the result (the motion QA: summary["qa"], also stored on the object)."""
+    if summary is not None:
+        summary["qa"] = qa_of_result(summary, obj, ground)
+    return write_atomically(out, _save_mainfile)
+
+
+def _save_mainfile(path):
+    import bpy
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+
+
+_SOURCE_DIGESTS = {}  # {action name: digest} when the command's file was loaded
+
+
+def qa_of_result(summary, obj=None, ground=None):
+    """The motion QA of a command's result (its `armature` and new `action`), stored on the
+    armature; a result that is not an armature's motion says so."""
+    import bpy
+    from . import qa
+    obj = obj or bpy.data.objects.get(summary.get("armature") or "")
+    if obj is None or obj.type != "ARMATURE" or not summary.get("action"):
+        return qa.not_measured("this command's result is not a new action on an armature")
+    scene = obj.users_scene[0] if obj.users_scene else bpy.context.scene
+    return qa.measure_summary(obj, scene, summary, _SOURCE_DIGESTS, ground)
+
+
+def qa_text(report):
+    from ..solver.qa import text
+    if not report.get("measures"):
+        return f"QA: not measured ({report.get('note', '')})"
+    return text(report)
 
 
 @contextlib.contextmanager
@@ -127,10 +254,27 @@ def cmd_info(args):
     t0 = time.perf_counter()
     obj, scene, imported = _load(args.file, args.armature, args.scale)
     result = rig_summary(obj, scene, args.mass)
+    result["qa"] = source_qa(obj, scene)
+    height = result["qa"].get("measures", {}).get("figure_height", {}).get("value")
+    result["figure_height_m"] = height if height is not None else obj.get("humananim_figure_height_m")
     result.update(command="info", file=os.path.abspath(args.file), seconds=round(time.perf_counter() - t0, 3))
     if imported:
         result["bvh_unit"] = imported
     return result
+
+
+def source_qa(obj, scene):
+    """The motion QA of the armature's own action (no input to compare with): its height, floor,
+    NaN, pops against the absolute caps."""
+    from . import qa
+    action = obj.animation_data.action if obj.animation_data else None
+    if action is None:
+        return qa.not_measured("the armature has no action")
+    from ..solver.errors import HumanAnimError
+    try:
+        return qa.measure_result(obj, scene, action, store=False)
+    except HumanAnimError as error:
+        return qa.not_measured(str(error))
 
 
 def cmd_demo(args):
@@ -150,7 +294,7 @@ def cmd_demo(args):
     skirts = demo_cloth(obj, scene, out, args.scale)
     result.update(command="demo", input=os.path.abspath(args.bvh), bvh_unit=unit,
                   wrote=[out] + [path for s in skirts for path in s["wrote"]], picture=control["wrote"][1],
-                  control=control, cloth=skirts, seconds=round(time.perf_counter() - t0, 3))
+                  control=control, cloth=skirts, qa=control["qa"], seconds=round(time.perf_counter() - t0, 3))
     from .control_cli import text_summary
     result["summary"] = "\n".join(
         [_text_summary(result)] + ["  " + line for line in text_summary(control).splitlines()[:-1]]
@@ -175,7 +319,7 @@ def demo_cloth(walker, scene, out, scale=None):
     from ..solver.progress import run_to_end
     from . import cloth
     from .bvh_import import import_bvh
-    bpy.ops.wm.save_as_mainfile(filepath=out)  # the caches' relative paths need the .blend's folder
+    save_blend(out)  # the caches' relative paths need the .blend's folder
     hopper, _, _ = import_bvh(DEMO_HOP, scale)
     hopper.location.x += 1.5
     summaries = []
@@ -189,7 +333,7 @@ def demo_cloth(walker, scene, out, scale=None):
         summary["armature"] = arm.name
         summaries.append(summary)
     scene.frame_set(DEMO_FRAMES[0])
-    bpy.ops.wm.save_as_mainfile(filepath=out)
+    save_blend(out)
     return summaries
 
 
@@ -210,7 +354,7 @@ def demo_control(obj, scene, skeleton, out):
 def cmd_simulate(args):
     import bpy
     from ..solver.progress import run_to_end
-    from . import simulation
+    from . import simulation, validation
     t0 = time.perf_counter()
     obj, scene, unit = load_job(args, "humananim_simulation")
     props = scene.humananim_simulation
@@ -223,10 +367,9 @@ def cmd_simulate(args):
     for text in args.push:
         frame, bone, force, seconds = parse_arrow(text, obj, "--push", 0.1)
         simulation.add_push(obj, scene, bone, frame, force, float(np.linalg.norm(force)), seconds)
+    validation.check_job(obj, props, "pushes")
     summary = run_to_end(simulation.run(obj, scene))
-    out = os.path.abspath(args.out)
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=out)
+    out = save_blend(args.out, summary, obj, args.ground)
     summary.update(command="simulate", file=os.path.abspath(args.file), armature=obj.name, wrote=[out],
                    seconds=round(time.perf_counter() - t0, 3))
     if unit:
@@ -235,21 +378,37 @@ def cmd_simulate(args):
 
 
 def parse_arrow(text, obj, option, default_seconds):
-    """FRAME:BONE:FX,FY,FZ[:SECONDS] of --push and --impulse: (frame, bone, vector, seconds)."""
-    parts = text.split(":")
+    """FRAME:BONE:FX,FY,FZ[:SECONDS] of --push and --impulse: (frame, bone, vector, seconds).
+
+    BONE may hold any characters, colons included (`10:mixamorig:Spine2:0,-30,0`): the frame is
+    the first field, the vector (three numbers with commas) and the seconds the last ones, and
+    everything between is the bone. A bone may also be put in double quotes
+    (`10:"mixamorig:Spine2":0,-30,0`); quote the whole argument for the shell."""
+    form = "expected FRAME:BONE:FX,FY,FZ[:SECONDS]"
+    head, sep, rest = text.partition(":")
+    parts = rest.rsplit(":", 2)
+    if not sep or len(parts) < 2:
+        raise UsageError(f"{option} {text!r}: {form}")
+    seconds = None
+    if len(parts) == 3 and "," not in parts[2]:  # a SECONDS field after the vector
+        seconds = parts[2]
+        bone, vector = parts[0], parts[1]
+    else:
+        bone, vector = ":".join(parts[:-1]), parts[-1]
+    if len(bone) >= 2 and bone[0] == bone[-1] == '"':
+        bone = bone[1:-1]
     try:
-        frame, bone, vector = int(parts[0]), parts[1], np.array([float(v) for v in parts[2].split(",")])
-        seconds = float(parts[3]) if len(parts) > 3 else default_seconds
-        if len(parts) > 4:
-            raise ValueError
-    except (IndexError, ValueError):
-        raise UsageError(f"{option} {text!r}: expected FRAME:BONE:FX,FY,FZ[:SECONDS]") from None
+        frame = int(head)
+        vector = np.array([float(v) for v in vector.split(",")])
+        seconds = default_seconds if seconds is None else float(seconds)
+    except ValueError:
+        raise UsageError(f"{option} {text!r}: {form}") from None
     if bone not in obj.data.bones:
         raise UsageError(f"{option} {text!r}: no bone named '{bone}'")
     if vector.shape != (3,) or not np.isfinite(vector).all() or not np.linalg.norm(vector) > 0.0:
         raise UsageError(f"{option} {text!r}: the vector needs three finite components FX,FY,FZ, not all zero")
-    if seconds < 0.0:
-        raise UsageError(f"{option} {text!r}: SECONDS can't be negative")
+    if not (math.isfinite(seconds) and seconds >= 0.0):
+        raise UsageError(f"{option} {text!r}: SECONDS must be a finite number >= 0")
     return frame, bone, vector, seconds
 
 
@@ -265,6 +424,10 @@ def load_job(args, props):
             raise UsageError(f"no action named '{args.action}'")
     if args.frames:
         props.frame_start, props.frame_end = args.frames
+        if min(args.frames) < 1:  # 0 means "the action's own" to the settings
+            raise UsageError(f"--frames {args.frames[0]} {args.frames[1]}: frames start at 1")
+    from . import validation
+    validation.frame_range(props, validation.source_action(obj, props))
     return obj, scene, unit
 
 
@@ -285,6 +448,7 @@ def _load(path, armature_name, scale):
     if path.lower().endswith(".bvh"):
         bpy.ops.wm.read_homefile(use_empty=True)
         obj, _, unit = import_bvh(path, scale)
+        _remember_sources()
         return obj, bpy.context.scene, unit
     try:
         bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
@@ -302,7 +466,14 @@ def _load(path, armature_name, scale):
         raise UsageError(f"{len(armatures)} armatures in the file: pass --armature "
                          f"({', '.join(o.name for o in armatures)})" if armatures else "no armature in the file")
     scene = obj.users_scene[0] if obj.users_scene else bpy.context.scene
+    _remember_sources()
     return obj, scene, None
+
+
+def _remember_sources():
+    from .qa import digest_actions
+    _SOURCE_DIGESTS.clear()
+    _SOURCE_DIGESTS.update(digest_actions())
 
 
 def rig_summary(obj, scene, total_mass=None):
@@ -350,6 +521,9 @@ def _text_summary(r):
         lines.append(f"  refused: {r['refused']}")
     if r.get("total_mass_kg") is not None:
         lines.append(f"  mass: {r['total_mass_kg']:.1f} kg in {len(r['segments'])} segments")
+    if r.get("figure_height_m") is not None:
+        unit = f" (BVH unit: {r['bvh_unit']})" if r.get("bvh_unit") else ""
+        lines.append(f"  figure height: {r['figure_height_m']:.2f} m{unit}")
     if r.get("action"):
         lines.append(f"  action '{r['action']}': frames {r['frame_range'][0]:g}-{r['frame_range'][1]:g} "
                      f"at {r['fps']:g} fps")

@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from .cli import UsageError
+from .cli import COUNT, FINITE, FRAME, NON_NEGATIVE, POSITIVE, UsageError, number
 
 
 def add_commands(sub, add_common_options):
@@ -17,21 +17,21 @@ def add_commands(sub, add_common_options):
     c.add_argument("file", help="a .blend or .bvh file")
     c.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
     c.add_argument("--action", help="source action (default: the armature's active action)")
-    c.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
-    c.add_argument("--load-left", type=float, default=0.0, help="kg carried in the left hand")
-    c.add_argument("--load-right", type=float, default=0.0, help="kg carried in the right hand")
-    c.add_argument("--load-frame", type=int, default=0, help="frame the loads are picked up at (default: start)")
+    c.add_argument("--frames", nargs=2, type=FRAME, metavar=("START", "END"), help="frame range")
+    c.add_argument("--load-left", type=NON_NEGATIVE, default=0.0, help="kg carried in the left hand")
+    c.add_argument("--load-right", type=NON_NEGATIVE, default=0.0, help="kg carried in the right hand")
+    c.add_argument("--load-frame", type=number(0, integer=True), default=0, help="frame the loads are picked up at (default: start)")
     c.add_argument("--impulse", action="append", default=[], metavar="FRAME:BONE:FX,FY,FZ[:SECONDS]",
                    help="an impulse (N s, world axes) on a bone, or with SECONDS a force (N) over that "
                         "time; repeatable")
     c.add_argument("--collide", metavar="OBJECT", help="an armature or mesh object in the .blend to collide with")
-    c.add_argument("--collide-radius", type=float, default=0.06,
+    c.add_argument("--collide-radius", type=POSITIVE, default=0.06,
                    help="sphere radius along a colliding armature's bones (m, default 0.06)")
-    c.add_argument("--collide-spheres", type=int, default=1, help="spheres covering a colliding mesh (default 1)")
-    c.add_argument("--strength", type=float, default=1.0, help="muscle strength scale (default 1)")
-    c.add_argument("--substeps", type=int, default=1, help="control steps per frame (default 1)")
+    c.add_argument("--collide-spheres", type=COUNT, default=1, help="spheres covering a colliding mesh (default 1)")
+    c.add_argument("--strength", type=POSITIVE, default=1.0, help="muscle strength scale (default 1)")
+    c.add_argument("--substeps", type=COUNT, default=1, help="control steps per frame (default 1)")
     c.add_argument("--tracking-only", action="store_true", help="no comfort or balance control (to compare)")
-    c.add_argument("--ground", type=float, help="ground height in metres (default: the motion's floor)")
+    c.add_argument("--ground", type=FINITE, help="ground height in metres (default: the motion's floor)")
     c.add_argument("--output", choices=("ACTION", "NLA"), default="ACTION")
     c.add_argument("--out", default=os.path.join("out", "control.blend"), help="the .blend to write")
     c.add_argument("--picture", metavar="PNG", help="also render a picture of the result")
@@ -45,8 +45,6 @@ def cmd_control(args):
     t0 = time.perf_counter()
     obj, scene, unit = load_job(args, "humananim_control")
     props = scene.humananim_control
-    if args.substeps < 1:
-        raise UsageError("--substeps must be at least 1")
     if args.collide:
         other = bpy.data.objects.get(args.collide)
         if other is None:
@@ -61,7 +59,9 @@ def cmd_control(args):
     for text in args.impulse:
         frame, bone, vector, seconds = parse_arrow(text, obj, "--impulse", 0.0)
         add_impulse_from_vector(obj, scene, bone, frame, vector, seconds)
-    summary = control_and_save(obj, scene, args.out, args.picture)
+    from . import validation
+    validation.check_job(obj, props, "impulses")
+    summary = control_and_save(obj, scene, args.out, args.picture, ground=args.ground)
     summary.update(command="control", file=os.path.abspath(args.file), armature=obj.name,
                    seconds=round(time.perf_counter() - t0, 3))
     if unit:
@@ -77,23 +77,23 @@ def add_impulse_from_vector(obj, scene, bone, frame, vector, seconds=0.0):
     return motion_control.add_impulse(obj, scene, bone, frame, vector, float(np.linalg.norm(vector)), seconds)
 
 
-def control_and_save(obj, scene, out, picture=None, title=None):
-    """Run the job, save the .blend, render the picture; the summary with `wrote`."""
-    import bpy
+def control_and_save(obj, scene, out, picture=None, title=None, ground=None):
+    """Run the job, measure it (the motion QA), save the .blend, render the picture; the summary
+    with `wrote` and `qa`."""
     from ..solver.progress import run_to_end
     from . import motion_control, overlay
+    from .cli import save_blend, write_atomically
     summary = run_to_end(motion_control.run(obj, scene))
     summary["armature"] = obj.name
-    out = os.path.abspath(out)
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=out)
+    out = save_blend(out, summary, obj, ground)
     wrote = [out]
     if picture:
-        picture = os.path.abspath(picture)
-        os.makedirs(os.path.dirname(picture), exist_ok=True)
         data = motion_control.CACHE[(obj.name, summary["action"])]
-        summary["picture_frames"] = overlay.render_picture(data, picture, title=title or _title(summary))
-        wrote.append(picture)
+        title = title or _title(summary)
+
+        def render(path):
+            summary["picture_frames"] = overlay.render_picture(data, path, title=title)
+        wrote.append(write_atomically(picture, render))
     summary["wrote"] = wrote
     return summary
 

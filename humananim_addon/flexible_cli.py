@@ -9,7 +9,7 @@ import math
 import os
 import time
 
-from .cli import UsageError
+from .cli import COUNT, FINITE, FRAME, NON_NEGATIVE, POSITIVE, UsageError
 
 COST_NAMES = ("distance", "energy_distance", "energy_speed", "energy_sqrt_distance", "custom")
 
@@ -24,24 +24,24 @@ def add_commands(sub, add_common_options):
         p.add_argument("file", nargs="?", help="a .blend with the character (omit with --demo)")
         p.add_argument("--demo", action="store_true", help="use a generated table character (thesis Fig. 1.2)")
         p.add_argument("--object", help="the character object (default: the only one with a Lattice modifier)")
-        p.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range to bake")
+        p.add_argument("--frames", nargs=2, type=FRAME, metavar=("START", "END"), help="frame range to bake")
         p.add_argument("--integrator", choices=("implicit", "semi_implicit", "thesis"))
-        p.add_argument("--substeps", type=int, help="simulation steps per frame")
-        p.add_argument("--ground", type=float, help="ground height (m)")
-        p.add_argument("--slope", type=float, help="ground slope in degrees, rising along X")
-        p.add_argument("--friction", type=float, help="Coulomb friction coefficient")
+        p.add_argument("--substeps", type=COUNT, help="simulation steps per frame")
+        p.add_argument("--ground", type=FINITE, help="ground height (m)")
+        p.add_argument("--slope", type=FINITE, help="ground slope in degrees, rising along X")
+        p.add_argument("--friction", type=NON_NEGATIVE, help="Coulomb friction coefficient")
         p.add_argument("--out", default=os.path.join("out", "flexible.blend"), help="the .blend to write")
         add_common_options(p)
-    sim.add_argument("--handover", type=int, help="frame the simulation takes over from the key-framing")
+    sim.add_argument("--handover", type=FRAME, help="frame the simulation takes over from the key-framing")
     sim.add_argument("--controller", choices=("POSES", "BEST"), help="pose graph as edited, or the best found")
     sim.add_argument("--passive", action="store_true", help="no pose control")
-    opt.add_argument("--trials", type=int, help="forward simulations (default: the object's, 60)")
+    opt.add_argument("--trials", type=COUNT, help="forward simulations (default: the object's, 60)")
     opt.add_argument("--seed", type=int, help="random seed (same seed, same result)")
     opt.add_argument("--cost", choices=COST_NAMES, help="cost function (thesis Table 5.1, or custom)")
     opt.add_argument("--optimize", choices=("both", "poses", "durations"), help="what the annealing changes")
-    opt.add_argument("--trial-seconds", type=float, help="simulated time per trial (default 12)")
-    opt.add_argument("--trial-step", type=float, help="time step of the trials (default 0.02 s)")
-    opt.add_argument("--direction", nargs=3, type=float, metavar=("X", "Y", "Z"), help="travel direction")
+    opt.add_argument("--trial-seconds", type=POSITIVE, help="simulated time per trial (default 12)")
+    opt.add_argument("--trial-step", type=POSITIVE, help="time step of the trials (default 0.02 s)")
+    opt.add_argument("--direction", nargs=3, type=FINITE, metavar=("X", "Y", "Z"), help="travel direction")
     opt.add_argument("--bake", action="store_true", help="also bake the best controller found")
     return {"flexible": cmd_flexible}
 
@@ -75,9 +75,8 @@ def cmd_flexible(args):
             baked = run_to_end(flexible.run(obj, scene))
             summary["baked"] = {k: baked[k] for k in ("lattice_action", "key_action", "frames", "distance_m")
                                 if k in baked}
-    out = os.path.abspath(args.out)
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=out)
+    from .cli import save_blend
+    out = save_blend(args.out)
     summary.update(command=f"flexible {args.flexible_command}", wrote=[out],
                    file=os.path.abspath(args.file) if args.file else None,
                    total_seconds=round(time.perf_counter() - t0, 3))

@@ -6,7 +6,7 @@ the object, saves the result (--out) and prints a summary (--json: one object)."
 import os
 import time
 
-from .cli import UsageError
+from .cli import FRAME, POSITIVE, UsageError, number
 
 TYPES = ("AUTO", "LATERAL", "PINCH", "TRIPOD", "WRAP", "DISK")
 
@@ -19,10 +19,10 @@ def add_commands(sub, add_common_options):
     g.add_argument("--armature", help="the armature object (default: the only one)")
     g.add_argument("--side", choices=("AUTO", "L", "R"), default="AUTO", help="hand (default: the nearer)")
     g.add_argument("--type", choices=TYPES, default="AUTO", help="grasp type (default: from the thesis's table)")
-    g.add_argument("--start", type=int, default=1, help="frame the reach starts (default 1)")
-    g.add_argument("--reach", type=float, default=1.0, help="seconds to reach (default 1)")
-    g.add_argument("--close", type=float, default=0.5, help="seconds to close the fingers (default 0.5)")
-    g.add_argument("--release", type=int, default=0, help="frame the object is let go (default: never)")
+    g.add_argument("--start", type=FRAME, default=1, help="frame the reach starts (default 1)")
+    g.add_argument("--reach", type=POSITIVE, default=1.0, help="seconds to reach (default 1)")
+    g.add_argument("--close", type=POSITIVE, default=0.5, help="seconds to close the fingers (default 0.5)")
+    g.add_argument("--release", type=number(0, integer=True), default=0, help="frame the object is let go (default: never)")
     g.add_argument("--spine", action="store_true", help="let the spine help the reach")
     g.add_argument("--out", default=os.path.join("out", "grasp.blend"), help="the .blend to write")
     add_common_options(g)
@@ -44,9 +44,8 @@ def cmd_grasp(args):
     props.start_frame, props.duration, props.close_duration = args.start, args.reach, args.close
     props.release_frame, props.with_spine = args.release, args.spine
     summary = run_to_end(hands.run_grasp(obj, scene, target))
-    out = os.path.abspath(args.out)
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=out)
+    from .cli import save_blend
+    out = save_blend(args.out, summary, obj)
     summary.update(command="grasp", file=os.path.abspath(args.file), armature=obj.name, wrote=[out],
                    seconds=round(time.perf_counter() - t0, 3))
     summary["summary"] = (f"grasp: '{obj.name}' {summary['type'].lower()} grasp of '{target.name}' "

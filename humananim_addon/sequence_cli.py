@@ -6,7 +6,7 @@ operators, saves a .blend (--out) and prints a summary (--json: one object)."""
 import os
 import time
 
-from .cli import UsageError
+from .cli import COUNT, FINITE, NON_NEGATIVE, POSITIVE, UsageError, number
 
 
 def _inputs(p, out):
@@ -22,26 +22,26 @@ def add_commands(sub, add_common_options):
     f = sub.add_parser("filter", help="motion equalizer: a gain per frequency band, or remove jitter")
     _inputs(f, "filter.blend")
     f.add_argument("--gains", help="comma-separated gains, finest band first, the mean pose last (e.g. 0,0.5,1,1.5,1,1)")
-    f.add_argument("--levels", type=int, help="pyramid levels (default: one fewer than the gains, or 5)")
-    f.add_argument("--denoise-hz", type=float, help="remove every band above this frequency instead")
+    f.add_argument("--levels", type=COUNT, help="pyramid levels (default: one fewer than the gains, or 5)")
+    f.add_argument("--denoise-hz", type=POSITIVE, help="remove every band above this frequency instead")
     add_common_options(f)
     b = sub.add_parser("blend", help="multiresolution blend of the action and a second one")
     _inputs(b, "blend.blend")
     b.add_argument("--with", dest="second", required=True,
                    help="the second action: its name in the file, or a .bvh or .blend file with it")
     b.add_argument("--with-action", help="which action of a --with .blend (default: the first)")
-    b.add_argument("--start", type=float, help="frame of the first action where the second starts "
+    b.add_argument("--start", type=FINITE, help="frame of the first action where the second starts "
                                                "(default: its last frame minus the window)")
-    b.add_argument("--window", type=int, default=12, help="transition frames (0: the whole overlap; default 12)")
+    b.add_argument("--window", type=number(0, integer=True), default=12, help="transition frames (0: the whole overlap; default 12)")
     b.add_argument("--method", choices=("multiresolution", "weighted"), default="multiresolution")
     b.add_argument("--mask", choices=("window", "gaussian"), default="window")
     add_common_options(b)
     c = sub.add_parser("compress", help="fewer keys within degrees and centimetres on every frame")
     _inputs(c, "compress.blend")
-    c.add_argument("--degrees", type=float, default=0.5, help="largest rotation error (default 0.5)")
-    c.add_argument("--cm", type=float, default=0.5, help="largest location error in cm (default 0.5)")
-    c.add_argument("--value", type=float, default=1e-3, help="largest error of other curves (default 0.001)")
-    c.add_argument("--tail-cm", type=float, default=0.0,
+    c.add_argument("--degrees", type=POSITIVE, default=0.5, help="largest rotation error (default 0.5)")
+    c.add_argument("--cm", type=POSITIVE, default=0.5, help="largest location error in cm (default 0.5)")
+    c.add_argument("--value", type=POSITIVE, default=1e-3, help="largest error of other curves (default 0.001)")
+    c.add_argument("--tail-cm", type=NON_NEGATIVE, default=0.0,
                    help="also keep bone tails and points 10 cm beyond them within this many cm (default: off)")
     c.add_argument("--method", choices=("hermite", "pyramid"), default="hermite")
     add_common_options(c)
@@ -79,14 +79,21 @@ def _prepare(args):
         sel = sequence.select_channels(obj, scene, action, "BONES", bones)
     else:
         sel = sequence.select_channels(obj, scene, action, "ALL")
+    _at_least_two_frames(action, obj)
     return obj, scene, action, sel, unit
 
 
+def _at_least_two_frames(action, obj):
+    from . import action_api
+    keys = {round(k.co[0], 6) for fc in action_api.fcurves_of(action, obj) for k in fc.keyframe_points}
+    if len(keys) < 2:
+        raise UsageError(f"'{action.name}' has {len(keys)} keyed frame{'s' if len(keys) != 1 else ''}: "
+                         "at least 2 are needed")
+
+
 def _save(args, summary, t0, unit):
-    import bpy
-    out = os.path.abspath(args.out)
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=out)
+    from .cli import save_blend
+    out = save_blend(args.out, summary)
     summary.update(file=os.path.abspath(args.file), wrote=[out], seconds=round(time.perf_counter() - t0, 3))
     if unit:
         summary["bvh_unit"] = unit
@@ -128,15 +135,13 @@ def cmd_filter(args):
     gains = None
     if args.gains:
         try:
-            gains = [float(v) for v in args.gains.split(",")]
-        except ValueError:
-            raise UsageError(f"--gains {args.gains!r}: expected numbers separated by commas") from None
+            gains = [FINITE(v) for v in args.gains.split(",")]
+        except Exception:
+            raise UsageError(f"--gains {args.gains!r}: expected finite numbers separated by commas") from None
         if len(gains) < 2:
             raise UsageError("--gains needs at least two values (a band and the mean)")
     elif args.denoise_hz is None:
         raise UsageError("give --gains or --denoise-hz")
-    if args.denoise_hz is not None and args.denoise_hz <= 0:
-        raise UsageError("--denoise-hz must be positive")
     levels = args.levels or (len(gains) - 1 if gains else 5)
     summary = sequence.equalize(obj, scene, action, sel, gains=gains, levels=levels, cutoff_hz=args.denoise_hz,
                                 replace=args.replace)
@@ -188,8 +193,6 @@ def cmd_compress(args):
     from . import sequence
     t0 = time.perf_counter()
     obj, scene, action, sel, unit = _prepare(args)
-    if args.degrees <= 0 or args.cm <= 0:
-        raise UsageError("--degrees and --cm must be positive")
     summary = sequence.compress(obj, scene, action, sel, args.degrees, args.cm, args.value, args.method.upper(),
                                 args.replace, args.tail_cm)
     return _save(args, summary, t0, unit)

@@ -119,13 +119,14 @@ def stress_channels(obj, skeleton, result):
 def run(obj, scene):
     """The simulation job: read the source motion, simulate, write a new action with stress
     curves. Yields progress; returns a summary dict."""
+    from .validation import check_job
     props = scene.humananim_simulation
-    source = props.action or (obj.animation_data.action if obj.animation_data else None)
-    if source is None:
-        raise MotionError(f"'{obj.name}' has no action to simulate: choose a source action")
+    source, start, end = check_job(obj, props, "pushes")
     skeleton = skeleton_from_armature(obj, scene)
-    traj = yield from actions.iter_read_action(obj, scene, skeleton, source,
-                                                frame_range=frame_range(props, source))
+    traj = yield from actions.iter_read_action(obj, scene, skeleton, source, frame_range=(start, end))
+    if traj.frame_count < 3:
+        raise MotionError(f"'{source.name}' has {traj.frame_count} frame{'s' if traj.frame_count != 1 else ''} "
+                          "in the range: at least 3 are needed to simulate")
     settings = solver_settings(scene, props, skeleton, traj)
     t0 = time.perf_counter()
     result = yield from iter_simulate(skeleton, traj, settings)

@@ -7,9 +7,9 @@ import os
 import re
 import time
 
-from .cli import UsageError
+from .cli import NON_NEGATIVE, POSITIVE, UsageError
 
-_QUEUE = re.compile(r"^(?P<action>[^@:]+)(?:@(?P<start>-?\d+)-(?P<end>-?\d+))?(?::(?P<mode>blend|connect|inertialize))?"
+_QUEUE = re.compile(r"^(?P<action>.+?)(?:@(?P<start>-?\d+)-(?P<end>-?\d+))?(?::(?P<mode>blend|connect|inertialize))?"
                     r"(?::now=(?P<now>\d+))?$", re.IGNORECASE)
 
 
@@ -22,22 +22,22 @@ def add_commands(sub, add_common_options):
                    help="an action to queue (in order; MODE blend (default), connect or inertialize; now=FRAME "
                         "interrupts the motion so far at that frame, counted from its start); repeatable; "
                         "default: the NLA strips, else the active action")
-    c.add_argument("--initial", type=float, default=0.25, help="initial phase of every action, s (default 0.25)")
-    c.add_argument("--terminal", type=float, default=0.25, help="terminal phase of every action, s (default 0.25)")
+    c.add_argument("--initial", type=NON_NEGATIVE, default=0.25, help="initial phase of every action, s (default 0.25)")
+    c.add_argument("--terminal", type=NON_NEGATIVE, default=0.25, help="terminal phase of every action, s (default 0.25)")
     c.add_argument("--react", action="store_true", help="dynamic control with protective steps, falls, recovery")
     c.add_argument("--impulse", action="append", default=[], metavar="FRAME:BONE:FX,FY,FZ[:SECONDS]",
                    help="a push (N s, world axes) on a bone for --react; repeatable")
     c.add_argument("--collide", metavar="OBJECT",
                    help="an armature or mesh object in the .blend that collides with the character for --react "
                         "(the puncher of the thesis's scene)")
-    c.add_argument("--collide-radius", type=float, default=0.06,
+    c.add_argument("--collide-radius", type=POSITIVE, default=0.06,
                    help="sphere radius along a colliding armature's bones (m, default 0.06)")
-    c.add_argument("--collide-mass", type=float, default=0.0,
+    c.add_argument("--collide-mass", type=NON_NEGATIVE, default=0.0,
                    help="the collider's mass in kg (a fist with the arm behind it: a few kg); 0: kinematic, it "
                         "keeps pushing (default 0)")
-    c.add_argument("--step-speed", type=float, nargs=2, metavar=("MIN", "MAX"), default=(0.5, 1.0),
+    c.add_argument("--step-speed", type=POSITIVE, nargs=2, metavar=("MIN", "MAX"), default=(0.5, 1.0),
                    help="eq. 3.6 root speeds, m/s (default 0.5 1.0)")
-    c.add_argument("--step-acceleration", type=float, default=10.0, help="eq. 3.6 root acceleration, m/s^2")
+    c.add_argument("--step-acceleration", type=POSITIVE, default=10.0, help="eq. 3.6 root acceleration, m/s^2")
     c.add_argument("--output", choices=("ACTION", "NLA"), default="ACTION")
     c.add_argument("--out", default=os.path.join("out", "synthesis.blend"), help="the .blend to write")
     add_common_options(c)
@@ -50,6 +50,13 @@ def parse_queue(text):
         raise UsageError(f"--queue '{text}': expected ACTION[@START-END][:blend|connect|inertialize][:now=FRAME]")
     rng = (int(m["start"]), int(m["end"])) if m["start"] is not None else None
     return m["action"], rng, (m["mode"] or "blend").upper(), (int(m["now"]) if m["now"] is not None else None)
+
+
+def _check_range(text, action, rng):
+    first, last = action.frame_range
+    if rng[1] <= rng[0] or rng[0] < first or rng[1] > last:
+        raise UsageError(f"--queue {text!r}: frames {rng[0]}-{rng[1]} are not a range inside '{action.name}' "
+                         f"(frames {first:g}-{last:g})")
 
 
 def cmd_synthesize(args):
@@ -69,6 +76,8 @@ def cmd_synthesize(args):
             if act is None:
                 raise UsageError(f"--queue: no action named '{name}' (actions: "
                                  f"{', '.join(a.name for a in bpy.data.actions) or 'none'})")
+            if rng is not None:
+                _check_range(text, act, rng)
             synthesis.add_entry(scene, act, mode, rng, now)
     elif obj.animation_data and any(t.strips for t in obj.animation_data.nla_tracks):
         synthesis.entries_from_nla(obj, scene)
@@ -93,9 +102,8 @@ def cmd_synthesize(args):
         control.collider, control.collider_radius = other, args.collide_radius
         control.collider_mass = max(0.0, args.collide_mass)
     summary = run_to_end(synthesis.run(obj, scene))
-    out = os.path.abspath(args.out)
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=out)
+    from .cli import save_blend
+    out = save_blend(args.out, summary, obj)
     summary.update(command="synthesize", file=os.path.abspath(args.file), armature=obj.name, wrote=[out],
                    seconds=round(time.perf_counter() - t0, 3))
     if unit:

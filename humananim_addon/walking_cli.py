@@ -8,7 +8,7 @@ summary (--json: one object)."""
 import os
 import time
 
-from .cli import DEFAULT_CLIP, UsageError
+from .cli import DEFAULT_CLIP, FINITE, NON_NEGATIVE, POSITIVE, UsageError, number
 
 
 def add_commands(sub, add_common_options):
@@ -20,11 +20,11 @@ def add_commands(sub, add_common_options):
     where = c.add_mutually_exclusive_group()
     where.add_argument("--path", metavar="CURVE", help="a curve object in the .blend to walk along")
     where.add_argument("--keyed", metavar="OBJECT", help="an object whose keyed location the root follows")
-    where.add_argument("--line", type=float, metavar="METRES", help="walk a straight line this long (default 5)")
-    where.add_argument("--s-curve", type=float, metavar="METRES", help="walk an S curve this long")
-    c.add_argument("--s-amplitude", type=float, default=1.0, help="sideways amplitude of the S curve (m, default 1)")
+    where.add_argument("--line", type=POSITIVE, metavar="METRES", help="walk a straight line this long (default 5)")
+    where.add_argument("--s-curve", type=POSITIVE, metavar="METRES", help="walk an S curve this long")
+    c.add_argument("--s-amplitude", type=FINITE, default=1.0, help="sideways amplitude of the S curve (m, default 1)")
     speed = c.add_mutually_exclusive_group()
-    speed.add_argument("--speed", type=float, help="walking speed in m/s (default 1.3)")
+    speed.add_argument("--speed", type=POSITIVE, help="walking speed in m/s (default 1.3)")
     speed.add_argument("--speed-keys", metavar="S:V,...", help="speeds (m/s) at distances (m) along the path")
     speed.add_argument("--segment-speeds", metavar="V,...", help="one speed per segment between control points")
     c.add_argument("--style", default="neutral", help="neutral, brisk, tired or sneaking (default neutral)")
@@ -33,9 +33,9 @@ def add_commands(sub, add_common_options):
                         "knee_flexion, heel_strike, torso_lean); repeatable")
     ground = c.add_mutually_exclusive_group()
     ground.add_argument("--ground", metavar="OBJECT", help="a mesh object in the .blend the feet stand on")
-    ground.add_argument("--bumps", type=float, metavar="METRES",
+    ground.add_argument("--bumps", type=NON_NEGATIVE, metavar="METRES",
                         help="make a bumpy ground mesh of this amplitude under the path")
-    c.add_argument("--frame-start", type=int, default=0, help="first frame of the walk (default: scene start)")
+    c.add_argument("--frame-start", type=number(0, integer=True), default=0, help="first frame of the walk (default: scene start)")
     c.add_argument("--generator", action="append", default=[], metavar="ACTION:SCOPE:FRAME[:PRIORITY[:WEIGHT]]",
                    help="add a generator strip playing ACTION on SCOPE from FRAME; repeatable")
     c.add_argument("--out", default=os.path.join("out", "walk.blend"), help="the .blend to write")
@@ -62,8 +62,8 @@ def cmd_walk(args):
         if name not in walking.STYLE_FIELDS:
             raise UsageError(f"--set {item!r}: unknown parameter (parameters: {', '.join(walking.STYLE_FIELDS)})")
         try:
-            setattr(props, name, float(value))
-        except ValueError:
+            setattr(props, name, FINITE(value))
+        except Exception:
             raise UsageError(f"--set {item!r}: the value must be a number") from None
     _choose_path(args, bpy, scene, obj, props, walking)
     if args.ground:
@@ -76,9 +76,8 @@ def cmd_walk(args):
     for text in args.generator:
         _add_generator(text, bpy, obj, scene, walking)
     summary["stack"] = walking.stack_summary(obj)
-    out = os.path.abspath(args.out)
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=out)
+    from .cli import save_blend
+    out = save_blend(args.out, summary, obj)
     summary.update(command="walk", file=os.path.abspath(args.file), wrote=[out],
                    seconds=round(time.perf_counter() - t0, 3))
     if unit:
@@ -106,11 +105,28 @@ def _choose_path(args, bpy, scene, obj, props, walking):
         props.path = s_curve_object(scene, args.s_curve, args.s_amplitude, start) if args.s_curve \
             else line_object(scene, args.line or 5.0, start)
     if args.speed_keys:
+        _check_speeds("--speed-keys", args.speed_keys, keyed=True)
         props.speed_mode, props.speed_keys = "KEYED", args.speed_keys
     elif args.segment_speeds:
+        _check_speeds("--segment-speeds", args.segment_speeds)
         props.speed_mode, props.segment_speeds = "SEGMENTS", args.segment_speeds
     else:
         props.speed_mode, props.speed = "CONSTANT", args.speed or 1.3
+
+
+def _check_speeds(option, text, keyed=False):
+    """Every speed positive and finite (S:V pairs with distances >= 0 when keyed)."""
+    try:
+        for item in text.split(","):
+            if keyed:
+                distance, _, speed = item.partition(":")
+                NON_NEGATIVE(distance)
+            else:
+                speed = item
+            POSITIVE(speed)
+    except Exception:
+        raise UsageError(f"{option} {text!r}: expected " + ("DISTANCE:SPEED pairs (distance >= 0 m, speed > 0 m/s)" if keyed
+                                                           else "speeds > 0 m/s") + " separated by commas") from None
 
 
 def _add_generator(text, bpy, obj, scene, walking):

@@ -18,8 +18,38 @@ def active_armature(context):
     return obj if obj is not None and obj.type == "ARMATURE" else None
 
 
+class Message(str):
+    """An operator's report with its level: WARNING when the result fails the motion QA."""
+
+    level = "INFO"
+
+
+def remember_sources(operator):
+    """Digests of every action before an operator that makes a motion runs (`measures_motion`),
+    so its QA can show the source untouched."""
+    if getattr(operator, "measures_motion", False):
+        from ..humananim_addon.qa import digest_actions
+        operator._qa_digests = digest_actions()
+
+
+def with_qa(operator, context, obj, summary, text, ground=None):
+    """The operator's message with the motion QA of its result (`summary`'s action on `obj`),
+    which is stored on the armature for the QA panel: a WARNING naming the worst bone and frames
+    when it fails a threshold."""
+    from ..humananim_addon import qa
+    from ..solver.qa import summary_line
+    report = qa.measure_summary(obj, context.scene, summary, getattr(operator, "_qa_digests", None), ground)
+    if not report.get("measures"):
+        return text
+    message = Message(f"{text} | {summary_line(report)}"
+                      + (f": {report['warnings'][0]}" if report["warnings"] else ""))
+    message.level = "WARNING" if report["passed"] is False else "INFO"
+    return message
+
+
 def run_reporting(operator, work):
     """Run `work()`; a user error becomes one message in the UI and the log, no traceback."""
+    remember_sources(operator)
     try:
         message = work()
     except HumanAnimError as error:
@@ -35,8 +65,9 @@ def _fail(operator, error):
 
 def _finish(operator, message):
     if message:
-        log.info("%s: %s", operator.bl_idname, message)
-        operator.report({"INFO"}, message)
+        level = getattr(message, "level", "INFO")
+        log.log(logging.WARNING if level == "WARNING" else logging.INFO, "%s: %s", operator.bl_idname, message)
+        operator.report({level}, str(message))
     return {"FINISHED"}
 
 
@@ -96,8 +127,7 @@ class JobOperator:
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
-        steps = self.job(context)
-        return run_reporting(self, lambda: run_to_end(steps))
+        return run_reporting(self, lambda: run_to_end(self.job(context)))
 
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
@@ -116,6 +146,7 @@ class JobOperator:
 
 
 def start_job(op, context):
+    remember_sources(op)
     op._steps = op.job(context)
     set_progress(context, op.bl_label, 0.0)
 

@@ -4,7 +4,7 @@ self-collisions. Each writes a new action; the animator's keys are only read."""
 import bpy
 
 from ..humananim_addon import hands
-from .common import JobOperator, active_armature
+from .common import JobOperator, active_armature, with_qa
 
 
 def _selected_object(context):
@@ -19,14 +19,16 @@ class HUMANANIM_OT_grasp(JobOperator, bpy.types.Operator):
 
     bl_idname = "humananim.grasp"
     bl_label = "Grasp Selected Object"
+    measures_motion = True
 
     @classmethod
     def poll(cls, context):
         return active_armature(context) is not None and _selected_object(context) is not None
 
     def job(self, context):
-        s = yield from hands.run_grasp(active_armature(context), context.scene, _selected_object(context))
-        return (f"'{s['action']}': {s['type'].lower()} grasp of '{s['object']}' ({s['primitive'].lower()}) "
+        obj = active_armature(context)
+        s = yield from hands.run_grasp(obj, context.scene, _selected_object(context))
+        return with_qa(self, context, obj, s, f"'{s['action']}': {s['type'].lower()} grasp of '{s['object']}' ({s['primitive'].lower()}) "
                 f"with {' and '.join(s['hands'])}, frames {s['frames'][0]}-{s['frames'][1]}, fingers touching: "
                 + ", ".join(f"{k}: {' '.join(v)}" for k, v in s["fingers_touching"].items()))
 
@@ -59,14 +61,16 @@ class HUMANANIM_OT_follow_object(JobOperator, bpy.types.Operator):
 
     bl_idname = "humananim.follow_object"
     bl_label = "Follow Object"
+    measures_motion = True
 
     @classmethod
     def poll(cls, context):
         return active_armature(context) is not None and _selected_object(context) is not None
 
     def job(self, context):
-        s = yield from hands.run_follow(active_armature(context), context.scene, _selected_object(context))
-        return (f"'{s['action']}': the hand keeps '{s['object']}' within {s['max_grip_error_mm']:.2f} mm and "
+        obj = active_armature(context)
+        s = yield from hands.run_follow(obj, context.scene, _selected_object(context))
+        return with_qa(self, context, obj, s, f"'{s['action']}': the hand keeps '{s['object']}' within {s['max_grip_error_mm']:.2f} mm and "
                 f"{s['max_grip_error_deg']:.2f} deg over frames {s['frames'][0]}-{s['frames'][1]}")
 
 
@@ -75,14 +79,16 @@ class HUMANANIM_OT_hold(JobOperator, bpy.types.Operator):
 
     bl_idname = "humananim.hold"
     bl_label = "Hold"
+    measures_motion = True
 
     @classmethod
     def poll(cls, context):
         return active_armature(context) is not None and context.scene.humananim_hands.other is not None
 
     def job(self, context):
-        s = yield from hands.run_hold(active_armature(context), context.scene)
-        return (f"'{s['action']}': holds {s['held']} ({s['type'].lower()}), frames {s['frames'][0]}-"
+        obj = active_armature(context)
+        s = yield from hands.run_hold(obj, context.scene)
+        return with_qa(self, context, obj, s, f"'{s['action']}': holds {s['held']} ({s['type'].lower()}), frames {s['frames'][0]}-"
                 f"{s['frames'][1]}, grip kept within {s['max_grip_error_mm']:.2f} mm")
 
 
@@ -92,14 +98,16 @@ class HUMANANIM_OT_remove_self_collisions(JobOperator, bpy.types.Operator):
 
     bl_idname = "humananim.remove_self_collisions"
     bl_label = "Remove Self-Collisions"
+    measures_motion = True
 
     @classmethod
     def poll(cls, context):
         return active_armature(context) is not None
 
     def job(self, context):
-        s = yield from hands.run_self_collisions(active_armature(context), context.scene)
-        return (f"'{s['action']}': {s['frames_corrected']} frames corrected ({s['leg_frames_corrected']} for "
+        obj = active_armature(context)
+        s = yield from hands.run_self_collisions(obj, context.scene)
+        return with_qa(self, context, obj, s, f"'{s['action']}': {s['frames_corrected']} frames corrected ({s['leg_frames_corrected']} for "
                 f"the legs), deepest "
                 f"{s['max_depth_before_mm']:.0f} mm -> {s['max_depth_after_mm']:.0f} mm")
 

@@ -2,8 +2,8 @@
 
 import bpy
 
-from ..humananim_addon import motion_control, overlay
-from .common import AddOnActiveBone, JobOperator, RemoveActiveItem, active_armature
+from ..humananim_addon import motion_control, overlay, validation
+from .common import AddOnActiveBone, JobOperator, RemoveActiveItem, active_armature, with_qa
 
 
 class HUMANANIM_OT_dynamic_control(JobOperator, bpy.types.Operator):
@@ -11,14 +11,17 @@ class HUMANANIM_OT_dynamic_control(JobOperator, bpy.types.Operator):
 
     bl_idname = "humananim.dynamic_control"
     bl_label = "Dynamic Control"
+    measures_motion = True
 
     @classmethod
     def poll(cls, context):
         return active_armature(context) is not None
 
     def job(self, context):
-        summary = yield from motion_control.run(active_armature(context), context.scene)
-        return (f"'{summary['action']}': {summary['frames']} frames in {summary['seconds']:.1f} s "
+        obj = active_armature(context)
+        validation.check_job(obj, context.scene.humananim_control, "impulses")
+        summary = yield from motion_control.run(obj, context.scene)
+        return with_qa(self, context, obj, summary, f"'{summary['action']}': {summary['frames']} frames in {summary['seconds']:.1f} s "
                 f"({summary['real_time_factor']:.2f}x real time), peak stress "
                 f"{summary['peak_stress_nm']:.0f} N m ({summary['peak_stress_bone']}), balance error "
                 f"{100 * summary['max_balance_error_m']:.1f} cm, {summary['frames_falling']} frames falling")

@@ -13,7 +13,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProp
 from ..humananim_addon import action_api, sequence
 from ..humananim_addon.actions import scene_fps
 from ..solver.errors import MotionError
-from .common import JobOperator, run_reporting
+from .common import JobOperator, run_reporting, with_qa
 
 CHANNELS = (("AUTO", "Auto", "Graph Editor: selected F-curves; pose mode: selected bones; else everything"),
             ("CURVES", "Selected F-Curves", "The F-curves selected in the Graph Editor"),
@@ -60,8 +60,12 @@ class SequenceOperator:
         layout.prop(self, "replace")
 
 
-def _with_note(text, summary):
-    return f"{text} ({summary['selection_note']})" if summary.get("selection_note") else text
+def _with_note(text, summary, operator=None, context=None):
+    """The message with the selection's note, and with the motion QA of the result."""
+    text = f"{text} ({summary['selection_note']})" if summary.get("selection_note") else text
+    if operator is None:
+        return text
+    return with_qa(operator, context, context.active_object, summary, text)
 
 
 class HUMANANIM_OT_equalize(SequenceOperator, bpy.types.Operator):
@@ -69,6 +73,7 @@ class HUMANANIM_OT_equalize(SequenceOperator, bpy.types.Operator):
 
     bl_idname = "humananim.equalize"
     bl_label = "Motion Equalizer"
+    measures_motion = True
 
     mode: EnumProperty(name="Mode", items=(
         ("GAINS", "Band Gains", "A gain per band, finest first"),
@@ -90,7 +95,7 @@ class HUMANANIM_OT_equalize(SequenceOperator, bpy.types.Operator):
                                   cutoff_hz=self.cutoff_hz if self.mode == "DENOISE" else None,
                                   replace=self.replace)
             return _with_note(f"'{s['action']}': {s['groups']} channels over {levels} bands, largest change "
-                              f"{s['largest_change_deg']:.2f} deg, {s['largest_change_cm']:.2f} cm", s)
+                              f"{s['largest_change_deg']:.2f} deg, {s['largest_change_cm']:.2f} cm", s, self, context)
         return run_reporting(self, work)
 
     def draw(self, context):
@@ -114,6 +119,7 @@ class HUMANANIM_OT_multires_blend(SequenceOperator, bpy.types.Operator):
 
     bl_idname = "humananim.multires_blend"
     bl_label = "Multiresolution Blend"
+    measures_motion = True
 
     second: EnumProperty(name="Blend With", items=(
         ("ACTION", "Action", "The active action, then another action"),
@@ -149,7 +155,7 @@ class HUMANANIM_OT_multires_blend(SequenceOperator, bpy.types.Operator):
             s = sequence.blend(obj, scene, a, b, start, self.window, self.method, self.mask, self.levels or None,
                                sel, range_a, range_b, self.replace)
             return _with_note(f"'{s['action']}': '{s['source_action']}' then '{s['action_b']}' from frame "
-                              f"{s['start']:g}, frames {s['frames'][0]:g}-{s['frames'][1]:g}", s)
+                              f"{s['start']:g}, frames {s['frames'][0]:g}-{s['frames'][1]:g}", s, self, context)
         return run_reporting(self, work)
 
     def draw(self, context):
@@ -172,6 +178,7 @@ class HUMANANIM_OT_compress_keys(SequenceOperator, JobOperator, bpy.types.Operat
 
     bl_idname = "humananim.compress_keys"
     bl_label = "Compress Keys"
+    measures_motion = True
     bl_options = {"REGISTER", "UNDO"}
 
     degrees: FloatProperty(name="Rotation", default=0.5, min=0.001, soft_max=10.0,
@@ -197,7 +204,7 @@ class HUMANANIM_OT_compress_keys(SequenceOperator, JobOperator, bpy.types.Operat
                 f"{s['max_error_deg']:.3f} deg, {s['max_error_cm']:.3f} cm")
         if "tail_error_cm" in s:
             text += f", bone tail {s['tail_error_cm']:.2f} cm, 10 cm beyond {s['tail_10cm_error_cm']:.2f} cm"
-        return _with_note(text, s)
+        return _with_note(text, s, self, context)
 
     def draw(self, context):
         layout = self.layout
@@ -212,6 +219,7 @@ class HUMANANIM_OT_time_warp(SequenceOperator, bpy.types.Operator):
 
     bl_idname = "humananim.time_warp"
     bl_label = "Time Warp"
+    measures_motion = True
 
     constraints: EnumProperty(name="Constraints", items=(
         ("MARKERS", "Warp Markers", "Timeline and pose markers named 'warp:<old frame>', placed at the new frame"),
@@ -230,7 +238,7 @@ class HUMANANIM_OT_time_warp(SequenceOperator, bpy.types.Operator):
             sel = self.selection(context, action)
             s = sequence.warp(obj, scene, action, sel, pairs, self.keep_ends, self.resample, self.replace)
             moves = ", ".join(f"{o:g}->{n:g}" for o, n in s["constraints"])
-            return _with_note(f"'{s['action']}': {moves}; frames {s['frames'][0]:g}-{s['frames'][1]:g}", s)
+            return _with_note(f"'{s['action']}': {moves}; frames {s['frames'][0]:g}-{s['frames'][1]:g}", s, self, context)
         return run_reporting(self, work)
 
     def draw(self, context):

@@ -3,7 +3,7 @@
 import bpy
 
 from ..humananim_addon import simulation
-from .common import AddOnActiveBone, JobOperator, RemoveActiveItem, active_armature
+from .common import AddOnActiveBone, JobOperator, RemoveActiveItem, active_armature, with_qa
 
 
 class HUMANANIM_OT_simulate(JobOperator, bpy.types.Operator):
@@ -11,14 +11,16 @@ class HUMANANIM_OT_simulate(JobOperator, bpy.types.Operator):
 
     bl_idname = "humananim.simulate"
     bl_label = "Simulate"
+    measures_motion = True
 
     @classmethod
     def poll(cls, context):
         return active_armature(context) is not None
 
     def job(self, context):
-        summary = yield from simulation.run(active_armature(context), context.scene)
-        return (f"'{summary['action']}': {summary['frames']} frames in {summary['seconds']:.1f} s "
+        obj = active_armature(context)
+        summary = yield from simulation.run(obj, context.scene)
+        return with_qa(self, context, obj, summary, f"'{summary['action']}': {summary['frames']} frames in {summary['seconds']:.1f} s "
                 f"({summary['real_time_factor']:.2f}x real time), tracking error "
                 f"{summary['tracking_error_deg_rms']:.1f} deg RMS, peak strength use "
                 f"{summary['peak_strength_usage']:.2f}")

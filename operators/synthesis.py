@@ -6,7 +6,7 @@ from bpy.props import IntProperty
 
 from ..humananim_addon import synthesis
 from ..solver.errors import MotionError
-from .common import JobOperator, RemoveActiveItem, active_armature, run_reporting
+from .common import JobOperator, RemoveActiveItem, active_armature, run_reporting, with_qa
 
 
 class HUMANANIM_OT_synthesize(JobOperator, bpy.types.Operator):
@@ -14,18 +14,20 @@ class HUMANANIM_OT_synthesize(JobOperator, bpy.types.Operator):
 
     bl_idname = "humananim.synthesize"
     bl_label = "Synthesize Motion"
+    measures_motion = True
 
     @classmethod
     def poll(cls, context):
         return active_armature(context) is not None
 
     def job(self, context):
-        s = yield from synthesis.run(active_armature(context), context.scene)
+        obj = active_armature(context)
+        s = yield from synthesis.run(obj, context.scene)
         msg = synthesis.text_line(s)
         rejected = [r for r in s["requests"] if not r["accepted"]]
         if rejected:
             msg += "; " + "; ".join(r["reason"] for r in rejected)
-        return msg
+        return with_qa(self, context, obj, s, msg)
 
 
 class HUMANANIM_OT_queue_add(bpy.types.Operator):

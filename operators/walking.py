@@ -3,7 +3,7 @@
 import bpy
 
 from ..humananim_addon import walking
-from .common import JobOperator, active_armature, run_reporting
+from .common import JobOperator, active_armature, run_reporting, with_qa
 
 
 class HUMANANIM_OT_walk(JobOperator, bpy.types.Operator):
@@ -11,6 +11,7 @@ class HUMANANIM_OT_walk(JobOperator, bpy.types.Operator):
 
     bl_idname = "humananim.walk"
     bl_label = "Walk Along Path"
+    measures_motion = True
 
     @classmethod
     def poll(cls, context):
@@ -20,7 +21,7 @@ class HUMANANIM_OT_walk(JobOperator, bpy.types.Operator):
     def job(self, context):
         obj = walking.walk_armature(context.scene.humananim_walk, active_armature(context))
         s = yield from walking.run(obj, context.scene)
-        return (f"'{s['action']}': {s['steps']} steps, {s['walk_seconds']:.1f} s of walk (frames "
+        return with_qa(self, context, obj, s, f"'{s['action']}': {s['steps']} steps, {s['walk_seconds']:.1f} s of walk (frames "
                 f"{s['frame_range'][0]:g}-{s['frame_range'][1]:g}) in {s['generate_seconds']:.2f} s; feet slide "
                 f"{s['max_foot_slip_mm']:.2f} mm at most, root within {s['max_root_deviation_cm']:.1f} cm of the path")
 

@@ -27,6 +27,10 @@ class BVH:
     root_positions: np.ndarray  # (F, 3) root head in the world, Z up, scaled
     rotations: np.ndarray  # (F, J, 4) local rotations in Z-up world-aligned joint frames
     values: np.ndarray = None  # (F, C) the channels as the file has them (file units, degrees, Y up)
+    joint_offsets: np.ndarray = None  # (F, J, 3) each head from its parent's per frame, Z up, scaled
+    file_offsets: np.ndarray = None  # (J, 3) OFFSETs as written (file units, Y up)
+    file_ends: np.ndarray = None  # (J, 3) End Site OFFSETs as written, NaN where there is none
+    scale: float = 1.0  # metres per file unit used
 
     @property
     def fps(self):
@@ -36,103 +40,246 @@ class BVH:
     def frame_count(self):
         return len(self.rotations)
 
-    def positions(self):
-        """World head positions (F, J, 3) by forward kinematics of the BVH itself."""
+    def positions(self, with_ends=False):
+        """World head positions (F, J, 3) by forward kinematics of the BVH itself (a joint's
+        position channels place it as Blender's importer does); with_ends adds the end sites
+        after the heads (F, J + E, 3)."""
         F, J = self.rotations.shape[:2]
         mats = rotations.to_matrix(self.rotations)
         world_r = np.empty((F, J, 3, 3))
         pos = np.empty((F, J, 3))
+        local = self.joint_offsets if self.joint_offsets is not None else np.broadcast_to(self.offsets, (F, J, 3))
         for j, p in enumerate(self.parents):
             if p < 0:
                 world_r[:, j], pos[:, j] = mats[:, j], self.root_positions
             else:
                 world_r[:, j] = world_r[:, p] @ mats[:, j]
-                pos[:, j] = pos[:, p] + world_r[:, p] @ self.offsets[j]
-        return pos
+                pos[:, j] = pos[:, p] + (world_r[:, p] @ local[:, j, :, None])[..., 0]
+        if not with_ends:
+            return pos
+        ends = [pos[:, j] + world_r[:, j] @ e for j, e in enumerate(self.end_sites) if np.all(np.isfinite(e))]
+        return np.concatenate((pos, np.stack(ends, axis=1)), axis=1) if ends else pos
 
 
 def read(path, scale=1.0):
-    with open(path) as f:
-        return parse(f.read(), scale)
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            return parse(f.read(), scale)
+    except OSError as error:
+        raise MotionError(f"cannot read {path}: {error.strerror}") from None
 
 
 def parse(text, scale=1.0):
-    tokens = text.split()
+    """A BVH from its text: any whitespace between words (spaces, tabs), any line endings, any
+    channel order, position channels on any joint, joint names with spaces (joined with '_' as
+    Blender does), frames on one line or spread over several. A broken file (no hierarchy, a
+    bad number, NaN or infinite values, fewer values than the header promises) is a MotionError
+    naming the line or frame."""
+    hierarchy, motion, motion_line = split_motion(text)
+    names, parents, offsets, ends, channels = parse_hierarchy(hierarchy)
+    frames, frame_time, values = parse_motion(motion, motion_line, sum(len(c) for c in channels))
+    _check_values(values, names, channels)
+    return _convert(names, parents, offsets, ends, channels, frame_time, values, scale)
+
+
+def split_motion(text):
+    """(hierarchy lines, motion text, line number of MOTION) of a BVH text."""
+    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+    first = next((w for w in (line.split() for line in lines) if w), [""])
+    if first[0].upper() != "HIERARCHY":
+        raise MotionError("not a BVH file: it does not start with HIERARCHY")
+    for i, line in enumerate(lines):
+        words = line.split()
+        if words and words[0].upper() == "MOTION":
+            return lines[:i], "\n".join([" ".join(words[1:])] + lines[i + 1:]), i + 1
+    raise MotionError("the BVH file has no MOTION section (truncated?)")
+
+
+def parse_hierarchy(lines):
+    """names, parents, offsets (file axes and units), end-site offsets, channels of the lines
+    between HIERARCHY and MOTION."""
     names, parents, offsets, ends, channels = [], [], [], [], []
-    stack, i = [], 0
-    if not tokens or tokens[0] != "HIERARCHY":
-        raise MotionError("not a BVH file: no HIERARCHY")
-    i = 1
-    while i < len(tokens) and tokens[i] != "MOTION":
-        tok = tokens[i]
-        if tok in ("ROOT", "JOINT"):
-            names.append(tokens[i + 1])
+    stack, in_end = [], False
+    for n, line in enumerate(lines, 1):
+        words = line.split()
+        if not words:
+            continue
+        key = words[0].upper()
+        braces = [w for w in words if w in "{}"]
+        if key in ("ROOT", "JOINT"):
+            name = "_".join(w for w in words[1:] if w != "{")
+            if not name:
+                raise MotionError(f"BVH line {n}: {key} without a name")
+            names.append(name)
             parents.append(stack[-1] if stack else -1)
             offsets.append(np.zeros(3))
             ends.append(np.full(3, np.nan))
             channels.append(())
             stack.append(len(names) - 1)
-            i += 2
-        elif tok == "End":
-            i, end = _end_site(tokens, i)
-            ends[stack[-1]] = end
-        elif tok == "OFFSET":
-            offsets[stack[-1]] = np.array(tokens[i + 1:i + 4], float)
-            i += 4
-        elif tok == "CHANNELS":
-            n = int(tokens[i + 1])
-            channels[stack[-1]] = tuple(tokens[i + 2:i + 2 + n])
-            i += 2 + n
-        elif tok == "}":
-            stack.pop()
-            i += 1
-        else:
-            i += 1
+            braces = braces[1:] if braces[:1] == ["{"] else braces
+        elif key == "END":
+            in_end = True
+        elif key == "OFFSET":
+            if not stack:
+                raise MotionError(f"BVH line {n}: OFFSET outside a joint")
+            xyz = _numbers(words[1:4], f"BVH line {n}: OFFSET", 3)
+            if in_end:
+                ends[stack[-1]] = xyz
+            else:
+                offsets[stack[-1]] = xyz
+        elif key == "CHANNELS":
+            if not stack or in_end:
+                raise MotionError(f"BVH line {n}: CHANNELS outside a joint")
+            count = int(_numbers(words[1:2], f"BVH line {n}: CHANNELS", 1)[0])
+            chans = tuple(words[2:2 + count])
+            if len(chans) != count or any(c[:1].upper() not in _AXES or not c.lower().endswith(
+                    ("position", "rotation")) for c in chans):
+                raise MotionError(f"BVH line {n}: expected {count} channels like Xposition or Zrotation, "
+                                  f"got {' '.join(words[2:]) or 'none'}")
+            channels[stack[-1]] = chans
+        for b in braces:
+            if b == "}":
+                if in_end:
+                    in_end = False
+                elif stack:
+                    stack.pop()
+                else:
+                    raise MotionError(f"BVH line {n}: a '}}' closes nothing")
     if not names:
         raise MotionError("the BVH file has no joints")
-    i += 1
-    frames = int(tokens[i + 1])
-    frame_time = float(tokens[i + 4])
-    width = sum(len(c) for c in channels)
-    values = np.array(tokens[i + 5:i + 5 + frames * width], float)
-    if values.size != frames * width:
-        raise MotionError(f"the BVH motion has {values.size} values, expected {frames * width}")
-    values = values.reshape(frames, width)
-    return _convert(names, parents, offsets, ends, channels, frame_time, values, scale)
+    if stack:
+        raise MotionError("the BVH hierarchy is not closed (a '}' is missing: truncated?)")
+    return names, parents, offsets, ends, channels
 
 
-def _end_site(tokens, i):
-    # End Site { OFFSET x y z }
-    j = tokens.index("OFFSET", i)
-    return tokens.index("}", j) + 1, np.array(tokens[j + 1:j + 4], float)
+def parse_motion(motion, first_line, width):
+    """(frame count, frame time, values (F, width)) of the MOTION section."""
+    words = motion.split()
+    if len(words) < 5 or words[0].lower() != "frames:" or words[2].lower() != "frame" \
+            or words[3].lower() != "time:":
+        raise MotionError(f"BVH line {first_line + 1}: expected 'Frames: N' and 'Frame Time: T' after MOTION")
+    frames = _numbers(words[1:2], "BVH 'Frames:'", 1)[0]
+    frame_time = _numbers(words[4:5], "BVH 'Frame Time:'", 1)[0]
+    if frames != int(frames) or frames < 1:
+        raise MotionError(f"BVH 'Frames: {words[1]}': expected a whole number of frames, at least 1")
+    if not frame_time > 0.0 or not np.isfinite(frame_time):
+        raise MotionError(f"BVH 'Frame Time: {words[4]}': expected a positive time in seconds")
+    frames = int(frames)
+    tokens = words[5:]
+    if len(tokens) < frames * width:
+        raise MotionError(f"the BVH header promises {frames} frames of {width} values, the file holds "
+                          f"{len(tokens) // max(width, 1)} complete frames (truncated?)")
+    try:
+        values = np.array(tokens[:frames * width], float)
+    except ValueError:
+        bad = next(i for i, t in enumerate(tokens) if not _is_number(t))
+        raise MotionError(f"BVH frame {bad // max(width, 1) + 1}: {tokens[bad][:20]!r} is not a number") from None
+    return frames, frame_time, values.reshape(frames, width)
+
+
+def _check_values(values, names, channels):
+    bad = ~np.isfinite(values)
+    if bad.any():
+        frame, col = np.argwhere(bad)[0]
+        owner = np.repeat(np.arange(len(names)), [len(c) for c in channels])[col]
+        raise MotionError(f"the BVH motion has {int(bad.sum())} NaN or infinite values (first at frame "
+                          f"{frame + 1}, joint '{names[owner]}')")
+
+
+def _is_number(token):
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+def _numbers(words, what, count):
+    if len(words) < count:
+        raise MotionError(f"{what}: expected {count} number{'s' if count > 1 else ''}")
+    try:
+        out = np.array(words[:count], float)
+    except ValueError:
+        raise MotionError(f"{what}: {' '.join(words[:count])!r} is not {count} number(s)") from None
+    if not np.isfinite(out).all():
+        raise MotionError(f"{what}: {' '.join(words[:count])!r} is not finite")
+    return out
+
+
+def write(bvh_file, path=None):
+    """The canonical text of a parsed BVH (file units and axes, one frame per line, spaces),
+    which every BVH reader (Blender's included) reads the same way; written to `path` if given."""
+    out, depth = ["HIERARCHY"], 0
+    kids = {j: [k for k, p in enumerate(bvh_file.parents) if p == j] for j in range(len(bvh_file.names))}
+
+    def joint(j, depth):
+        pad = "  " * depth
+        out.append(f"{pad}{'ROOT' if bvh_file.parents[j] < 0 else 'JOINT'} {bvh_file.names[j]}")
+        out.append(pad + "{")
+        out.append(f"{pad}  OFFSET {_text(bvh_file.file_offsets[j])}")
+        chans = bvh_file.channels[j]
+        out.append(f"{pad}  CHANNELS {len(chans)} {' '.join(chans)}".rstrip())
+        for k in kids[j]:
+            joint(k, depth + 1)
+        if np.all(np.isfinite(bvh_file.file_ends[j])):
+            out.extend([f"{pad}  End Site", pad + "  {", f"{pad}    OFFSET {_text(bvh_file.file_ends[j])}",
+                        pad + "  }"])
+        out.append(pad + "}")
+
+    for root in np.flatnonzero(np.asarray(bvh_file.parents) < 0):
+        joint(int(root), depth)
+    out += ["MOTION", f"Frames: {bvh_file.frame_count}", f"Frame Time: {float(bvh_file.frame_time)!r}"]
+    out += [_text(row) for row in bvh_file.values]
+    text = "\n".join(out) + "\n"
+    if path is not None:
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(text)
+    return text
+
+
+def _text(numbers):
+    return " ".join(repr(float(v)) for v in numbers)
+
+
+def figure_height(bvh_file):
+    """The figure's height in file units: the vertical extent (BVH Y) of the posed figure (heads
+    and end sites), the 90th percentile over frames so a raised arm or a crouch moves it little;
+    the rest skeleton when the motion is missing."""
+    pos = bvh_file.positions(with_ends=True) / bvh_file.scale
+    if len(pos) == 0:
+        heads = rest_heads(bvh_file)
+        return float(np.ptp(heads[:, 2])) / bvh_file.scale if len(heads) else 0.0
+    return float(np.percentile(np.ptp(pos[..., 2], axis=1), 90))
 
 
 def _convert(names, parents, offsets, ends, channels, frame_time, values, scale):
     c = Y_UP_TO_Z_UP
     J, F = len(names), len(values)
-    offsets = np.array(offsets) @ c.T * scale
-    ends = np.array(ends) @ c.T * scale
+    file_offsets, file_ends = np.array(offsets, float), np.array(ends, float)
+    # a joint's position channels replace its OFFSET (axes without a channel are 0), as in Blender
+    local = np.broadcast_to(file_offsets, (F, J, 3)).copy()
     rot = np.zeros((F, J, 4))
     rot[..., 0] = 1.0
-    root_pos = np.zeros((F, 3))
     col = 0
     for j, chans in enumerate(channels):
+        if any(ch.lower().endswith("position") for ch in chans):
+            local[:, j] = 0.0
         for ch in chans:
             axis = _AXES[ch[0].upper()]
             v = values[:, col]
             col += 1
             if ch.lower().endswith("position"):
-                if parents[j] < 0:
-                    root_pos[:, axis] += v
+                local[:, j, axis] = v
             else:  # channels listed outermost first: R = R(c1) R(c2) R(c3)
                 rot[:, j] = rotations.multiply(rot[:, j], rotations.axis_rotation(axis, np.radians(v)))
     # change of basis to Z up: R' = C R C^T, as quaternions
     cq = rotations.from_matrix(c)
     rot = rotations.multiply(rotations.multiply(cq, rot), rotations.conjugate(cq))
+    local = local @ c.T * scale
     root = int(np.flatnonzero(np.array(parents) < 0)[0])
-    root_pos = root_pos @ c.T * scale + offsets[root]
-    return BVH(tuple(names), np.array(parents), offsets, ends, tuple(channels), frame_time,
-               root_pos, rotations.make_continuous(rot), values)
+    return BVH(tuple(names), np.array(parents), file_offsets @ c.T * scale, file_ends @ c.T * scale,
+               tuple(channels), frame_time, local[:, root].copy(), rotations.make_continuous(rot), values,
+               local, file_offsets, file_ends, scale)
 
 
 def rest_heads(bvh):
@@ -224,6 +371,9 @@ def trajectories(bvh, skeleton):
     root = int(np.flatnonzero(bvh.parents < 0)[0])
     a = skeleton.rest[root, :3, :3]
     trans[:, root] = (bvh.root_positions - skeleton.rest[root, :3, 3]) @ a
+    for j, chans in enumerate(bvh.channels):  # other joints with position channels move too
+        if j != root and bvh.joint_offsets is not None and any(c.lower().endswith("position") for c in chans):
+            trans[:, j] = (bvh.joint_offsets[:, j] - bvh.offsets[j]) @ skeleton.rest[j, :3, :3]
     return Trajectories(frames=np.arange(1, F + 1), fps=bvh.fps,
                         rotations=rotations.make_continuous(local), translations=trans,
                         armature_to_world=np.eye(4))

@@ -1,0 +1,82 @@
+"""Every batch command on motion nobody tuned for: a sample of the Bandai Namco corpus covering
+every motion type, and the bundled CMU clips, each result held to the motion QA's thresholds.
+
+The sample is one clip of every motion type (18 clips with the two CMU clips); every command runs
+on a third of them in rotation (and `info` on all), so every command sees clips of six motion types
+and every motion type goes through three commands, in a few minutes. benchmarks/quality.py runs
+every command on every clip. A failure that comes from a solver method being fixed is listed in
+KNOWN with its reason (docs/qa.md says the same): the threshold stays, the case is an expected
+failure until the method is fixed."""
+
+import pytest
+
+import corpus_runs
+
+pytestmark = pytest.mark.slow
+pytest.importorskip("bpy")
+
+SAMPLE = corpus_runs.sample(1)
+PAIRS = [(clip, command) for i, clip in enumerate(SAMPLE) for k, command in enumerate(corpus_runs.COMMANDS)
+         if command == "info" or (i + k) % 3 == 0]
+
+# command -> (the measures it fails on some clips today, why): the method's owner is fixing it
+# (docs/qa.md lists the clips); any other failing measure fails the test
+KNOWN = {
+    "simulate": ({"pop_velocity", "pop_acceleration", "slide"},
+                 "the closed-loop simulation spins zero-length toes (110-152 deg/frame on dash, kick, run) and "
+                 "jerks the shoulders faster than the capture"),
+    "control": ({"pop_velocity", "pop_acceleration", "slide"},
+                "Dynamic Control jerks the arms when 3 kg loads are taken up at the first frame (loads, issue 23 "
+                "item 3), and a planted foot slides 1-11 mm past its limit"),
+    "synthesize": ({"pop_velocity", "pop_acceleration"},
+                   "Motion Queue 'connect' turns legs and feet 90-180 deg between single frames (transitions, issue "
+                   "23 item 3)"),
+    "walk": ({"pop_velocity", "pop_acceleration"},
+             "Walk Along Path snaps the swing knee (62 deg in a frame) and refuses Bandai Namco's skeleton (foot "
+             "bones vertical in the rest pose; issue 23 item 3)"),
+    "blend": ({"slide", "penetration", "pop_acceleration"},
+              "the multiresolution blend of a clip's end into its start drags planted feet in the transition"),
+    "compress": ({"slide"}, "the tolerances bound each channel, not the feet: the legs' errors add up to "
+                            "1-1.5 cm more slide at a planted foot (--tail-cm keeps the feet)"),
+    "filter": ({"slide"}, "the low-pass denoise smears the CMU hop's take-off into the contact before it"),
+    "warp": ({"pop_acceleration"}, "the warp's spline changes the dance's hip speed within a few frames"),
+}
+
+
+def known(command, failing):
+    """Why `command` fails on `failing` measures today, or None when that is not known."""
+    measures, reason = KNOWN.get(command, (set(), None))
+    return reason if failing and set(failing) <= measures else None
+
+
+def test_the_corpus_is_there_or_the_reason_is_given():
+    if not corpus_runs.CORPUS.is_dir():
+        pytest.skip(f"the Bandai Namco corpus is not at {corpus_runs.CORPUS} (../shared/data/mocap/bandai-namco-1 "
+                    "beside the repository): only the bundled CMU clips are run")
+    kinds = {corpus_runs.motion_type(c) for c in SAMPLE}
+    assert {"walk", "run", "dash", "kick", "punch", "bow", "dance-short", "cmu"} <= kinds
+    assert kinds == {corpus_runs.motion_type(c) for c in corpus_runs.corpus_clips()} | {"cmu"}
+    for command in corpus_runs.COMMANDS:  # every command sees several motion types
+        assert len({corpus_runs.motion_type(c) for c, k in PAIRS if k == command}) >= 6
+
+
+@pytest.mark.parametrize("clip,command", PAIRS, ids=[f"{k}-{c.stem}" for c, k in PAIRS])
+def test_command_on_corpus_clip_is_within_the_thresholds(clip, command, tmp_path):
+    code, summary, err, _ = corpus_runs.run(command, clip, tmp_path)
+    assert "Traceback" not in err
+    if code != 0:
+        if command == "walk" and code == 2 and "foot bones are vertical" in err:
+            pytest.xfail(KNOWN["walk"][1])
+        pytest.fail(f"exit {code}: {err.strip()[-500:]}")
+    qa = summary["qa"]
+    assert qa["measures"]["nonfinite"]["passed"] is True
+    assert qa["measures"]["figure_height"]["passed"] is True, qa["measures"]["figure_height"]
+    if command == "info":  # raw capture against the absolute caps: the unit and height are what matters
+        assert summary["bvh_unit"] in ("m", "cm") and 1.0 < summary["figure_height_m"] < 2.3
+        return
+    assert qa["measures"]["source_untouched"]["passed"] is not False  # None: a walk has no source
+    failing = [name for name, m in qa["measures"].items() if m["passed"] is False]
+    reason = known(command, failing)
+    if reason:
+        pytest.xfail(f"{reason}: {qa['warnings'][0]}")
+    assert qa["passed"] is not False, qa["warnings"]
