@@ -91,8 +91,8 @@ def control_and_save(obj, scene, out, picture=None, title=None):
     if picture:
         picture = os.path.abspath(picture)
         os.makedirs(os.path.dirname(picture), exist_ok=True)
-        data = motion_control.CACHE[(obj.name, summary["action"])]
-        summary["picture_frames"] = overlay.render_picture(data, picture, title=title or _title(summary))
+        summary["picture_frames"] = overlay.render_result(obj, scene, summary["action"], picture,
+                                                          title=title or _title(summary))
         wrote.append(picture)
     summary["wrote"] = wrote
     return summary
