@@ -266,7 +266,7 @@ def render_picture(data, path, frames=None, resolution=(1280, 540), title=None, 
             for k, (segments, colour, width) in enumerate(frame_geometry(data, frame)):
                 segments = np.asarray(segments, float) + offset
                 points.append(segments.reshape(-1, 3))
-                made.append(_tube_object(scene, f"f{frame:g}.{k}", segments, PICTURE_COLOURS.get(colour, colour),
+                made.append(tube_object(scene, f"f{frame:g}.{k}", segments, PICTURE_COLOURS.get(colour, colour),
                                          0.004 * width))
             made.extend(_loads_drawn(scene, data, loads, frame, i, offset))
             made.extend(_pushes_drawn(scene, data, pushes, frame, i, offset, points))
@@ -275,7 +275,7 @@ def render_picture(data, path, frames=None, resolution=(1280, 540), title=None, 
         ok = np.isfinite(zmp).all(axis=1)
         if ok.sum() >= 2 and not shift.any():
             trace = np.column_stack((zmp[ok], np.full(ok.sum(), data.ground)))
-            made.append(_tube_object(scene, "zmp", np.stack((trace[:-1], trace[1:]), axis=1), ZMP, 0.006))
+            made.append(tube_object(scene, "zmp", np.stack((trace[:-1], trace[1:]), axis=1), ZMP, 0.006))
         points = np.concatenate(points) if points else np.zeros((1, 3))
         points = points[np.isfinite(points).all(axis=1)]
         extra = [(f"load: {' + '.join(f'{d.kg:g} kg' for d in loads)} (from frame {loads[0].frame:g})", LOAD)] \
@@ -288,7 +288,7 @@ def render_picture(data, path, frames=None, resolution=(1280, 540), title=None, 
         for text, dx, i in zip(texts, shift, index):  # "frame N" under each snapshot
             root = data.bones[i, 0, 0] + np.array([along[0], along[1], 0.0]) * dx
             root[:2] -= 1.3 * view + (root[:2] - points[:, :2].mean(axis=0)) @ view * view  # before the ground
-            made.append(_label(scene, text, camera, (root[0], root[1], data.ground - 0.1), LABEL, size))
+            made.append(text_object(scene, text, camera, (root[0], root[1], data.ground - 0.1), LABEL, size))
         scene.world = world = bpy.data.worlds.new("HumanAnim picture")
         world.color = (1.0, 1.0, 1.0)
         scene.view_settings.view_transform = "Standard"  # colours as given, a white background
@@ -333,9 +333,9 @@ def _loads_drawn(scene, data, loads, frame, i, offset):
             continue
         wrist = data.bones[i, load.bone, 1] + offset
         weight = wrist - np.array([0.0, 0.0, 0.12])
-        made.append(_tube_object(scene, f"load{load.bone}.{frame:g}", [(wrist, weight)], LOAD, 0.006))
+        made.append(tube_object(scene, f"load{load.bone}.{frame:g}", [(wrist, weight)], LOAD, 0.006))
         radius = 0.035 * (load.kg / 5.0) ** (1 / 3)
-        made.append(_tube_object(scene, f"weight{load.bone}.{frame:g}",
+        made.append(tube_object(scene, f"weight{load.bone}.{frame:g}",
                                  [(weight - [0, 0, radius], weight + [0, 0, radius])], LOAD, radius))
     return made
 
@@ -352,7 +352,7 @@ def _pushes_drawn(scene, data, pushes, frame, i, offset, points):
         side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else np.array([1.0, 0.0, 0.0])
         up = np.cross(side, push.direction)
         head = [(tip, tip - 0.08 * push.direction + 0.04 * s) for s in (side, -side, up, -up)]
-        made.append(_tube_object(scene, f"push{push.bone}.{frame:g}", [(tail, tip)] + head, PUSH, 0.012))
+        made.append(tube_object(scene, f"push{push.bone}.{frame:g}", [(tail, tip)] + head, PUSH, 0.012))
         points.append(np.array([tail]))
     return made
 
@@ -387,7 +387,8 @@ def _picture_axes(data, roots):
     return travel, np.array([-travel[1], travel[0]])  # camera on the right of the travel, looking left
 
 
-def _label(scene, text, camera, location, colour, size):
+def text_object(scene, text, camera, location, colour, size):
+    """A line of text at `location`, facing the camera."""
     from mathutils import Matrix, Vector
     curve = bpy.data.curves.new(f"HumanAnim {text}", type="FONT")
     curve.body, curve.size, curve.align_x = text, size, "CENTER"
@@ -398,7 +399,8 @@ def _label(scene, text, camera, location, colour, size):
     return obj
 
 
-def _tube_object(scene, name, segments, colour, radius):
+def tube_object(scene, name, segments, colour, radius):
+    """A curve object of round tubes along `segments` ((n, 2, 3) world points)."""
     curve = bpy.data.curves.new(f"HumanAnim {name}", type="CURVE")
     curve.dimensions = "3D"
     curve.bevel_depth = radius
