@@ -177,6 +177,21 @@ def save_small(source, path, levels=24):
     print(f"wrote {os.path.relpath(path)} ({os.path.getsize(path) // 1000} KB)")
 
 
+def ball(picture, name, centre, radius, colour):
+    import bmesh
+    mesh = bpy.data.meshes.new(name)
+    shape = bmesh.new()
+    bmesh.ops.create_uvsphere(shape, u_segments=24, v_segments=12, radius=radius)
+    shape.to_mesh(mesh)
+    shape.free()
+    for polygon in mesh.polygons:
+        polygon.use_smooth = True
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location, obj.color = centre, colour
+    picture.collection.objects.link(obj)
+    return obj
+
+
 def new_picture():
     return bpy.data.scenes.new("HumanAnim picture")
 
@@ -289,6 +304,175 @@ def picture_walk(work):
                                        "1.3 m/s (the CMU rig), at equal distances along the way", labels=labels)
 
 
+def picture_mass_model(work):
+    """The mass model of the bundled CMU rig from de Leva's tables: a ball at each segment's
+    centre of mass, its volume the segment's mass."""
+    import humananim
+    from humananim.humananim_addon.armature import skeleton_from_armature
+    from humananim.humananim_addon.bvh_import import import_bvh
+    with contextlib.redirect_stdout(io.StringIO()):
+        bpy.ops.wm.read_homefile(use_empty=True)
+    humananim.register()
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            arm, _, _ = import_bvh(CLIP)
+        scene = bpy.context.scene
+        scene.frame_set(1)
+        skeleton = skeleton_from_armature(arm, scene, 70.0)
+        unit = scene.unit_settings.scale_length
+        picture = new_picture()
+        sticks = stick_segments(arm)
+        tube_object(picture, "bones", sticks, BONES, 0.008)
+        world = np.array(arm.matrix_world)
+        balls = []
+        for j, name in enumerate(skeleton.names):
+            if skeleton.mass[j] <= 0:
+                continue
+            pb = arm.pose.bones[name]
+            centre = world @ np.array(pb.matrix) @ np.append(skeleton.com[j] / unit, 1.0)
+            radius = 0.05 * (skeleton.mass[j] / 10.0) ** (1 / 3)
+            ball(picture, f"mass {name}", centre[:3], radius, PROP)
+            balls.append(centre[:3])
+        points = np.vstack([sticks.reshape(-1, 3), balls])
+        render(picture, points, os.path.join(PICTURES, "mass_model.png"), (0.0, 1.0, 0.0), resolution=(700, 700),
+               title=f"Mass model: {skeleton.mass.sum():.0f} kg in {int((skeleton.mass > 0).sum())} segments "
+                     "(de Leva's tables)")
+    finally:
+        humananim.unregister()
+
+
+def picture_simulate(work):
+    """Simulate: the CMU walk followed physically with 8 kg in each hand and a 300 N push on the
+    chest, the result (dark) over its input (grey)."""
+    out = os.path.join(work, "simulate.blend")
+    summary = command("simulate", CLIP, "--frames", "1", "240", "--load-left", "8", "--load-right", "8",
+                      "--push", "120:Chest:0,300,0:0.1", "--out", out)
+    scene = open_blend(out)
+    arm = bpy.data.objects[summary["armature"]]
+    source, result = bpy.data.actions[summary["source_action"]], bpy.data.actions[summary["action"]]
+    _strip_of_two_actions(scene, arm, source, result, np.linspace(1, 240, 5).round().astype(int),
+                          os.path.join(PICTURES, "simulate.png"),
+                          "Simulation: the CMU walk with 8 kg per hand and a 300 N push on the chest at frame 120 "
+                          "(dark) over its input (grey)")
+
+
+def picture_synthesis(work):
+    """The Motion Queue: two sections of the CMU walk joined by a connective step."""
+    out = os.path.join(work, "synthesis.blend")
+    summary = command("synthesize", CLIP, "--queue", "cmu_131_01@1-300", "--queue", "cmu_131_01@500-800:connect",
+                      "--out", out)
+    scene = open_blend(out)
+    arm = next(o for o in scene.objects if o.type == "ARMATURE")
+    action = bpy.data.actions[summary["action"]]
+    arm.animation_data.action = action
+    if hasattr(arm.animation_data, "action_slot") and action.slots:
+        arm.animation_data.action_slot = action.slots[0]
+    f0, f1 = (int(v) for v in action.frame_range)
+    frames = np.linspace(f0, f1, 7).round().astype(int)
+    _strip(scene, [(arm, BONES)], frames, os.path.join(PICTURES, "synthesis.png"),
+           f"Motion Queue: frames 1-300 of the CMU walk, then a connective step into frames 500-800 "
+           f"('{action.name}')")
+
+
+def _strip_of_two_actions(scene, arm, ghost_action, action, frames, path, title):
+    """Snapshots side by side of `arm` playing `ghost_action` (grey) and `action` (dark)."""
+    picture = new_picture()
+    points, labels = [], []
+    ad = arm.animation_data
+    for k, frame in enumerate(frames):
+        scene.frame_set(int(frame))
+        root = np.array(arm.matrix_world @ arm.pose.bones[0].head)
+        offset = np.array([1.0 * k - root[0], -root[1], 0.0])
+        for act, colour in ((ghost_action, GHOST), (action, BONES)):
+            ad.action = act
+            if hasattr(ad, "action_slot") and act.slots:
+                ad.action_slot = act.slots[0]
+            for track in ad.nla_tracks:
+                track.mute = True
+            pts = snapshot(picture, scene, frame, offset, sticks=[(arm, colour, ())], radius=0.012)
+            points.append(pts)
+        labels.append((f"frame {frame}", (1.0 * k, 0.0, float(pts[:, 2].min()) - 0.12)))
+    points = np.concatenate(points)
+    render(picture, np.vstack([points, [p for _, p in labels]]), path, (0.0, 1.0, 0.0), title=title, labels=labels)
+
+
+def _strip(scene, sticks, frames, path, title, spacing=1.0, meshes=(), direction=(0.0, 1.0, 0.0)):
+    """Snapshots side by side (moved back to x = k * spacing) of armatures as sticks and meshes."""
+    picture = new_picture()
+    points, labels = [], []
+    anchor = sticks[0][0] if sticks else meshes[0][0]
+    for k, frame in enumerate(frames):
+        scene.frame_set(int(frame))
+        centre = (np.array(anchor.matrix_world @ anchor.pose.bones[0].head) if anchor.type == "ARMATURE"
+                  else np.array(anchor.matrix_world.translation))
+        offset = np.array([spacing * k - centre[0], -centre[1], 0.0])
+        pts = snapshot(picture, scene, frame, offset, meshes=meshes, sticks=[(a, c, ()) for a, c in sticks])
+        points.append(pts)
+        labels.append((f"frame {frame}", (spacing * k, 0.0, float(pts[:, 2].min()) - 0.12)))
+    points = np.concatenate(points)
+    render(picture, np.vstack([points, [p for _, p in labels]]), path, direction, title=title, labels=labels)
+
+
+def picture_flexible(work):
+    """The thesis's table (a lattice character) simulated by `flexible simulate --demo`."""
+    out = os.path.join(work, "flexible.blend")
+    command("flexible", "simulate", "--demo", "--out", out)
+    scene = open_blend(out)
+    mesh = next(o for o in scene.objects if o.type == "MESH" and any(m.type == "LATTICE" for m in o.modifiers))
+    frames = np.linspace(scene.frame_start, scene.frame_end, 6).round().astype(int)
+    size = max(mesh.dimensions)
+    _strip(scene, [], frames, os.path.join(PICTURES, "flexible.png"),
+           "Flexible Character: the thesis's table, a lattice character, under its PD controller",
+           spacing=1.6 * size, meshes=[(mesh, BODY)], direction=(0.0, 1.0, -0.2))
+
+
+def picture_sequence(work):
+    """Compress Keys on the CMU walk: the left hip's X rotation sampled on every frame (grey), the
+    Bezier keys that replace it (orange) and the curve they make (blue)."""
+    from humananim.humananim_addon.action_api import fcurves_of
+    out = os.path.join(work, "compressed.blend")
+    summary = command("compress", CLIP, "--degrees", "1", "--cm", "1", "--out", out)
+    scene = open_blend(out)
+    arm = next(o for o in scene.objects if o.type == "ARMATURE")
+    source, result = bpy.data.actions[summary["source_action"]], bpy.data.actions[summary["action"]]
+    path = 'pose.bones["LeftHip"].rotation_euler'
+    before = next(f for f in fcurves_of(source, arm) if f.data_path == path and f.array_index == 0)
+    after = next(f for f in fcurves_of(result, arm) if f.data_path == path and f.array_index == 0)
+    f0, f1 = 1, 400
+    frames = np.arange(f0, f1 + 1)
+    sx, sz = 8.0 / (f1 - f0), 1.5  # metres per frame and per radian in the picture
+    def line(values, y=0.0):  # y < 0: in front
+        pts = np.column_stack((frames * sx, np.full(len(frames), y), np.asarray(values) * sz))
+        return np.stack((pts[:-1], pts[1:]), axis=1)
+    picture = new_picture()
+    raw = line([before.evaluate(f) for f in frames])
+    tube_object(picture, "source", raw, GHOST, 0.03)
+    tube_object(picture, "compressed", line([after.evaluate(f) for f in frames], -0.2), CLOTH, 0.012)
+    keys = np.array([k.co for k in after.keyframe_points if f0 <= k.co[0] <= f1])
+    for t, v in keys:
+        ball(picture, f"key {t}", (t * sx, -0.3, v * sz), 0.05, PROP)
+    total_before = sum(len(f.keyframe_points) for f in fcurves_of(source, arm))
+    total_after = sum(len(f.keyframe_points) for f in fcurves_of(result, arm))
+    render(picture, np.vstack([raw.reshape(-1, 3), [(4.0, 0.0, raw[:, :, 2].min() - 0.35)]]),
+           os.path.join(PICTURES, "sequence.png"), (0.0, 1.0, 0.0),
+           title=f"Compress Keys, 1 deg / 1 cm: left hip X rotation, frames {f0}-{f1} (grey), {len(keys)} keys (orange)",
+           labels=[(f"the whole clip: {total_before:,} keys -> {total_after:,}", (4.0, 0.0, raw[:, :, 2].min() - 0.3))])
+
+
+def picture_capture(work):
+    """Live Capture: a take recorded from a replayed BVH device, as the rig followed it."""
+    out = os.path.join(work, "capture.blend")
+    summary = command("capture", CLIP, "--replay", CLIP, "--seconds", "3", "--out", out)
+    scene = open_blend(out)
+    arm = bpy.data.objects[summary["armature"]] if summary.get("armature") in bpy.data.objects else next(
+        o for o in scene.objects if o.type == "ARMATURE")
+    action = arm.animation_data.action
+    f0, f1 = (int(v) for v in action.frame_range)
+    _strip(scene, [(arm, BONES)], np.linspace(f0, f1, 6).round().astype(int), os.path.join(PICTURES, "capture.png"),
+           f"Live Capture: a 3 s take recorded from a replayed BVH device ('{action.name}')")
+
+
+
 def _evenly_along(scene, arm, start, end, count):
     """`count` frames at equal distances along the root's way (standing still counts once)."""
     sampled = np.arange(start, end + 1, 5)
@@ -307,7 +491,9 @@ def _roots(scene, arm, frames, lift=0.0, side=0.4):
     return out
 
 
-PICTURES_MADE = {"control": picture_control, "skirt": picture_skirt, "grasp": picture_grasp, "walk": picture_walk}
+PICTURES_MADE = {"control": picture_control, "skirt": picture_skirt, "grasp": picture_grasp, "walk": picture_walk,
+                 "mass_model": picture_mass_model, "simulate": picture_simulate, "sequence": picture_sequence,
+                 "flexible": picture_flexible, "synthesis": picture_synthesis, "capture": picture_capture}
 
 
 def main(argv=None):
