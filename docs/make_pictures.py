@@ -352,8 +352,7 @@ def picture_simulate(work):
     source, result = bpy.data.actions[summary["source_action"]], bpy.data.actions[summary["action"]]
     _strip_of_two_actions(scene, arm, source, result, np.linspace(1, 240, 5).round().astype(int),
                           os.path.join(PICTURES, "simulate.png"),
-                          "Simulation: the CMU walk with 8 kg per hand and a 300 N push on the chest at frame 120 "
-                          "(dark) over its input (grey)")
+                          "Simulation: the CMU walk, 8 kg per hand, 300 N on the chest at frame 120 (dark; input grey)")
 
 
 def picture_synthesis(work):
@@ -370,8 +369,7 @@ def picture_synthesis(work):
     f0, f1 = (int(v) for v in action.frame_range)
     frames = np.linspace(f0, f1, 7).round().astype(int)
     _strip(scene, [(arm, BONES)], frames, os.path.join(PICTURES, "synthesis.png"),
-           f"Motion Queue: frames 1-300 of the CMU walk, then a connective step into frames 500-800 "
-           f"('{action.name}')")
+           "Motion Queue: CMU 131_01 frames 1-300, then a connective step into frames 500-800")
 
 
 def _strip_of_two_actions(scene, arm, ghost_action, action, frames, path, title):
