@@ -26,6 +26,7 @@ import numpy as np  # noqa: E402
 from mathutils import Matrix, Vector  # noqa: E402
 
 from humananim.humananim_addon import cli  # noqa: E402
+from humananim.humananim_addon import overlay  # noqa: E402
 from humananim.humananim_addon.overlay import text_object, tube_object  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -78,15 +79,9 @@ def stick_segments(arm, skip=()):
 
 
 def mesh_copy(picture, obj, offset, colour):
-    """A new object in `picture` with the evaluated mesh of `obj` (modifiers, Mesh Cache) in world space."""
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    mesh = bpy.data.meshes.new_from_object(obj.evaluated_get(depsgraph))
-    mesh.transform(obj.matrix_world)
-    copy = bpy.data.objects.new(f"picture {obj.name}", mesh)
-    copy.location = offset
-    copy.color = colour
-    picture.collection.objects.link(copy)
-    return copy, np.array([v.co for v in mesh.vertices]) + offset
+    """A copy of the evaluated mesh of `obj` in `picture`, and its world points."""
+    copy = overlay.mesh_copy(picture, obj, offset, colour, f"picture {obj.name}")
+    return copy, np.array([v.co for v in copy.data.vertices]) + offset
 
 
 def snapshot(picture, scene, frame, offset, meshes=(), sticks=(), radius=0.012):

@@ -362,15 +362,21 @@ def _garments_drawn(scene, garments, frame, offset):
     made = []
     for source_scene, obj in garments:
         source_scene.frame_set(int(round(frame)))
-        depsgraph = bpy.context.evaluated_depsgraph_get()
-        mesh = bpy.data.meshes.new_from_object(obj.evaluated_get(depsgraph))
-        mesh.transform(obj.matrix_world)
-        copy = bpy.data.objects.new(f"HumanAnim garment {frame:g}", mesh)
-        copy.location = offset
-        copy.color = GARMENT
-        scene.collection.objects.link(copy)
-        made.append(copy)
+        made.append(mesh_copy(scene, obj, offset, GARMENT, f"HumanAnim garment {frame:g}"))
     return made
+
+
+def mesh_copy(scene, obj, offset, colour, name):
+    """A new object in `scene` with the mesh of `obj` as Blender evaluates it now (modifiers, Mesh
+    Cache), in world space, moved by `offset`."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    mesh = bpy.data.meshes.new_from_object(obj.evaluated_get(depsgraph))
+    mesh.transform(obj.matrix_world)
+    copy = bpy.data.objects.new(name, mesh)
+    copy.location = offset
+    copy.color = colour
+    scene.collection.objects.link(copy)
+    return copy
 
 
 def _picture_axes(data, roots):
