@@ -10,10 +10,10 @@ The Hermite keys are also written into the action as Blender keyframes and evalu
 to check that Blender plays them exactly as computed.
 
 Run with a Python that has the bpy module:  python benchmarks/compression.py [--json] [--clip FILE]
+(--json prints one object and writes benchmarks/results/compression.json; see machine.py).
 """
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -23,6 +23,9 @@ os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="humanan
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from machine import claim, emit, result  # noqa: E402
 
 from humananim.solver import rotations  # noqa: E402
 from humananim.solver.sequence import error_measures, key_reduction, pyramid_compression  # noqa: E402
@@ -264,6 +267,31 @@ def summary(rows):
     return s
 
 
+def claims(s):
+    """The figures RESULTS.md shows: keys against Blender's at the same error, and the times."""
+    same_error = "at the largest per-channel error of Blender's"
+    return [
+        claim(f"Hermite key reduction: keys against Decimate's (margin 0.01) {same_error}",
+              s["blender_decimate_keys_ratio_hermite"],
+              "ratio", "fewer keys than Decimate (< 1)", s["blender_decimate_keys_ratio_hermite"] < 1),
+        claim("Hermite key reduction: keys against Decimate's at Decimate's largest error 10 cm beyond the bone "
+              "tails", s["hermite_at_decimate_tail_error_keys_ratio"], "ratio", "fewer keys than Decimate (< 1)",
+              s["hermite_at_decimate_tail_error_keys_ratio"] < 1),
+        claim(f"Hermite key reduction: keys against Clean's (threshold 0.005) {same_error}",
+              s["hermite_keys_at_clean_error"] / s["blender_clean_keys"], "ratio", None, None),
+        claim("Hermite key reduction against Blender's Decimate: time ratio, the same clips in the same run",
+              s["blender_decimate_ms_per_1000f_60ch"] / s["hermite_ms_per_1000f_60ch"], "x faster", None, None),
+        claim("Hermite key reduction: time per 1000 frames x 60 channels", s["hermite_ms_per_1000f_60ch"], "ms",
+              None, None),
+        claim("Blender's Decimate: time per 1000 frames x 60 channels", s["blender_decimate_ms_per_1000f_60ch"],
+              "ms", None, None),
+        claim("Pyramid compression: time per 1000 frames x 60 channels", s["pyramid_ms_per_1000f_60ch"], "ms",
+              None, None),
+        claim("Hermite keys as Blender plays them against as computed, on and between frames",
+              s["hermite_blender_playback_max_diff_deg"], "deg", None, None),
+    ]
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--clip", action="append", help="BVH file (default: both CMU clips)")
@@ -275,7 +303,7 @@ def main():
         rows += run_clip(clip, args.repeat)
     figures = {"rows": rows, **summary(rows)}
     if args.json:
-        print(json.dumps(figures))
+        emit(result("compression", claims(figures), clips=sorted({r["clip"] for r in rows}), **figures))
         return 0
     head = (f"{'clip':15} {'Blender':16} {'keys':>6} {'deg':>6} {'cm':>6} {'tail+10':>7} | "
             f"{'Hermite':>7} {'deg':>6} {'cm':>6} {'tail+10':>7} {'ratio':>5} | {'Pyramid':>7} {'deg':>6} {'cm':>6}")

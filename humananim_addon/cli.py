@@ -292,8 +292,9 @@ def cmd_demo(args):
     out = os.path.abspath(args.out)
     control = demo_control(obj, scene, skeleton, out)
     skirts = demo_cloth(obj, scene, out, args.scale)
+    picture = demo_picture(obj, scene, control, skirts, out)
     result.update(command="demo", input=os.path.abspath(args.bvh), bvh_unit=unit,
-                  wrote=[out] + [path for s in skirts for path in s["wrote"]], picture=control["wrote"][1],
+                  wrote=[out] + [path for s in skirts for path in s["wrote"]], picture=picture,
                   control=control, cloth=skirts, qa=control["qa"], seconds=round(time.perf_counter() - t0, 3))
     from .control_cli import text_summary
     result["summary"] = "\n".join(
@@ -348,7 +349,22 @@ def demo_control(obj, scene, skeleton, out):
     frame, magnitude = DEMO_PUSH
     backwards = obj.matrix_world.to_3x3() @ Vector((0.0, 1.0, 0.0))  # into the front of the chest
     add_impulse_from_vector(obj, scene, skeleton.roles.bone("chest"), frame, magnitude * backwards.normalized())
-    return control_and_save(obj, scene, out, os.path.splitext(out)[0] + ".png")
+    return control_and_save(obj, scene, out)
+
+
+def demo_picture(obj, scene, control, skirts, out):
+    """The controlled walk over its input with its loads, push and skirt, beside the .blend."""
+    import bpy
+    from . import overlay
+    from .control_cli import _title
+    garments = [bpy.data.objects[s["object"]] for s in skirts if s["armature"] == obj.name]
+
+    def render(path):
+        control["picture_frames"] = overlay.render_result(obj, scene, control["action"], path,
+                                                          title=_title(control), garments=garments)
+    picture = write_atomically(os.path.splitext(out)[0] + ".png", render)
+    control["wrote"].append(picture)
+    return picture
 
 
 def cmd_simulate(args):

@@ -88,11 +88,10 @@ def control_and_save(obj, scene, out, picture=None, title=None, ground=None):
     out = save_blend(out, summary, obj, ground)
     wrote = [out]
     if picture:
-        data = motion_control.CACHE[(obj.name, summary["action"])]
         title = title or _title(summary)
 
         def render(path):
-            summary["picture_frames"] = overlay.render_picture(data, path, title=title)
+            summary["picture_frames"] = overlay.render_result(obj, scene, summary["action"], path, title=title)
         wrote.append(write_atomically(picture, render))
     summary["wrote"] = wrote
     return summary

@@ -7,6 +7,7 @@ to the scene. `frame_geometry` is pure numpy (tested headless); only `_draw` tou
 `render_picture` turns the same geometry into a still (Workbench) in a temporary scene."""
 
 import logging
+from dataclasses import dataclass
 
 import bpy
 import numpy as np
@@ -138,57 +139,164 @@ def _draw_lines(groups):
 
 # ---- a still of the result -------------------------------------------------------------------------
 
-def snapshot_frames(data, count=5):
-    return [float(f) for f in data.frames[np.linspace(0, len(data.frames) - 1, count).round().astype(int)]]
-
-
 PICTURE_COLOURS = {GHOST: (0.72, 0.72, 0.72, 1.0), FREE: (0.2, 0.2, 0.22, 1.0)}  # on a light ground
+LOAD = (0.45, 0.25, 0.1, 1.0)
+PUSH = (0.95, 0.2, 0.05, 1.0)
+GARMENT = (0.25, 0.45, 1.0, 0.4)  # see-through: the bones inside stay readable
+LABEL = (0.1, 0.1, 0.1, 1.0)
+SPACING = 0.9  # metres at least between two snapshots, whatever the labels need
 
 
-def render_picture(data, path, frames=None, resolution=(1280, 540), title=None):
+@dataclass
+class Load:
+    """A load drawn hanging from a hand: the hand's bone index, kg, the first frame it is carried."""
+    bone: int
+    kg: float
+    frame: float
+
+
+@dataclass
+class Push:
+    """An impulse or force drawn as an arrow into `point` (world, at `frame`) along `direction`."""
+    bone: int
+    frame: float
+    point: np.ndarray  # offset from the bone's head at that frame (m, world axes)
+    direction: np.ndarray  # unit, world
+    text: str  # "15 N s" or "300 N for 0.1 s"
+
+
+def snapshot_frames(data, count=5, include=()):
+    """`count` frames spread over the result, with each frame of `include` (the pushes) replacing
+    the nearest of them, so the picture shows the moment of each push."""
+    frames = [float(f) for f in data.frames[np.linspace(0, len(data.frames) - 1, count).round().astype(int)]]
+    for f in include:
+        i = frame_index(data, f)
+        if i is None:
+            continue
+        f = float(data.frames[i])
+        if f not in frames:
+            k = min(range(1, len(frames) - 1) or range(len(frames)), key=lambda k: abs(frames[k] - f))
+            frames[k] = f
+    return sorted(set(frames))
+
+
+def label_width(text, size):
+    """Width of a line of text in Blender's default font, generously: most glyphs are narrower."""
+    return 0.62 * size * len(text)
+
+
+def strip_shift(travel, label_widths, spacing=SPACING):
+    """Offsets along the picture axis that make snapshots at positions `travel` (m, in frame order)
+    stand at least `spacing` apart and their labels (widths, centred under each) clear of each
+    other: none when they already are, else a film strip in frame order."""
+    travel = np.asarray(travel, float)
+    if len(travel) < 2:
+        return np.zeros(len(travel))
+    widths = np.asarray(label_widths, float)
+    need = np.maximum(spacing, (widths[:-1] + widths[1:]) / 2 * 1.15)
+    order = np.argsort(travel, kind="stable")
+    gaps = np.diff(travel[order])
+    if (gaps >= need[:len(gaps)].max()).all():  # labels with the widest gap clear in any order
+        return np.zeros(len(travel))
+    step = max(spacing, need.max())
+    return step * np.arange(len(travel)) - (travel - travel[0])
+
+
+def render_result(obj, scene, action, path, title=None, garments=(), count=5):
+    """The still of a dynamic-control result (`action`, made by motion_control.run on `obj`): the
+    loads hanging from the hands, each push as an arrow at its frame, and `garments` (mesh
+    objects, e.g. a simulated skirt) as they stand at each snapshot. Returns the frames shown."""
+    from .armature import skeleton_from_armature
+    data = motion_control.CACHE[(obj.name, action)]
+    props = scene.humananim_control
+    skeleton = skeleton_from_armature(obj, scene)
+    names = list(skeleton.names)
+    loads = []
+    for side, kg in zip(("L", "R"), (props.load_left, props.load_right)):
+        hand = skeleton.roles.bone(f"hand.{side}")
+        if kg > 0 and hand in names:
+            loads.append(Load(names.index(hand), kg, float(props.load_frame or data.frames[0])))
+    pushes = []
+    saved = scene.frame_current
+    try:
+        for item in props.impulses:
+            if item.empty is None or item.magnitude <= 0 or item.bone not in names:
+                continue
+            i = frame_index(data, item.frame)
+            if i is None:
+                continue
+            scene.frame_set(int(round(data.frames[i])))
+            m = np.array(item.empty.matrix_world)
+            j = names.index(item.bone)
+            text = (f"{item.magnitude:g} N s" if item.duration <= 0
+                    else f"{item.magnitude:g} N for {item.duration:g} s")
+            pushes.append(Push(j, float(data.frames[i]), m[:3, 3] - data.ghost[i, j, 0],
+                               m[:3, 2] / np.linalg.norm(m[:3, 2]), text))
+    finally:
+        scene.frame_set(saved)
+    frames = snapshot_frames(data, count, include=[p.frame for p in pushes])
+    return render_picture(data, path, frames, title=title, loads=loads, pushes=pushes,
+                          garments=[(scene, g) for g in garments])
+
+
+def render_picture(data, path, frames=None, resolution=(1280, 540), title=None, loads=(), pushes=(),
+                   garments=()):
     """A PNG of the result at a few frames, seen from the side, in a temporary scene rendered by
-    Workbench (works headless): ghost, coloured bones, stressed joints, support polygons, ZMP.
-    Snapshots that would overlap (little travel) are spread out like a film strip. Returns the
-    frames shown."""
+    Workbench (works headless): ghost, coloured bones, stressed joints, support polygons, ZMP,
+    and when given the loads (Load), pushes (Push) and garments ((scene, mesh object) pairs,
+    evaluated at each frame). Snapshots whose bodies or labels would overlap are spread out
+    like a film strip. Returns the frames shown."""
     frames = snapshot_frames(data) if frames is None else list(frames)
     index = [frame_index(data, f) for f in frames]
     roots = data.bones[:, 0, 0]
     along, view = _picture_axes(data, roots)
     travel = np.array([roots[i, :2] @ along for i in index])
-    spacing = 0.9  # metres between strip positions
-    shift = np.zeros(len(frames))
-    if len(frames) > 1 and np.min(np.abs(np.diff(travel))) < spacing:
-        shift = spacing * np.arange(len(frames)) - (travel - travel[0])
+    aspect = resolution[0] / resolution[1]
+    texts = [f"frame {f:g}" for f in frames]
+    size = _label_size(data, travel, aspect)
+    shift = strip_shift(travel, [label_width(t, size) for t in texts])
+    if shift.any():
+        size = _label_size(data, travel + shift, aspect)
     scene = bpy.data.scenes.new("HumanAnim Picture")
     made = []
     try:
         points = []
-        for frame, dx in zip(frames, shift):
+        for frame, dx, i in zip(frames, shift, index):
             offset = np.array([along[0], along[1], 0.0]) * dx
             for k, (segments, colour, width) in enumerate(frame_geometry(data, frame)):
                 segments = np.asarray(segments, float) + offset
                 points.append(segments.reshape(-1, 3))
-                made.append(_tube_object(scene, f"f{frame:g}.{k}", segments, PICTURE_COLOURS.get(colour, colour),
+                made.append(tube_object(scene, f"f{frame:g}.{k}", segments, PICTURE_COLOURS.get(colour, colour),
                                          0.004 * width))
+            made.extend(_loads_drawn(scene, data, loads, frame, i, offset))
+            made.extend(_pushes_drawn(scene, data, pushes, frame, i, offset, points))
+            made.extend(_garments_drawn(scene, garments, frame, offset))
         zmp = np.asarray(data.zmp, float)
         ok = np.isfinite(zmp).all(axis=1)
         if ok.sum() >= 2 and not shift.any():
             trace = np.column_stack((zmp[ok], np.full(ok.sum(), data.ground)))
-            made.append(_tube_object(scene, "zmp", np.stack((trace[:-1], trace[1:]), axis=1), ZMP, 0.006))
+            made.append(tube_object(scene, "zmp", np.stack((trace[:-1], trace[1:]), axis=1), ZMP, 0.006))
         points = np.concatenate(points) if points else np.zeros((1, 3))
         points = points[np.isfinite(points).all(axis=1)]
-        staged = _stage(scene, data, points, along, view, resolution, title)
+        extra = [(f"load: {' + '.join(f'{d.kg:g} kg' for d in loads)} (from frame {loads[0].frame:g})", LOAD)] \
+            if loads else []
+        extra += [(f"push: {p.text} at frame {p.frame:g}", PUSH) for p in pushes]
+        extra += [("garment (simulated cloth)", GARMENT[:3] + (1.0,))] if garments else []
+        staged = _stage(scene, data, points, along, view, resolution, title, extra)
         made.extend(staged)
         camera = staged[1]
-        for frame, dx, i in zip(frames, shift, index):  # "frame N" under each snapshot
+        for text, dx, i in zip(texts, shift, index):  # "frame N" under each snapshot
             root = data.bones[i, 0, 0] + np.array([along[0], along[1], 0.0]) * dx
             root[:2] -= 1.3 * view + (root[:2] - points[:, :2].mean(axis=0)) @ view * view  # before the ground
-            made.append(_label(scene, f"frame {frame:g}", camera, (root[0], root[1], data.ground - 0.1),
-                               (0.1, 0.1, 0.1, 1.0), camera.data.ortho_scale * 0.016))
+            made.append(text_object(scene, text, camera, (root[0], root[1], data.ground - 0.1), LABEL, size))
+        scene.world = world = bpy.data.worlds.new("HumanAnim picture")
+        world.color = (1.0, 1.0, 1.0)
+        scene.view_settings.view_transform = "Standard"  # colours as given, a white background
         scene.render.engine = "BLENDER_WORKBENCH"
         scene.render.resolution_x, scene.render.resolution_y = resolution
         scene.render.resolution_percentage = 100
         scene.render.image_settings.file_format = "PNG"
+        scene.render.image_settings.color_mode = "RGB"
         scene.render.filepath = path
         shading = scene.display.shading
         shading.light, shading.color_type = "STUDIO", "OBJECT"
@@ -201,8 +309,74 @@ def render_picture(data, path, frames=None, resolution=(1280, 540), title=None):
             bpy.data.objects.remove(obj)
             if datablock is not None and kind is not None and datablock.users == 0:
                 kind.remove(datablock)
+        if scene.world is not None:
+            bpy.data.worlds.remove(scene.world)
         bpy.data.scenes.remove(scene)
     return frames
+
+
+def _label_size(data, xs, aspect):
+    """The frame labels' text size: a fixed share of the picture's width, as _stage sizes it."""
+    height = np.nanmax(data.bones[..., 2]) - data.ground
+    return 0.016 * _picture_width(np.ptp(xs) + 0.6, height, aspect)
+
+
+def _picture_width(span, height, aspect):
+    return max(span * 1.45 + 0.4, (height + 0.5) * aspect)
+
+
+def _loads_drawn(scene, data, loads, frame, i, offset):
+    """A weight hanging 12 cm below each loaded hand, from the frame it is picked up."""
+    made = []
+    for load in loads:
+        if frame < load.frame:
+            continue
+        wrist = data.bones[i, load.bone, 1] + offset
+        weight = wrist - np.array([0.0, 0.0, 0.12])
+        made.append(tube_object(scene, f"load{load.bone}.{frame:g}", [(wrist, weight)], LOAD, 0.006))
+        radius = 0.035 * (load.kg / 5.0) ** (1 / 3)
+        made.append(tube_object(scene, f"weight{load.bone}.{frame:g}",
+                                 [(weight - [0, 0, radius], weight + [0, 0, radius])], LOAD, radius))
+    return made
+
+
+def _pushes_drawn(scene, data, pushes, frame, i, offset, points):
+    """An arrow 40 cm long ending where each push acts, on the snapshot of its frame."""
+    made = []
+    for push in pushes:
+        if push.frame != frame:
+            continue
+        tip = data.bones[i, push.bone, 0] + push.point + offset
+        tail = tip - 0.4 * push.direction
+        side = np.cross(push.direction, [0.0, 0.0, 1.0])
+        side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else np.array([1.0, 0.0, 0.0])
+        up = np.cross(side, push.direction)
+        head = [(tip, tip - 0.08 * push.direction + 0.04 * s) for s in (side, -side, up, -up)]
+        made.append(tube_object(scene, f"push{push.bone}.{frame:g}", [(tail, tip)] + head, PUSH, 0.012))
+        points.append(np.array([tail]))
+    return made
+
+
+def _garments_drawn(scene, garments, frame, offset):
+    """A copy of each garment's evaluated mesh at `frame` (its Mesh Cache played), moved by `offset`."""
+    made = []
+    for source_scene, obj in garments:
+        source_scene.frame_set(int(round(frame)))
+        made.append(mesh_copy(scene, obj, offset, GARMENT, f"HumanAnim garment {frame:g}"))
+    return made
+
+
+def mesh_copy(scene, obj, offset, colour, name):
+    """A new object in `scene` with the mesh of `obj` as Blender evaluates it now (modifiers, Mesh
+    Cache), in world space, moved by `offset`."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    mesh = bpy.data.meshes.new_from_object(obj.evaluated_get(depsgraph))
+    mesh.transform(obj.matrix_world)
+    copy = bpy.data.objects.new(name, mesh)
+    copy.location = offset
+    copy.color = colour
+    scene.collection.objects.link(copy)
+    return copy
 
 
 def _picture_axes(data, roots):
@@ -219,7 +393,8 @@ def _picture_axes(data, roots):
     return travel, np.array([-travel[1], travel[0]])  # camera on the right of the travel, looking left
 
 
-def _label(scene, text, camera, location, colour, size):
+def text_object(scene, text, camera, location, colour, size):
+    """A line of text at `location`, facing the camera."""
     from mathutils import Matrix, Vector
     curve = bpy.data.curves.new(f"HumanAnim {text}", type="FONT")
     curve.body, curve.size, curve.align_x = text, size, "CENTER"
@@ -230,7 +405,8 @@ def _label(scene, text, camera, location, colour, size):
     return obj
 
 
-def _tube_object(scene, name, segments, colour, radius):
+def tube_object(scene, name, segments, colour, radius):
+    """A curve object of round tubes along `segments` ((n, 2, 3) world points)."""
     curve = bpy.data.curves.new(f"HumanAnim {name}", type="CURVE")
     curve.dimensions = "3D"
     curve.bevel_depth = radius
@@ -246,7 +422,7 @@ def _tube_object(scene, name, segments, colour, radius):
     return obj
 
 
-def _stage(scene, data, points, along, view, resolution, title):
+def _stage(scene, data, points, along, view, resolution, title, extra=()):
     """Ground, an orthographic camera from the side, a legend."""
     from mathutils import Matrix, Vector
     made = []
@@ -254,7 +430,7 @@ def _stage(scene, data, points, along, view, resolution, title):
     centre = (lo + hi) / 2
     xs = points[:, :2] @ along
     aspect = resolution[0] / resolution[1]
-    width = max(np.ptp(xs) * 1.45 + 0.4, (hi[2] - data.ground + 0.5) * aspect)
+    width = _picture_width(np.ptp(xs), hi[2] - data.ground, aspect)
     mesh = bpy.data.meshes.new("HumanAnim ground")
     h = data.ground - 0.003
     a, v = np.array([*along, 0.0]) * width, np.array([*view, 0.0]) * 1.0  # a band under the figures
@@ -283,7 +459,7 @@ def _stage(scene, data, points, along, view, resolution, title):
     entries += [("input motion (ghost)", PICTURE_COLOURS[GHOST]), ("no control", PICTURE_COLOURS[FREE]),
                 ("stressed joint", STRESS), ("comfort control", KIND_COLOURS[2]),
                 ("balance control", KIND_COLOURS[3]), ("passive control", KIND_COLOURS[1]),
-                ("support polygon", POLYGON), ("ZMP (magenta: falling)", ZMP)]
+                ("support polygon", POLYGON), ("ZMP (magenta: falling)", ZMP), *extra]
     line = width * 0.02
     for k, (text, colour) in enumerate(entries):
         curve = bpy.data.curves.new(f"HumanAnim legend {k}", type="FONT")
