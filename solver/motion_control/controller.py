@@ -69,7 +69,7 @@ from ..progress import run_to_end
 from ..trajectories import Trajectories
 from ..vectors import cross as cross_rows
 from ..dynamics import kinematics, spatial
-from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories, motion_floor,
+from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories,
                                     weld_static_helpers)
 from ..dynamics.ground_contact import default_contacts, point_jacobians
 from ..dynamics.inertia_matrix import bias_forces, crba
@@ -80,7 +80,7 @@ from ..dynamics.balance import closest_boundary_point, inside
 from .balance_control import balance_error, support_polygon
 from .comfort_control import Settings as CriteriaSettings
 from .comfort_control import body_parts, joint_stress, required_torques
-from .contacts import support_intervals
+from .contacts import contact_floor, support_intervals
 from .dynamic_control import control_state, dynamic_control, stress_by_bone
 from .tracking import TrackingController
 
@@ -126,7 +126,7 @@ class Collider:
 @dataclass
 class ControlSettings:
     gravity: tuple = (0.0, 0.0, -9.81)
-    ground_height: float = None  # None: motion_floor of the input
+    ground_height: float = None  # None: the input's floor (contacts.contact_floor)
     loads: tuple = ()  # Load
     impulses: tuple = ()  # Impulse
     colliders: tuple = ()  # Collider
@@ -349,7 +349,7 @@ class _Loop:
         self.body = self._body(self._active_loads(0.0))
         m = self.body.model
         self.desired_data = m.create_data()
-        self.ground = float(motion_floor(sk, tr) if st.ground_height is None else st.ground_height)
+        self.ground = float(contact_floor(sk, tr) if st.ground_height is None else st.ground_height)
         sup = support_intervals(sk, tr, st.support_overrides, floor=self.ground)
         self.support_in = np.stack([sup.get(s, np.zeros(tr.frame_count, bool)) for s in SIDES], axis=1)
         self._support_rows = self.support_in.tolist()  # (plain bools)
