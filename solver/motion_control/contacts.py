@@ -70,26 +70,29 @@ def foot_point_tracks(skeleton, trajectories, floor=None):
     return heights, speeds
 
 
-def contact_floor(skeleton, trajectories, h_on=0.05, v_on=0.4, percentile=10.0, iterations=4):
-    """Height (m) of the floor the motion stands on: a low percentile of the body's lowest point
-    (any contact sphere, dynamics.default_contacts) over the frames where it rests on the floor (a
-    foot is slow, and the point within h_on of the floor found so far), starting from all frames
-    with a slow foot. A capture's floor shows where the body rests, frame after frame; a few frames
-    of a toe dipping below it (marker noise, a bad solve) or of a made-up bone tail reaching
-    through it are outliers, and taking the lowest point of the whole motion instead
-    (closed_loop.motion_floor) lifts every other frame's soles off the ground, so that no standing
-    foot is found and held. A motion with no foot roles, or whose feet are never slow, falls back
-    to motion_floor."""
+def contact_floor(skeleton, trajectories, h_on=0.05, v_on=0.4, spread=3.0, min_tolerance=0.01):
+    """Height (m) of the floor the motion stands on: the lowest point the body reaches (any
+    contact sphere, dynamics.default_contacts) over the frames where it rests on the floor (a foot
+    is slow, and the body within h_on of the median such height), leaving out outliers: heights
+    more than `spread` robust deviations (1.4826 MAD), and at least `min_tolerance`, below that
+    median. A capture's floor shows where the body rests, frame after frame; a few frames of a
+    toe dipping below it (marker noise, a bad solve) or of a made-up bone tail reaching through it
+    are outliers, and taking the lowest point of the whole motion instead
+    (closed_loop.motion_floor) lifted every other frame's soles off the ground, so that no
+    standing foot was found and held. On a clip without outliers both are the same point. A
+    motion with no foot roles, or whose feet are never slow, falls back to motion_floor."""
     _, speeds = foot_point_tracks(skeleton, trajectories, floor=0.0)
     slow = np.any([s.min(axis=1) < v_on for s in speeds.values()], axis=0) if speeds else None
     if slow is None or not slow.any():
         return motion_floor(skeleton, trajectories)
     low = body_lowest_points(skeleton, trajectories)
-    floor = float(np.median(low[slow]))
-    for _ in range(iterations):
-        resting = slow & (low < floor + h_on)
-        floor = float(np.percentile(low[resting], percentile))
-    return floor
+    resting = low[slow]
+    for _ in range(2):  # the resting frames around the median, then their median again
+        middle = float(np.median(resting))
+        resting = low[slow & (low < middle + h_on)]
+    middle = float(np.median(resting))
+    tolerance = max(spread * 1.4826 * float(np.median(np.abs(resting - middle))), min_tolerance)
+    return float(resting[resting >= middle - tolerance].min())
 
 
 def body_lowest_points(skeleton, trajectories):
