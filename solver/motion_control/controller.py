@@ -536,7 +536,7 @@ class _Loop:
             feet = self.support_in[fi].copy()
             self._update_plants(body, feet, t)
         planted = bool(feet[0] or feet[1])  # (a Python bool: feet.any() costs a numpy call)
-        a_raw = self.tracking.acceleration(t, q, v)
+        a_raw = None if self.fallen else self.tracking.acceleration(t, q, v)  # a ragdoll tracks nothing
         targets = self._foot_targets(body, feet, t) if planted else None
         a_track = self._constrain_legs(body, q, v, a_raw, feet, targets) if targets is not None else a_raw
         fall = None
@@ -1494,29 +1494,46 @@ def _inertia(model, data, q):
 def _pgs(w, rel, targets, mu, iterations):
     """Projected Gauss-Seidel on contacts of three rows (normal, two tangents): normal impulses
     >= 0 that bring each normal speed up to its target (complementary), friction impulses within
-    mu times the normal one that stop the sliding."""
+    mu times the normal one that stop the sliding.
+
+    Contact by contact, its three relative speeds come afresh from the impulses (one 3 x 3c
+    product) and its rows are updated on plain floats through its own 3 x 3 block, instead of
+    every row's speed being updated after each row: the same sweeps in a third fewer numpy calls
+    (a fallen body's 25-30 ground contacts make this most of a falling step)."""
     n = len(targets)
     p = np.zeros(3 * n)
-    u = rel.copy()
-    diag = np.diag(w).copy()
+    rows = [w[3 * c:3 * c + 3] for c in range(n)]
+    blocks = [w[3 * c:3 * c + 3, 3 * c:3 * c + 3].tolist() for c in range(n)]
+    rel_rows = [rel[3 * c:3 * c + 3] for c in range(n)]
+    targets = np.asarray(targets, float).tolist()
     for _ in range(iterations):
         change = 0.0
         for c in range(n):
             i = 3 * c
-            new = max(0.0, p[i] + (targets[c] - u[i]) / diag[i])
-            dp = new - p[i]
+            u0, u1, u2 = (rel_rows[c] + rows[c] @ p).tolist()
+            pn, p1, p2 = old = p[i:i + 3].tolist()
+            (d0, _, _), (w10, d1, _), (w20, w21, d2) = blocks[c]
+            new = max(0.0, pn + (targets[c] - u0) / d0)
+            dp = new - pn
             if dp:
-                p[i] = new
-                u += w[:, i] * dp
+                pn = new
+                u1 += w10 * dp
+                u2 += w20 * dp
                 change = max(change, abs(dp))
-            cap = mu * p[i]
-            for j in (i + 1, i + 2):
-                new = min(max(p[j] - u[j] / diag[j], -cap), cap)
-                dp = new - p[j]
-                if dp:
-                    p[j] = new
-                    u += w[:, j] * dp
-                    change = max(change, abs(dp))
+            cap = mu * pn
+            new = min(max(p1 - u1 / d1, -cap), cap)
+            dp = new - p1
+            if dp:
+                p1 = new
+                u2 += w21 * dp
+                change = max(change, abs(dp))
+            new = min(max(p2 - u2 / d2, -cap), cap)
+            dp = new - p2
+            if dp:
+                p2 = new
+                change = max(change, abs(dp))
+            if [pn, p1, p2] != old:
+                p[i:i + 3] = pn, p1, p2
         if change < 1e-7:
             break
     return p
