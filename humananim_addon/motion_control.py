@@ -311,8 +311,8 @@ def facing(skeleton, traj):
 def ground_of(settings, skeleton, traj):
     if settings.ground_height is not None:
         return float(settings.ground_height)
-    from ..solver.dynamics.closed_loop import motion_floor
-    return motion_floor(skeleton, traj)
+    from ..solver.motion_control.contacts import contact_floor
+    return contact_floor(skeleton, traj)
 
 
 def run(obj, scene):

@@ -23,7 +23,8 @@ def add_commands(sub, add_common_options):
     _inputs(f, "filter.blend")
     f.add_argument("--gains", help="comma-separated gains, finest band first, the mean pose last (e.g. 0,0.5,1,1.5,1,1)")
     f.add_argument("--levels", type=COUNT, help="pyramid levels (default: one fewer than the gains, or 5)")
-    f.add_argument("--denoise-hz", type=POSITIVE, help="remove every band above this frequency instead")
+    f.add_argument("--denoise-hz", type=POSITIVE,
+                   help="low-pass at this frequency instead (Hz, below the clip's Nyquist: half its frame rate)")
     add_common_options(f)
     b = sub.add_parser("blend", help="multiresolution blend of the action and a second one")
     _inputs(b, "blend.blend")
@@ -108,7 +109,8 @@ def _lines(s):
     if s.get("selection_note"):
         lines.append(f"  {s['selection_note']}")
     if s["command"] == "filter":
-        lines.append(f"  gains {', '.join(f'{g:g}' for g in s['gains'])} on bands {', '.join(s['bands'])}")
+        lines.append(f"  low-pass at {s['cutoff_hz']:g} Hz ({s['fps']:g} fps clip)" if s["gains"] is None else
+                     f"  gains {', '.join(f'{g:g}' for g in s['gains'])} on bands {', '.join(s['bands'])}")
         lines.append(f"  largest change {s['largest_change_deg']:.3f} deg, {s['largest_change_cm']:.3f} cm "
                      f"in {s['ms']:.0f} ms")
     elif s["command"] == "blend":

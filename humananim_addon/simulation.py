@@ -8,7 +8,8 @@ from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProper
 
 from ..solver import rotations
 from ..solver.body_roles import SIDES, sided
-from ..solver.dynamics.closed_loop import Push, Settings, iter_simulate, motion_floor
+from ..solver.dynamics.closed_loop import Push, Settings, iter_simulate
+from ..solver.motion_control.contacts import contact_floor
 from ..solver.dynamics.ground_contact import GroundModel
 from ..solver.errors import MotionError
 from . import actions
@@ -83,7 +84,7 @@ def solver_settings(scene, props, skeleton, traj):
         hand = skeleton.roles.bone(sided("hand", side))
         if kg > 0.0 and hand:
             loads[hand] = kg
-    height = motion_floor(skeleton, traj) if props.ground == "MOTION" else props.ground_height
+    height = contact_floor(skeleton, traj) if props.ground == "MOTION" else props.ground_height
     return Settings(gravity=gravity, ground=GroundModel(height=height), loads=loads,
                     pushes=tuple(pushes(props, skeleton, traj, scene)), strength_scale=props.strength_scale,
                     tracking=props.tracking, controller=props.controller.lower(),

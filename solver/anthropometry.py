@@ -42,6 +42,12 @@ DE_LEVA = {
     },
 }
 
+# de Leva's segment lengths (mm, his table 1): the hand from the wrist to the third metacarpal's
+# head, the forearm from the elbow to the wrist
+HAND_PER_FOREARM = {"male": 86.2 / 268.9, "female": 78.0 / 264.3}
+# a hand bone (or its reach) outside these multiples of that proportion is an importer's guess
+USABLE_HAND = (0.3, 2.0)
+
 # de Leva's segments are coarser than a rig's: these splits are HumanAnim's own assumptions.
 NECK_SHARE_OF_HEAD = 0.15
 CLAVICLE_SHARE_OF_BODY = 0.005  # each shoulder girdle, taken from the upper trunk
@@ -143,11 +149,11 @@ def anthropometric_model(skeleton, total_mass=70.0, sex="male"):
         share = 1.0 - NECK_SHARE_OF_HEAD if roles.bone("neck") else 1.0
         parts.append((roles.bone("head"), table["head"], share, head_head, tail(roles.bone("head"))))
     for side in SIDES:
-        parts.extend(_limb_parts(skeleton, table, side, clavicle_share, head, tail))
+        parts.extend(_limb_parts(skeleton, table, side, clavicle_share, head, tail, sex))
     return _assemble(skeleton, total_mass, parts)
 
 
-def _limb_parts(skeleton, table, side, clavicle_share, head, tail):
+def _limb_parts(skeleton, table, side, clavicle_share, head, tail, sex="male"):
     roles = skeleton.roles
     chain = [("clavicle", "upper_trunk", clavicle_share), ("upper_arm", "upper_arm", 1.0),
              ("forearm", "forearm", 1.0), ("thigh", "thigh", 1.0), ("shin", "shank", 1.0)]
@@ -165,6 +171,8 @@ def _limb_parts(skeleton, table, side, clavicle_share, head, tail):
         middle = roles.chain(sided("middle", side))
         distal = (
             skeleton.rest[skeleton.index(middle[0]), :3, 3] if middle else _reach(skeleton, hand, tail))
+        distal = _proportionate_hand(head(sided("forearm", side)), head(sided("hand", side)), distal,
+                                     HAND_PER_FOREARM[sex])
         yield hand, table["hand"], 1.0 - (FINGER_SHARE_OF_HAND if fingers else 0.0), \
             head(sided("hand", side)), distal
     for bone in fingers:
@@ -178,6 +186,22 @@ def _limb_parts(skeleton, table, side, clavicle_share, head, tail):
     if toe:
         rod = (table["foot"][0], 50.0, 30.0, 30.0, 15.0)
         yield toe, rod, TOE_SHARE_OF_FOOT, head(sided("toe", side)), tail(toe)
+
+
+def _proportionate_hand(elbow, wrist, distal, per_forearm):
+    """The hand's distal end, or where the body's proportions put it when the rig gives no usable
+    hand: a zero-length hand an importer lengthened (Blender continues a leaf bone with a zero End
+    Site along its parent, at the parent's length: Bandai Namco's clips) or shortened to a stub.
+    The hand then reaches along the forearm by de Leva's hand-to-forearm proportion, so that its
+    centre, and a load carried in it, sit in the palm whatever the bone's length."""
+    if elbow is None:
+        return distal
+    forearm = wrist - elbow
+    length = float(np.linalg.norm(forearm))
+    expected = per_forearm * length
+    if length <= 0.0 or USABLE_HAND[0] * expected <= np.linalg.norm(distal - wrist) <= USABLE_HAND[1] * expected:
+        return distal
+    return wrist + forearm / length * expected
 
 
 def _reach(skeleton, bone, tail):

@@ -27,20 +27,23 @@ def band_labels(fps, levels):
 
 def equalize(obj, scene, source, sel, gains=None, levels=None, cutoff_hz=None, replace=False):
     """Band gains (finest band first, the top last) on the selected channels, or with cutoff_hz
-    a low-pass removing the bands wholly above it; all gains 1 gives the source back."""
+    a low-pass at that frequency of the clip's frame rate (equalizer.denoise); all gains 1 gives
+    the source back."""
     t0 = time.perf_counter()
     frames = action_frames(source)
     if len(frames) < 3:
         raise MotionError(f"'{source.name}' is too short to filter ({len(frames)} frames)")
     fps = scene_fps(scene)
     levels = default_levels(len(frames), levels)
-    if cutoff_hz:
-        gains = equalizer.low_pass_gains(fps, cutoff_hz, levels)
-    gains = list(gains if gains is not None else [1.0] * (levels + 1))[:levels + 1]
-    gains += [1.0] * (levels + 1 - len(gains))
+    if cutoff_hz is not None:
+        equalizer.check_cutoff(fps, cutoff_hz)  # before anything is written
+        gains = None
+    else:
+        gains = list(gains if gains is not None else [1.0] * (levels + 1))[:levels + 1]
+        gains += [1.0] * (levels + 1 - len(gains))
     samples = [sample_group(g, frames) for g in sel.groups]
     work, layout = to_working(sel.groups, samples)
-    result = equalizer.equalize(work, gains, levels)
+    result = equalizer.denoise(work, fps, cutoff_hz) if gains is None else equalizer.equalize(work, gains, levels)
     values = from_working(sel.groups, result, layout)
     out = Output(obj, source, f"{source.name}.eq", replace)
     write_groups(out, sel.groups, frames, values)
@@ -48,8 +51,9 @@ def equalize(obj, scene, source, sel, gains=None, levels=None, cutoff_hz=None, r
     out.finish()
     changes = group_errors(sel.groups, samples, values)
     summary = _base_summary(obj, source, sel, out)
-    summary.update(command="filter", frames=len(frames), levels=levels, gains=[float(g) for g in gains],
-                   bands=band_labels(fps, levels), cutoff_hz=cutoff_hz,
+    summary.update(command="filter", frames=len(frames), levels=levels,
+                   gains=None if gains is None else [float(g) for g in gains],
+                   bands=band_labels(fps, levels), cutoff_hz=cutoff_hz, fps=fps,
                    largest_change_deg=round(changes["deg"][0], 4), largest_change_cm=round(changes["cm"][0], 4),
                    ms=_ms(t0))
     return summary

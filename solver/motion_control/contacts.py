@@ -6,7 +6,8 @@ the two under the toe tip, dynamics.default_contacts) is low and slow. Hysteresi
 down until it clearly rises (above h_off) or slides (faster than v_off), so noise near the
 thresholds does not flicker; intervals (on and off) shorter than `min_duration` inside the clip
 are then merged into their neighbours. Heights are measured from the motion's floor
-(closed_loop.motion_floor: the lowest point any contact sphere reaches).
+(contact_floor: where the soles rest while they support the body, a robust statistic of the
+heights at contact frames, so that one toe dipping through a capture's floor does not lower it).
 """
 
 from dataclasses import dataclass
@@ -14,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..body_roles import SIDES
-from ..dynamics import build_model, default_contacts, motion_floor
+from ..dynamics import build_model, default_contacts, kinematics, motion_floor
+from ..dynamics.closed_loop import desired_motion
 
 
 @dataclass(frozen=True)
@@ -53,7 +55,7 @@ def foot_point_tracks(skeleton, trajectories, floor=None):
     model = build_model(skeleton, reference_basis=tr.basis()[0])
     contacts = default_contacts(model)
     if floor is None:
-        floor = motion_floor(skeleton, tr, contacts)
+        floor = contact_floor(skeleton, tr)
     world = tr.world_frames(skeleton)[:, contacts.joints]  # (F, k, 4, 4)
     points = np.einsum("fkij,kj->fki", world[..., :3, :3], contacts.points) + world[..., :3, 3]
     speed = np.linalg.norm(np.gradient(points[..., :2], axis=0), axis=-1) * tr.fps if tr.frame_count > 1 \
@@ -66,6 +68,40 @@ def foot_point_tracks(skeleton, trajectories, floor=None):
             heights[side] = points[:, sel, 2] - contacts.radii[sel] - floor
             speeds[side] = speed[:, sel]
     return heights, speeds
+
+
+def contact_floor(skeleton, trajectories, h_on=0.05, v_on=0.4, spread=3.0, min_tolerance=0.01):
+    """Height (m) of the floor the motion stands on: the lowest point the body reaches (any
+    contact sphere, dynamics.default_contacts) over the frames where it rests on the floor (a foot
+    is slow, and the body within h_on of the median such height), leaving out outliers: heights
+    more than `spread` robust deviations (1.4826 MAD), and at least `min_tolerance`, below that
+    median. A capture's floor shows where the body rests, frame after frame; a few frames of a
+    toe dipping below it (marker noise, a bad solve) or of a made-up bone tail reaching through it
+    are outliers, and taking the lowest point of the whole motion instead
+    (closed_loop.motion_floor) lifted every other frame's soles off the ground, so that no
+    standing foot was found and held. On a clip without outliers both are the same point. A
+    motion with no foot roles, or whose feet are never slow, falls back to motion_floor."""
+    _, speeds = foot_point_tracks(skeleton, trajectories, floor=0.0)
+    slow = np.any([s.min(axis=1) < v_on for s in speeds.values()], axis=0) if speeds else None
+    if slow is None or not slow.any():
+        return motion_floor(skeleton, trajectories)
+    low = body_lowest_points(skeleton, trajectories)
+    resting = low[slow]
+    for _ in range(2):  # the resting frames around the median, then their median again
+        middle = float(np.median(resting))
+        resting = low[slow & (low < middle + h_on)]
+    middle = float(np.median(resting))
+    tolerance = max(spread * 1.4826 * float(np.median(np.abs(resting - middle))), min_tolerance)
+    return float(resting[resting >= middle - tolerance].min())
+
+
+def body_lowest_points(skeleton, trajectories):
+    """(F,) the height of the lowest contact sphere's bottom at each frame."""
+    model = build_model(skeleton, reference_basis=trajectories.basis()[0])
+    contacts = default_contacts(model)
+    qs = desired_motion(model, skeleton, trajectories)[0]
+    heights = kinematics.batch_point_positions(model, qs, contacts.joints, contacts.points)[..., 2]
+    return (heights - contacts.radii).min(axis=1)
 
 
 def hysteresis(low, slow, leave):

@@ -69,7 +69,7 @@ from ..progress import run_to_end
 from ..trajectories import Trajectories
 from ..vectors import cross as cross_rows
 from ..dynamics import kinematics, spatial
-from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories, motion_floor,
+from ..dynamics.closed_loop import (SimulationError, _require_connected_body, _to_trajectories,
                                     weld_static_helpers)
 from ..dynamics.ground_contact import default_contacts, point_jacobians
 from ..dynamics.inertia_matrix import bias_forces, crba
@@ -80,7 +80,7 @@ from ..dynamics.balance import closest_boundary_point, inside
 from .balance_control import balance_error, support_polygon
 from .comfort_control import Settings as CriteriaSettings
 from .comfort_control import body_parts, joint_stress, required_torques
-from .contacts import support_intervals
+from .contacts import contact_floor, support_intervals
 from .dynamic_control import control_state, dynamic_control, stress_by_bone
 from .tracking import TrackingController
 
@@ -126,7 +126,7 @@ class Collider:
 @dataclass
 class ControlSettings:
     gravity: tuple = (0.0, 0.0, -9.81)
-    ground_height: float = None  # None: motion_floor of the input
+    ground_height: float = None  # None: the input's floor (contacts.contact_floor)
     loads: tuple = ()  # Load
     impulses: tuple = ()  # Impulse
     colliders: tuple = ()  # Collider
@@ -349,7 +349,7 @@ class _Loop:
         self.body = self._body(self._active_loads(0.0))
         m = self.body.model
         self.desired_data = m.create_data()
-        self.ground = float(motion_floor(sk, tr) if st.ground_height is None else st.ground_height)
+        self.ground = float(contact_floor(sk, tr) if st.ground_height is None else st.ground_height)
         sup = support_intervals(sk, tr, st.support_overrides, floor=self.ground)
         self.support_in = np.stack([sup.get(s, np.zeros(tr.frame_count, bool)) for s in SIDES], axis=1)
         self._support_rows = self.support_in.tolist()  # (plain bools)
@@ -518,8 +518,7 @@ class _Loop:
         """Record frame f's state and diagnostics, then step to the next frame (none after the last)."""
         last = f == self.tr.frame_count - 1
         self.out_q[f] = self.q
-        n = max(self.st.substeps, math.ceil(self.st.fall_rate * self.dt_frame - 1e-9)) if self.fallen \
-            else max(1, self.st.substeps)
+        n = self._fall_steps() if self.fallen else max(1, self.st.substeps)
         for k in range(1 if last else n):
             self.step(f, self.dt_frame / n, record=k == 0, integrate=not last)
 
@@ -537,7 +536,7 @@ class _Loop:
             feet = self.support_in[fi].copy()
             self._update_plants(body, feet, t)
         planted = bool(feet[0] or feet[1])  # (a Python bool: feet.any() costs a numpy call)
-        a_raw = self.tracking.acceleration(t, q, v)
+        a_raw = None if self.fallen else self.tracking.acceleration(t, q, v)  # a ragdoll tracks nothing
         targets = self._foot_targets(body, feet, t) if planted else None
         a_track = self._constrain_legs(body, q, v, a_raw, feet, targets) if targets is not None else a_raw
         fall = None
@@ -1074,6 +1073,22 @@ class _Loop:
 
     # ---- the fallen body ----
 
+    def _fall_steps(self):
+        """Steps in this frame of a fallen body: enough that no contact sphere travels more than
+        FALL_STEP_TRAVEL in one (a body knocked over hits the ground fast: at 120 Hz, 4 steps a
+        frame at 30 fps, a hand sank 4 cm), at most fall_rate a second, at least `substeps` a
+        frame. A body lying on the ground, or coming to rest, needs no more steps than a standing
+        one; a fixed fall_rate made every falling frame cost ~16 standing ones."""
+        most = max(self.st.substeps, math.ceil(self.st.fall_rate * self.dt_frame - 1e-9))
+        body = self.body
+        m, d = body.model, body.data
+        kinematics.update_frames(m, d, self.q)
+        bodies = body.spheres[0]
+        centres = kinematics.body_points(d, bodies, body.sphere_hom)
+        vel = kinematics.body_velocities(m, d, self.q, self.v).take(bodies, axis=0)
+        speed = float(np.sqrt(((vel[:, 3:] + _cross(vel[:, :3], centres)) ** 2).sum(axis=1).max()))
+        return int(min(max(math.ceil(speed * self.dt_frame / FALL_STEP_TRAVEL), self.st.substeps, 1), most))
+
     def _ragdoll_velocity(self, body, q, v, dt, f_ext):
         st, m, d = self.st, body.model, body.data
         h = crba(m, d, q)
@@ -1422,6 +1437,7 @@ def _swept_contacts(a, b, rb, move, p0, p1, rc):
 RETURN_SCALES = (0.5, 0.25, 0.0)
 LANDING_TURN = 0.1  # rad: the most a planted leg's joint (or the root) may turn in a step _predicted_resolve serves
 KNOCKED_OVER = "knocked over"  # a step's fall from an impulse (no base acceleration: released as it is)
+FALL_STEP_TRAVEL = 0.01  # m a contact sphere may travel in one step of a fallen body (_Loop._fall_steps)
 RAGDOLL_JOINT_SPEED = 40.0  # rad/s (_Loop._ragdoll_velocity; strength.py's fastest joints: 40)
 _BALANCED = 1e-3  # m: a ZMP tolerance above this is an input allowance (_Loop._excess)
 # _Loop._slower_return: m beyond the input's own capture-point excursion (arms swung by passive
@@ -1478,29 +1494,46 @@ def _inertia(model, data, q):
 def _pgs(w, rel, targets, mu, iterations):
     """Projected Gauss-Seidel on contacts of three rows (normal, two tangents): normal impulses
     >= 0 that bring each normal speed up to its target (complementary), friction impulses within
-    mu times the normal one that stop the sliding."""
+    mu times the normal one that stop the sliding.
+
+    Contact by contact, its three relative speeds come afresh from the impulses (one 3 x 3c
+    product) and its rows are updated on plain floats through its own 3 x 3 block, instead of
+    every row's speed being updated after each row: the same sweeps in a third fewer numpy calls
+    (a fallen body's 25-30 ground contacts make this most of a falling step)."""
     n = len(targets)
     p = np.zeros(3 * n)
-    u = rel.copy()
-    diag = np.diag(w).copy()
+    rows = [w[3 * c:3 * c + 3] for c in range(n)]
+    blocks = [w[3 * c:3 * c + 3, 3 * c:3 * c + 3].tolist() for c in range(n)]
+    rel_rows = [rel[3 * c:3 * c + 3] for c in range(n)]
+    targets = np.asarray(targets, float).tolist()
     for _ in range(iterations):
         change = 0.0
         for c in range(n):
             i = 3 * c
-            new = max(0.0, p[i] + (targets[c] - u[i]) / diag[i])
-            dp = new - p[i]
+            u0, u1, u2 = (rel_rows[c] + rows[c] @ p).tolist()
+            pn, p1, p2 = old = p[i:i + 3].tolist()
+            (d0, _, _), (w10, d1, _), (w20, w21, d2) = blocks[c]
+            new = max(0.0, pn + (targets[c] - u0) / d0)
+            dp = new - pn
             if dp:
-                p[i] = new
-                u += w[:, i] * dp
+                pn = new
+                u1 += w10 * dp
+                u2 += w20 * dp
                 change = max(change, abs(dp))
-            cap = mu * p[i]
-            for j in (i + 1, i + 2):
-                new = min(max(p[j] - u[j] / diag[j], -cap), cap)
-                dp = new - p[j]
-                if dp:
-                    p[j] = new
-                    u += w[:, j] * dp
-                    change = max(change, abs(dp))
+            cap = mu * pn
+            new = min(max(p1 - u1 / d1, -cap), cap)
+            dp = new - p1
+            if dp:
+                p1 = new
+                u2 += w21 * dp
+                change = max(change, abs(dp))
+            new = min(max(p2 - u2 / d2, -cap), cap)
+            dp = new - p2
+            if dp:
+                p2 = new
+                change = max(change, abs(dp))
+            if [pn, p1, p2] != old:
+                p[i:i + 3] = pn, p1, p2
         if change < 1e-7:
             break
     return p

@@ -6,6 +6,9 @@ one on the middle bands exaggerate the motion while its mean pose (the top) is k
 """
 
 import numpy as np
+from scipy import signal
+
+from ..errors import MotionError
 
 from . import channels as _channels
 from .pyramid import DEFAULT_A, band_limits_hz, laplacian_pyramid, max_levels, reconstruct
@@ -31,10 +34,30 @@ def low_pass_gains(fps, cutoff_hz, levels):
     return [0.0 if low >= cutoff_hz else 1.0 for low, _ in band_limits_hz(fps, levels)]
 
 
-def denoise(x, fps, cutoff_hz=10.0, levels=None, a=DEFAULT_A):
-    """Remove capture jitter: drop the bands above `cutoff_hz` (default 10 Hz)."""
-    levels = max_levels(len(x)) if levels is None else levels
-    return equalize(x, low_pass_gains(fps, cutoff_hz, levels), levels, a)
+def check_cutoff(fps, cutoff_hz):
+    """A cut-off the clip's own frame rate can carry: positive and below Nyquist (fps / 2)."""
+    if not np.isfinite(cutoff_hz) or cutoff_hz <= 0.0:
+        raise MotionError(f"the cut-off must be a positive frequency, not {cutoff_hz:g} Hz")
+    if cutoff_hz >= fps / 2.0 * (1.0 - 1e-4):  # 30.00003 fps (a BVH's 0.0333333 s) is 30
+        raise MotionError(f"a cut-off of {cutoff_hz:g} Hz is at or above the clip's Nyquist frequency "
+                          f"({fps / 2.0:g} Hz at {fps:g} fps): nothing above it to remove; choose a "
+                          f"lower frequency")
+
+
+def denoise(x, fps, cutoff_hz=10.0, order=4):
+    """Remove capture jitter: x (F, ...) low-passed at `cutoff_hz`, a frequency relative to the
+    clip's own frame rate `fps` (Butterworth of `order`, run forward and backward: no phase lag,
+    the gain at the cut-off 1/2). The pyramid's bands are octaves of the frame rate (7.5-15 Hz,
+    3.75-7.5 Hz ... at 30 fps), so removing only the bands wholly above a cut-off did nothing for
+    any cut-off inside the finest band (8 Hz on a 30 Hz clip). A cut-off at or above Nyquist is a
+    MotionError."""
+    x = np.asarray(x, dtype=float)
+    check_cutoff(fps, cutoff_hz)
+    if len(x) < 3:
+        return x.copy()
+    sos = signal.butter(order, cutoff_hz / (fps / 2.0), output="sos")
+    pad = min(3 * (2 * len(sos) + 1), len(x) - 1)
+    return signal.sosfiltfilt(sos, x, axis=0, padlen=pad)
 
 
 def equalize_quaternions(q, gains, levels=None, a=DEFAULT_A, reference=None):

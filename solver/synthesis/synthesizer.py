@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import HumanAnimError
 from .action import ANGULAR, SPATIAL, SUPPORT, Action
-from .transitions import MODES, TransitionRejected, TransitionSettings, transition
+from .transitions import MODES, TransitionRejected, TransitionSettings, continuity_rejection, transition
 
 WHEN = ("after", "now")
 
@@ -56,6 +56,9 @@ class Synthesizer:
                 end1 = min(at + int(round(blend * cur.fps)), last)
         try:
             tr = transition(cur, action, mode, self.settings, end1=end1)
+            why = continuity_rejection(cur, end1, action, tr, mode)  # pops or slides: refused
+            if why:
+                raise TransitionRejected(why)
         except TransitionRejected as e:
             req = Request(action.name, mode, when, False, e.reason)
             self.requests.append(req)

@@ -114,14 +114,58 @@ def transition(a1, a2, mode="blend", settings=None, end1=None, base=None):
         why = blend_rejection(a1, end1, a2, nb - 1)
         if why:
             raise TransitionRejected(why)
-        return _blend(a1, end1, a2, nb, s)
-    if mode == "connect":
+        out = _blend(a1, end1, a2, nb, s)
+    elif mode == "connect":
         why = connect_rejection(a1, end1, a2)
         if why:
             raise TransitionRejected(why)
-        return _connect(a1, end1, a2, s, base)
-    ni = s.inertialization_duration if s.inertialization_duration is not None else blend
-    return _inertialize(a1, end1, a2, max(2, int(round(ni * a1.fps)) + 1), s)
+        out = _connect(a1, end1, a2, s, base)
+    else:
+        ni = s.inertialization_duration if s.inertialization_duration is not None else blend
+        out = _inertialize(a1, end1, a2, max(2, int(round(ni * a1.fps)) + 1), s)
+    return out
+
+
+# a joined motion may turn a joint this much faster than the faster of its two inputs (blending
+# two motions adds their speeds for a moment, an interruption turns a joint the inputs hold
+# still) before it is a pop, and a held foot may drift this far
+STEP_RATIO, STEP_SLACK_DEG, HELD_DRIFT = 1.5, 6.0, 0.01
+
+
+def continuity_rejection(a1, end1, a2, out, mode):
+    """Why the joined motion is not acceptable, or None: in the transition's window no joint turns
+    more in one frame than STEP_RATIO times its own fastest step in either input plus
+    STEP_SLACK_DEG, and no held foot drifts more than HELD_DRIFT (m) from where it was planted. The
+    Motion Queue (Synthesizer.queue) refuses a request whose result pops or slides instead of
+    reporting it accepted; reactions (reactions.py) join their own falls and steps unchecked."""
+    sk = a1.skeleton
+
+    def steps(rot):
+        return np.degrees(rotations.angle_between(rot[1:], rot[:-1])) if len(rot) > 1 else np.zeros((0, len(sk.names)))
+
+    own = np.maximum(steps(a1.trajectories.rotations[:end1 + 1]).max(axis=0, initial=0.0),
+                     steps(a2.trajectories.rotations).max(axis=0, initial=0.0))
+    w0, w1 = out.window
+    window = steps(out.trajectories.rotations)[max(w0 - 1, 0):w1 + 1]
+    if len(window):
+        excess = window - (STEP_RATIO * own + STEP_SLACK_DEG)
+        f, j = np.unravel_index(np.argmax(excess), excess.shape)
+        if excess[f, j] > 0.0:
+            frame = out.trajectories.frames[max(w0 - 1, 0) + f + 1]
+            return (f"{mode} refused: {sk.names[j]} would turn {window[f, j]:.0f} deg in one frame at frame "
+                    f"{frame:g} (the actions' own fastest: {own[j]:.0f} deg)")
+    if out.held:
+        world = out.trajectories.world_frames(sk)
+        for side, held in out.held.items():
+            foot = sk.role_index(f"foot.{side}")
+            for on, a, b in runs(held):
+                if not on or foot is None:
+                    continue
+                drift = np.linalg.norm(world[a:b, foot, :2, 3] - world[a, foot, :2, 3], axis=1).max()
+                if drift > HELD_DRIFT:
+                    return (f"{mode} refused: the planted {'left' if side == 'L' else 'right'} foot would slide "
+                            f"{1000 * drift:.0f} mm from frame {out.trajectories.frames[a]:g}")
+    return None
 
 
 class _Pose:

@@ -316,3 +316,37 @@ def test_user_errors_are_reported_not_raised(cmu_rig):
         bpy.ops.humananim.multires_blend()
     with pytest.raises(RuntimeError, match="left limit"):
         bpy.ops.humananim.squeeze_stretch(frame=100, new_frame=2000, left_limit=1, right_limit=995)
+
+
+BANDAI = __import__("pathlib").Path(__file__).resolve().parents[3] / "shared" / "data" / "mocap" / "bandai-namco-1"
+
+
+@pytest.mark.parametrize("clip", ("walk_normal_001", "dash_happy_001"))
+def test_denoise_cutoff_is_a_frequency_of_the_clip_own_rate(empty_scene, clip):
+    """A 30 fps Bandai clip (corpus beside the repo; CC BY-NC, never copied): 8 Hz smooths the
+    curves (the pyramid's finest band there is 7.5-15 Hz, and removing the bands wholly above the
+    cut-off changed nothing); 15 Hz, its Nyquist frequency, is refused with a message and no
+    action is written."""
+    path = BANDAI / f"dataset-1_{clip}.bvh"
+    if not path.exists():
+        pytest.skip(f"the Bandai Namco corpus is not at {BANDAI}")
+    rig = import_cmu(str(path))
+    source = rig.animation_data.action
+    assert bpy.ops.humananim.equalize(channels="ALL", mode="DENOISE", cutoff_hz=8.0,
+                                      source_action=source.name) == {"FINISHED"}
+    result = rig.animation_data.action
+    assert result != source
+    fc_src = next(fc for fc in action_api.fcurves_of(source, rig) if "UpperLeg_L" in fc.data_path
+                  and "rotation" in fc.data_path)
+    fc_new = next(fc for fc in action_api.fcurves_of(result, rig)
+                  if fc.data_path == fc_src.data_path and fc.array_index == fc_src.array_index)
+    end = int(fc_src.range()[1])
+    values = np.array([[fc.evaluate(f) for f in range(1, end)] for fc in (fc_src, fc_new)])
+    assert np.abs(values[1] - values[0]).max() > 1e-3  # the pyramid's bands: exactly 0
+    rough = np.abs(np.diff(values, 2, axis=1)).mean(axis=1)
+    assert rough[1] < 0.98 * rough[0]  # smoother: measured 0.87 and 0.96 (a walk curves mostly below 8 Hz)
+    activate(rig, source)
+    count = len(bpy.data.actions)
+    with pytest.raises(RuntimeError, match="Nyquist"):
+        bpy.ops.humananim.equalize(channels="ALL", mode="DENOISE", cutoff_hz=15.0, source_action=source.name)
+    assert len(bpy.data.actions) == count
