@@ -18,6 +18,7 @@ S is `l` or `r` (no `.L`/`_L` convention). So the deform legs and arms don't han
 """
 
 import bpy
+import numpy as np
 
 # (name, head, tail, parent, connected) of the deform skeleton, left side mirrored for the right
 _SPINE = [
@@ -150,3 +151,65 @@ def _translated(pb, offset):
     from mathutils import Matrix, Vector
     rest = pb.bone.matrix_local
     return Matrix.Translation(Vector(offset)) @ rest
+
+
+# --- a Mixamo-style rig through Blender's own FBX exporter --------------------------------------
+_MIXAMO_TRUNK = [("Hips", (0, 0, 1.00), (0, 0, 1.10), None), ("Spine", (0, 0, 1.10), (0, 0, 1.22), "Hips"),
+                 ("Spine1", (0, 0, 1.22), (0, 0, 1.34), "Spine"), ("Spine2", (0, 0, 1.34), (0, 0, 1.48), "Spine1"),
+                 ("Neck", (0, 0, 1.48), (0, 0, 1.58), "Spine2"), ("Head", (0, 0, 1.58), (0, 0, 1.80), "Neck")]
+_MIXAMO_LIMBS = [("UpLeg", (0.10, 0, 0.98), (0.10, -0.01, 0.54), "Hips"), ("Leg", (0.10, -0.01, 0.54), (0.10, 0.02, 0.10), "UpLeg"),
+                 ("Foot", (0.10, 0.02, 0.10), (0.10, -0.10, 0.03), "Leg"), ("ToeBase", (0.10, -0.10, 0.03), (0.10, -0.17, 0.03), "Foot"),
+                 ("Shoulder", (0.03, 0, 1.45), (0.18, 0.02, 1.45), "Spine2"), ("Arm", (0.18, 0.02, 1.45), (0.46, 0.04, 1.45), "Shoulder"),
+                 ("ForeArm", (0.46, 0.04, 1.45), (0.72, 0.02, 1.45), "Arm"), ("Hand", (0.72, 0.02, 1.45), (0.80, 0.02, 1.45), "ForeArm")]
+
+
+def build_mixamo_style(name="Mixamo", fingers=True):
+    """A plain FK armature named like a Mixamo download (mixamorig:Hips, mixamorig:LeftUpLeg, ...),
+    with a 24-frame motion keyed on its bones (hips bob, legs and arms swing)."""
+    arm = bpy.data.armatures.new(name)
+    obj = bpy.data.objects.new(name, arm)
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    bpy.ops.object.mode_set(mode="EDIT")
+    eb = arm.edit_bones
+    p = "mixamorig:"
+    for n, h, t, parent in _MIXAMO_TRUNK:
+        _bone(eb, p + n, h, t, parent and p + parent, parent is not None and n != "Hips")
+    for side, s in (("Left", "l"), ("Right", "r")):
+        for n, h, t, parent in _MIXAMO_LIMBS:
+            par = p + (parent if parent in ("Hips", "Spine2") else side + parent)
+            _bone(eb, p + side + n, _mirror(h, s), _mirror(t, s), par, parent not in ("Hips", "Spine2"))
+        if fingers:
+            for k, finger in enumerate(("Thumb", "Index", "Middle", "Ring", "Pinky")):
+                y = 0.03 - 0.015 * k
+                prev = p + side + "Hand"
+                for seg in range(1, 4):
+                    x0 = 0.80 + 0.025 * (seg - 1)
+                    b = _bone(eb, f"{p}{side}Hand{finger}{seg}", _mirror((x0, y, 1.45), s),
+                              _mirror((x0 + 0.025, y, 1.45), s), prev, seg > 1)
+                    prev = b.name
+    bpy.ops.object.mode_set(mode="OBJECT")
+    pbs = obj.pose.bones
+    for pb in pbs:
+        pb.rotation_mode = "XYZ"
+    for f in range(1, 25, 4):
+        w = np.sin(2 * np.pi * (f - 1) / 24)
+        pbs[p + "Hips"].location = (0.0, 0.0, 0.03 * w)
+        pbs[p + "Hips"].keyframe_insert("location", frame=f)
+        for side, sign in (("Left", 1.0), ("Right", -1.0)):
+            for bone, angle in (("UpLeg", 0.4), ("Leg", 0.3), ("Arm", 0.3), ("ForeArm", 0.2)):
+                pbs[p + side + bone].rotation_euler = (sign * angle * w, 0.0, 0.0)
+                pbs[p + side + bone].keyframe_insert("rotation_euler", frame=f)
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 24
+    return obj
+
+
+def export_fbx(obj, path):
+    """`obj` and its action to `path` with Blender's own FBX exporter (leaf bones added, as Mixamo's)."""
+    bpy.ops.object.select_all(action="DESELECT")
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    bpy.ops.export_scene.fbx(filepath=str(path), use_selection=True, object_types={"ARMATURE"},
+                             bake_anim=True, bake_anim_use_all_actions=False, bake_anim_use_nla_strips=False,
+                             add_leaf_bones=True)  # the scene take: NLA-strip takes export nothing without strips
+    return str(path)
