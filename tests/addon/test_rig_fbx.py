@@ -74,6 +74,9 @@ def _run(*args):
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(bpy.app.version < (4, 3, 0), reason=(
+    "the bpy 4.2 module crashes at exit (status 139, after the output is written) once Blender's FBX "
+    "importer has run with any add-on class registered, even with nothing of HumanAnim's in the import"))
 def test_command_line_reads_fbx_where_it_reads_bvh(empty_scene, tmp_path):
     path = export_fbx(build_mixamo_style(fingers=False), tmp_path / "walkish.fbx")
     r = _run("info", path, "--json", "--mass", "72")
