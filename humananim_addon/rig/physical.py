@@ -8,13 +8,15 @@ drivers are all accounted for."""
 
 import numpy as np
 
-from ...solver.errors import RigError
+from ...solver import rotations
+from ...solver.errors import MotionError, RigError
 from ...solver.rig.hierarchy import body_parents, parents_first
 from ...solver.role_detection import require_roles
-from ...solver.skeleton import Skeleton
+from ...solver.skeleton import Skeleton, decompose
+from ...solver.trajectories import Trajectories
 from .. import action_api
-from ..actions import rigid_basis
-from ..armature import bone_arrays, detect, joint_limits, unit_scale
+from ..actions import rigid_basis, sample_frames, scene_fps
+from ..armature import armature_to_world, bone_arrays, detect, joint_limits, unit_scale
 from ..properties import role_overrides
 
 
@@ -79,3 +81,16 @@ def evaluated_basis(obj, scene, skeleton, frames, action=None):
     bones as Blender evaluates them (stretch removed, translations kept where a bone moved off
     its body parent)."""
     return rigid_basis(evaluated_pose(obj, scene, skeleton, frames, action), skeleton)
+
+
+def physical_trajectories(obj, scene, skeleton, action=None, frame_range=None):
+    """The Trajectories of `action` (the active one by default) on the physical skeleton, read
+    from Blender's evaluation of the deform bones on every frame of the range."""
+    ad = obj.animation_data
+    action = action or (ad.action if ad else None)
+    if action is None:
+        raise MotionError(f"'{obj.name}' has no action to read")
+    frames = sample_frames(action, obj, frame_range)
+    trans, quats = decompose(evaluated_basis(obj, scene, skeleton, frames, action))
+    return Trajectories(frames, scene_fps(scene), rotations.make_continuous(quats), trans,
+                        armature_to_world(obj, scene))

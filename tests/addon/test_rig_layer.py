@@ -10,7 +10,7 @@ from conftest import import_cmu  # noqa: E402
 from control_rig import build_control_rig, key_squat  # noqa: E402
 from humananim.humananim_addon.rig.bones import classify  # noqa: E402
 from humananim.humananim_addon.rig.physical import (  # noqa: E402
-    evaluated_basis, evaluated_pose, physical_skeleton)
+    evaluated_basis, evaluated_pose, physical_skeleton, physical_trajectories)
 from humananim.solver.body_roles import SIDES, sided  # noqa: E402
 from humananim.solver.rig.hierarchy import PARENT_ROLES  # noqa: E402
 
@@ -193,3 +193,7 @@ def test_procedural_squat_on_controls_is_the_skeleton_the_solver_gets(puppet):
     assert drop.max() == pytest.approx(0.3, abs=0.01)
     assert np.ptp(solved[:, foot, :3, 3], axis=0).max() < 1e-3
     assert np.ptp(solved[:, shin, 1, 3]) > 0.05  # the knee comes forward
+    # what a capability reads: Trajectories over the squat's keys, the same pose
+    traj = physical_trajectories(puppet, bpy.context.scene, skeleton)
+    np.testing.assert_array_equal(traj.frames, frames)
+    np.testing.assert_allclose(traj.world_frames(skeleton)[..., :3, 3], solved[..., :3, 3], atol=1e-6)
