@@ -2,13 +2,13 @@
 
 `build_control_rig()` makes, in the current scene, an armature 'Puppet' of a 1.8 m figure facing -Y:
 - controls (shown, no deform): `anim_root`; `anim_torso` (moves the hips, the spine and the
-  legs' IK chains); FK spine `anim_chest`, `anim_neck`, `anim_head`; FK arms `anim_collar_S`,
+  legs' IK chains); FK spine `anim_spine`, `anim_chest`, `anim_neck`, `anim_head`; FK arms `anim_collar_S`,
   `anim_upperarm_S`, `anim_forearm_S`, `anim_hand_S`; IK legs with foot targets `anim_foot_S` and
   knee poles `anim_knee_S` (children of the root); FK toes `anim_toe_S` under the IK feet;
-- mechanism (hidden collection): the IK leg chains `helper_thigh_S` -> `helper_shin_S` (IK to the
+- mechanism (hidden collection): `helper_hips` (the hips' frame, on the torso), the IK leg chains `helper_thigh_S` -> `helper_shin_S` (IK to the
   foot control, pole the knee), `helper_foot_S` (copies the foot control's rotation), a flat
   `helper_bind_root` the deform legs hang from, and `helper_socket_S` the deform arms hang from;
-- deform bones (hidden, what a mesh follows): `bind_hips` (Copy Transforms of the torso) ->
+- deform bones (hidden, what a mesh follows): `bind_hips` (Copy Transforms of helper_hips) ->
   `bind_spine` -> `bind_chest` -> `bind_neck` -> `bind_head` (Copy Rotation of the FK spine
   controls), `bind_collar_S` under the chest, `bind_upperarm_S` under the socket, then
   `bind_forearm_S` and `bind_hand_S` (Copy Rotation of the FK arm controls), and legs
@@ -66,10 +66,11 @@ def build_control_rig(name="Puppet"):
     _bone(eb, "anim_root", (0, 0, 0), (0, 0.4, 0))
     _bone(eb, "anim_torso", (0, 0, 1.0), (0, 0.3, 1.0), "anim_root")
     _bone(eb, "helper_bind_root", (0, 0, 0), (0, 0, 0.2))
+    _bone(eb, "helper_hips", (0, 0, 1.00), (0, 0, 1.12), "anim_torso")  # the hips' frame on the torso
     for n, h, t, p, c in _SPINE:
         _bone(eb, "bind_" + n, h, t, p and "bind_" + p, c)
-        if n != "hips" and n != "spine":
-            parent = {"chest": "anim_torso", "neck": "anim_chest", "head": "anim_neck"}[n]
+        if n != "hips":
+            parent = {"spine": "anim_torso", "chest": "anim_spine", "neck": "anim_chest", "head": "anim_neck"}[n]
             _bone(eb, "anim_" + n, h, t, parent)
     for s in ("l", "r"):
         for n, h, t, p, c in _LEG:
@@ -113,9 +114,9 @@ def build_control_rig(name="Puppet"):
             setattr(c, k, v)
         return c
 
-    con("bind_hips", "COPY_TRANSFORMS", "anim_torso")
+    con("bind_hips", "COPY_TRANSFORMS", "helper_hips")
     for n in ("spine", "chest", "neck", "head"):
-        con("bind_" + n, "COPY_ROTATION", "anim_" + ("chest" if n == "spine" else n))
+        con("bind_" + n, "COPY_ROTATION", "anim_" + n)
     for s in ("l", "r"):
         con(f"helper_shin_{s}", "IK", f"anim_foot_{s}", chain_count=2, pole_target=obj,
             pole_subtarget=f"anim_knee_{s}", pole_angle=-1.5708)
@@ -125,23 +126,19 @@ def build_control_rig(name="Puppet"):
         con(f"bind_toe_{s}", "COPY_ROTATION", f"anim_toe_{s}")
         for n in ("collar", "upperarm", "forearm", "hand"):
             con(f"bind_{n}_{s}", "COPY_ROTATION", f"anim_{n}_{s}")
-    # the spine's first deform bone follows the chest control only partly: the chest turns both
-    pbs["bind_spine"].constraints[0].influence = 0.5
     for pb in pbs:
         pb.rotation_mode = "XYZ"
     return obj
 
 
 def key_squat(obj, depth=0.3, frames=(1, 20, 40)):
-    """A squat keyed on the controls only: the torso goes down `depth` metres and back, leaning
-    forward, the chest leans back; the IK feet stay planted."""
+    """A squat keyed on the controls only: the torso goes `depth` metres down (and 5 cm back) and
+    up again, the chest leans forward, the IK feet stay planted."""
     pbs = obj.pose.bones
     torso, chest = pbs["anim_torso"], pbs["anim_chest"]
     for f, w in zip(frames, (0.0, 1.0, 0.0)):
-        # anim_torso points along +Y: its local Y is world +Y, local Z is world -Y... move in armature space
-        torso.matrix = _translated(torso, (0.0, 0.05 * w, -depth * w))
+        torso.matrix = _translated(torso, (0.0, 0.05 * w, -depth * w))  # armature axes, not the bone's
         torso.keyframe_insert("location", frame=f)
-        torso.rotation_euler = (0.0, 0.0, 0.0)
         chest.rotation_euler = (0.25 * w, 0.0, 0.0)
         chest.keyframe_insert("rotation_euler", frame=f)
         bpy.context.view_layer.update()

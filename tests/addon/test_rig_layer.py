@@ -193,6 +193,11 @@ def test_procedural_squat_on_controls_is_the_skeleton_the_solver_gets(puppet):
     assert drop.max() == pytest.approx(0.3, abs=0.01)
     assert np.ptp(solved[:, foot, :3, 3], axis=0).max() < 1e-3
     assert np.ptp(solved[:, shin, 1, 3]) > 0.05  # the knee comes forward
+    # a rigid rig: the joints hung anew (thighs on the hips, upper arms on the collars) keep their
+    # rest offsets from their new parents, the skeleton the solver gets is one rigid body tree
+    basis = evaluated_basis(puppet, bpy.context.scene, skeleton, frames)
+    body = [skeleton.role_index(r) for r in BODY[1:]]  # the pelvis, the root, moves freely
+    assert np.linalg.norm(basis[:, body, :3, 3], axis=-1).max() < 1e-4
     # what a capability reads: Trajectories over the squat's keys, the same pose
     traj = physical_trajectories(puppet, bpy.context.scene, skeleton)
     np.testing.assert_array_equal(traj.frames, frames)
