@@ -5,9 +5,9 @@
   legs' IK chains); FK spine `anim_spine`, `anim_chest`, `anim_neck`, `anim_head`; FK arms `anim_collar_S`,
   `anim_upperarm_S`, `anim_forearm_S`, `anim_hand_S`; IK legs with foot targets `anim_foot_S` and
   knee poles `anim_knee_S` (children of the root); FK toes `anim_toe_S` under the IK feet;
-- mechanism (hidden collection): `helper_hips` (the hips' frame, on the torso), the IK leg chains `helper_thigh_S` -> `helper_shin_S` (IK to the
-  foot control, pole the knee), `helper_foot_S` (copies the foot control's rotation), a flat
-  `helper_bind_root` the deform legs hang from, and `helper_socket_S` the deform arms hang from;
+- mechanism (hidden collection): `helper_hips` (the hips' frame, on the torso), the IK leg
+  chains `helper_thigh_S` -> `helper_shin_S` (IK to the foot control, pole the knee),
+  `helper_foot_S` (copies the foot control's rotation), a flat `helper_bind_root` the deform legs hang from, and `helper_socket_S` the deform arms hang from;
 - deform bones (hidden, what a mesh follows): `bind_hips` (Copy Transforms of helper_hips) ->
   `bind_spine` -> `bind_chest` -> `bind_neck` -> `bind_head` (Copy Rotation of the FK spine
   controls), `bind_collar_S` under the chest, `bind_upperarm_S` under the socket, then
@@ -55,14 +55,19 @@ def _bone(eb, name, head, tail, parent=None, connected=False, roll=0.0):
     return b
 
 
-def build_control_rig(name="Puppet"):
-    """The armature object (see the module docstring), active, in Object mode."""
+def _new_armature(name):
+    """An empty armature object, linked, active, in Edit mode: (object, armature, edit bones)."""
     arm = bpy.data.armatures.new(name)
     obj = bpy.data.objects.new(name, arm)
     bpy.context.scene.collection.objects.link(obj)
     bpy.context.view_layer.objects.active = obj
     bpy.ops.object.mode_set(mode="EDIT")
-    eb = arm.edit_bones
+    return obj, arm, arm.edit_bones
+
+
+def build_control_rig(name="Puppet"):
+    """The armature object (see the module docstring), active, in Object mode."""
+    obj, arm, eb = _new_armature(name)
     _bone(eb, "anim_root", (0, 0, 0), (0, 0.4, 0))
     _bone(eb, "anim_torso", (0, 0, 1.0), (0, 0.3, 1.0), "anim_root")
     _bone(eb, "helper_bind_root", (0, 0, 0), (0, 0, 0.2))
@@ -151,24 +156,27 @@ def _translated(pb, offset):
 
 
 # --- a Mixamo-style rig through Blender's own FBX exporter --------------------------------------
-_MIXAMO_TRUNK = [("Hips", (0, 0, 1.00), (0, 0, 1.10), None), ("Spine", (0, 0, 1.10), (0, 0, 1.22), "Hips"),
-                 ("Spine1", (0, 0, 1.22), (0, 0, 1.34), "Spine"), ("Spine2", (0, 0, 1.34), (0, 0, 1.48), "Spine1"),
-                 ("Neck", (0, 0, 1.48), (0, 0, 1.58), "Spine2"), ("Head", (0, 0, 1.58), (0, 0, 1.80), "Neck")]
-_MIXAMO_LIMBS = [("UpLeg", (0.10, 0, 0.98), (0.10, -0.01, 0.54), "Hips"), ("Leg", (0.10, -0.01, 0.54), (0.10, 0.02, 0.10), "UpLeg"),
-                 ("Foot", (0.10, 0.02, 0.10), (0.10, -0.10, 0.03), "Leg"), ("ToeBase", (0.10, -0.10, 0.03), (0.10, -0.17, 0.03), "Foot"),
-                 ("Shoulder", (0.03, 0, 1.45), (0.18, 0.02, 1.45), "Spine2"), ("Arm", (0.18, 0.02, 1.45), (0.46, 0.04, 1.45), "Shoulder"),
-                 ("ForeArm", (0.46, 0.04, 1.45), (0.72, 0.02, 1.45), "Arm"), ("Hand", (0.72, 0.02, 1.45), (0.80, 0.02, 1.45), "ForeArm")]
+_MIXAMO_TRUNK = [
+    ("Hips", (0, 0, 1.00), (0, 0, 1.10), None), ("Spine", (0, 0, 1.10), (0, 0, 1.22), "Hips"),
+    ("Spine1", (0, 0, 1.22), (0, 0, 1.34), "Spine"), ("Spine2", (0, 0, 1.34), (0, 0, 1.48), "Spine1"),
+    ("Neck", (0, 0, 1.48), (0, 0, 1.58), "Spine2"), ("Head", (0, 0, 1.58), (0, 0, 1.80), "Neck"),
+]
+_MIXAMO_LIMBS = [
+    ("UpLeg", (0.10, 0, 0.98), (0.10, -0.01, 0.54), "Hips"),
+    ("Leg", (0.10, -0.01, 0.54), (0.10, 0.02, 0.10), "UpLeg"),
+    ("Foot", (0.10, 0.02, 0.10), (0.10, -0.10, 0.03), "Leg"),
+    ("ToeBase", (0.10, -0.10, 0.03), (0.10, -0.17, 0.03), "Foot"),
+    ("Shoulder", (0.03, 0, 1.45), (0.18, 0.02, 1.45), "Spine2"),
+    ("Arm", (0.18, 0.02, 1.45), (0.46, 0.04, 1.45), "Shoulder"),
+    ("ForeArm", (0.46, 0.04, 1.45), (0.72, 0.02, 1.45), "Arm"),
+    ("Hand", (0.72, 0.02, 1.45), (0.80, 0.02, 1.45), "ForeArm"),
+]
 
 
 def build_mixamo_style(name="Mixamo", fingers=True):
     """A plain FK armature named like a Mixamo download (mixamorig:Hips, mixamorig:LeftUpLeg, ...),
     with a 24-frame motion keyed on its bones (hips bob, legs and arms swing)."""
-    arm = bpy.data.armatures.new(name)
-    obj = bpy.data.objects.new(name, arm)
-    bpy.context.scene.collection.objects.link(obj)
-    bpy.context.view_layer.objects.active = obj
-    bpy.ops.object.mode_set(mode="EDIT")
-    eb = arm.edit_bones
+    obj, arm, eb = _new_armature(name)
     p = "mixamorig:"
     for n, h, t, parent in _MIXAMO_TRUNK:
         _bone(eb, p + n, h, t, parent and p + parent, parent is not None and n != "Hips")
