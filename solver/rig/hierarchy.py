@@ -108,17 +108,20 @@ def body_parents(names, parents, heads, tails, deform, roles):
 
 
 def parents_first(parents, members):
-    """`members` (indices) ordered parents before children under `parents`; RigError on a cycle."""
-    members = list(members)
-    inside = set(members)
+    """`members` (indices) ordered parents before children under `parents`, keeping their given
+    order wherever it already is (a plain FK rig's bones stay in Blender's order); RigError on a loop."""
+    inside = set(int(j) for j in members)
     placed, order = set(), []
-    pending = members
+    pending = [int(j) for j in members]
     while pending:
-        rest = [j for j in pending if parents[j] in placed or parents[j] < 0 or parents[j] not in inside]
-        if not rest:
+        left = []
+        for j in pending:
+            if parents[j] < 0 or parents[j] not in inside or parents[j] in placed:
+                placed.add(j)
+                order.append(j)
+            else:
+                left.append(j)
+        if len(left) == len(pending):
             raise RigError("the body roles make a loop in the deform bones' hierarchy")
-        for j in rest:
-            placed.add(j)
-            order.append(j)
-        pending = [j for j in pending if j not in placed]
+        pending = left
     return order

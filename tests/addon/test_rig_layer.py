@@ -204,3 +204,23 @@ def test_procedural_squat_on_controls_is_the_skeleton_the_solver_gets(puppet):
     traj = physical_trajectories(puppet, bpy.context.scene, skeleton)
     np.testing.assert_array_equal(traj.frames, frames)
     np.testing.assert_allclose(traj.world_frames(skeleton)[..., :3, 3], solved[..., :3, 3], atol=1e-6)
+
+
+@pytest.mark.parametrize("rig", ["metarig", "cmu"])
+def test_on_plain_fk_rigs_the_physical_skeleton_is_the_armature(rig, empty_scene, request):
+    """Every bone deforms and hangs from its body parent already: the same joints, parents and
+    (on the BVH's action) the same motion as the armature's own skeleton."""
+    from humananim.humananim_addon import actions
+    from humananim.humananim_addon.armature import skeleton_from_armature
+    obj = request.getfixturevalue("metarig") if rig == "metarig" else import_cmu()
+    scene = bpy.context.scene
+    plain, physical = skeleton_from_armature(obj, scene), physical_skeleton(obj, scene)
+    assert physical.names == plain.names
+    np.testing.assert_array_equal(physical.parents, plain.parents)
+    np.testing.assert_array_equal(physical.connected, plain.connected)
+    np.testing.assert_allclose(physical.mass, plain.mass)
+    if rig == "cmu":
+        frames = (1, 120)
+        a = actions.read_action(obj, scene, plain, frame_range=frames).world_frames(plain)
+        b = physical_trajectories(obj, scene, physical, frame_range=frames).world_frames(physical)
+        assert np.abs(a[..., :3, 3] - b[..., :3, 3]).max() < 1e-5

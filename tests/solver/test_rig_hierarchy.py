@@ -47,3 +47,8 @@ def test_roles_on_bones_that_do_not_deform_are_refused():
 def test_a_loop_is_refused():
     with pytest.raises(RigError, match="loop"):
         parents_first(np.array([1, 0]), [0, 1])
+
+
+def test_an_order_already_parents_first_is_kept():
+    assert parents_first(np.array([-1, 0, 0, 2]), [0, 1, 2, 3]) == [0, 1, 2, 3]
+    assert parents_first(np.array([-1, 3, 0, 0]), [0, 1, 2, 3]) == [0, 2, 3, 1]
