@@ -86,7 +86,8 @@ def _shown(obj, name):
     if bone.hide:
         return False
     collections = list(getattr(bone, "collections", ()))
-    return not collections or any(c.is_visible for c in collections)
+    # a collection inside a hidden one is hidden too (is_visible_effectively, Blender 4.1+)
+    return not collections or any(getattr(c, "is_visible_effectively", c.is_visible) for c in collections)
 
 
 def _free(pb):
