@@ -461,6 +461,9 @@ def _load(path, armature_name, scale):
     from .bvh_import import import_bvh
     if not os.path.isfile(path):
         raise UsageError(f"no such file: {path}")
+    if path.lower().endswith(".fbx"):  # Blender's own FBX importer (the rig layer's bridge)
+        from .rig.load import load_fbx
+        return load_fbx(path, armature_name)
     if path.lower().endswith(".bvh"):
         bpy.ops.wm.read_homefile(use_empty=True)
         obj, _, unit = import_bvh(path, scale)

@@ -475,7 +475,7 @@ def _keyword_fill(rig, roles, used):
             role = sided(part, s)
             if role not in roles:
                 found = pick(part, s, under=anchor)
-                if found is None and anchor is pelvis:
+                if found is None:  # a control rig may hang its deform bones elsewhere
                     found = pick(part, s)
                 _assign(roles, used, role, [found])
             anchor = _first(roles, role) if role in roles else anchor
@@ -490,7 +490,10 @@ def _keyword_fill(rig, roles, used):
                             ("forearm", ()), ("hand", ())):
             role = sided(part, s)
             if role not in roles:
-                _assign(roles, used, role, [pick(part, s, under=anchor, extra=extra)])
+                found = pick(part, s, under=anchor, extra=extra)
+                if found is None and anchor is not None:  # deform arms hung from mechanism bones
+                    found = pick(part, s, extra=extra)
+                _assign(roles, used, role, [found])
             anchor = _first(roles, role) if role in roles else anchor
 
         hand = _first(roles, sided("hand", s))
