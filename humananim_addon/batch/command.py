@@ -14,7 +14,7 @@ PYTHON_ENV = "HUMANANIM_BATCH_PYTHON"  # an interpreter with bpy, dask and human
 def add_commands(sub, add_common_options):
     b = sub.add_parser("batch", help="run a pipeline of commands over many takes (a folder, a glob or a "
                                      "CSV/JSON manifest) on Dask; resumable, with a JSON summary and an HTML report")
-    b.add_argument("inputs", nargs="+", help="folders, globs or files (.bvh/.blend), or one manifest (.csv/.json)")
+    b.add_argument("inputs", nargs="+", help="folders, globs or files (.bvh/.fbx/.blend), or one manifest (.csv/.json)")
     b.add_argument("--pipeline", action="append", default=[], metavar="'CMD [OPTIONS] -> CMD ...'",
                    help="the steps, separated by '->'; any command that reads a file can be a step")
     b.add_argument("--step", action="append", default=[], metavar="'CMD [OPTIONS]'",

@@ -22,7 +22,7 @@ import os
 import re
 import shlex
 
-INPUT_SUFFIXES = (".bvh", ".blend")
+INPUT_SUFFIXES = (".bvh", ".fbx", ".blend")
 RECORD = "take.json"  # written last, atomically, into a finished take's folder
 PARTIAL = ".partial"  # takes being written: renamed into place when finished
 FORMAT = 1  # bump when the layout of a take's folder changes: every take is redone
@@ -71,7 +71,7 @@ def parse_pipeline(texts):
 
 
 def find_inputs(sources):
-    """Files from folders (their .bvh/.blend files), globs and plain paths, sorted, no repeats.
+    """Files from folders (their .bvh/.fbx/.blend files), globs and plain paths, sorted, no repeats.
     A manifest (.csv/.json) is read with `read_manifest` instead."""
     files = []
     for source in sources:
@@ -83,7 +83,7 @@ def find_inputs(sources):
         else:
             found = [source]  # a missing file becomes a failed take, reported like a broken one
         if not found:
-            raise PlanError(f"no .bvh or .blend files in {source!r}")
+            raise PlanError(f"no .bvh, .fbx or .blend files in {source!r}")
         files += found
     seen, unique = set(), []
     for f in files:

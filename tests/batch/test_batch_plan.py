@@ -44,13 +44,13 @@ def test_steps_are_checked_against_the_command_line(tmp_path):
 
 
 def test_inputs_from_folders_and_globs_sorted_without_repeats(tmp_path):
-    for name in ("b.bvh", "a.bvh", "notes.txt", "c.blend"):
+    for name in ("b.bvh", "a.bvh", "notes.txt", "c.blend", "d.fbx"):
         _bvh(tmp_path, name)
     takes = plan([str(tmp_path), str(tmp_path / "*.bvh")], [Step("info", [])], PARSER)
-    assert [t.name for t in takes] == ["a", "b", "c"]
+    assert [t.name for t in takes] == ["a", "b", "c", "d"]  # .fbx goes through Blender's FBX importer
     assert all(os.path.isabs(t.file) for t in takes)
-    with pytest.raises(PlanError, match="no .bvh or .blend files"):
-        plan([str(tmp_path / "*.fbx")], [Step("info", [])], PARSER)
+    with pytest.raises(PlanError, match="no .bvh, .fbx or .blend files"):
+        plan([str(tmp_path / "*.glb")], [Step("info", [])], PARSER)
 
 
 def test_same_stem_in_two_folders_gets_two_take_folders(tmp_path):
