@@ -205,9 +205,12 @@ def qa_of_result(summary, obj=None, ground=None):
 
 def qa_text(report):
     from ..solver.qa import text
-    if not report.get("measures"):
+    if report.get("measures"):
+        return text(report)
+    if report.get("passed") is None:
         return f"QA: not measured ({report.get('note', '')})"
-    return text(report)
+    state = "passed" if report["passed"] else f"{len(report['warnings'])} WARNING(S)"  # an aggregate (batch)
+    return "\n".join([f"QA {state} ({report.get('note', '')})"] + [f"  WARNING: {w}" for w in report["warnings"]])
 
 
 @contextlib.contextmanager

@@ -60,8 +60,19 @@ def cmd_batch(args):
         raise UsageError(f"interrupted: {summary['done']} of {summary['takes']} takes done (kept); run the same "
                          f"command again to finish the other {summary['takes'] - summary['done']}"
                          + (f" ({summary['engine']['error']})" if summary["engine"].get("error") else ""))
+    summary["qa"] = batch_qa(summary["results"])
     summary["summary"] = text_summary(summary)
     return summary
+
+
+def batch_qa(results):
+    """The batch's motion QA in the `qa` form every command reports: passed when every measured
+    take passed, failed when one did (its warnings prefixed with the take), None when no step
+    measured a motion."""
+    verdicts = [r["qa_passed"] for r in results if r.get("qa_passed") is not None]
+    warnings = [f"{r['name']}: {w}" for r in results for w in r.get("qa_warnings") or []]
+    return {"passed": (all(verdicts) if verdicts else None), "measures": {}, "warnings": warnings,
+            "note": f"{len(verdicts)} of {len(results)} takes measured; each take's QA is in summary.json"}
 
 
 def _has_bpy_module():

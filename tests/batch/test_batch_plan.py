@@ -141,3 +141,16 @@ def test_write_json_atomic_leaves_no_temporary_file(tmp_path):
     batch_plan.write_json_atomic(str(path), {"a": 1})
     assert json.loads(path.read_text()) == {"a": 1}
     assert os.listdir(tmp_path) == ["x.json"]
+
+
+def test_the_batch_qa_fails_when_one_take_fails_and_names_the_take():
+    from humananim.humananim_addon.batch.command import batch_qa
+    ok = {"name": "walk", "qa_passed": True, "qa_warnings": []}
+    bad = {"name": "kick", "qa_passed": False, "qa_warnings": ["slide 12 mm at foot.L, frames 3-9"]}
+    broken = {"name": "broken", "qa_passed": None, "qa_warnings": []}
+    assert batch_qa([ok, broken])["passed"] is True
+    failed = batch_qa([ok, bad, broken])
+    assert failed["passed"] is False
+    assert failed["warnings"] == ["kick: slide 12 mm at foot.L, frames 3-9"]
+    assert failed["note"].startswith("2 of 3 takes measured")
+    assert batch_qa([broken])["passed"] is None
