@@ -55,12 +55,13 @@ def contact_runs(mask):
 
 def find_floor(points, contacts=None):
     """The floor height: a low percentile, over the frames, of the lowest foot point (over the
-    contact frames when given), so a few toe dips or a foot through the floor do not set it."""
+    contact frames when given), so a few toe dips or a foot through the floor do not set it, and
+    few planted frames hover above it (lowering a foot needs a leg that can still stretch)."""
     low = np.min([p[..., 2].min(axis=1) for p in points.values()], axis=0)
     if contacts:
         on = np.any([c for c in contacts.values()], axis=0)
         if on.sum() >= 3:
-            return float(np.median(low[on]))
+            return float(np.percentile(low[on], FLOOR_PERCENTILE))
     return float(np.percentile(low, FLOOR_PERCENTILE))
 
 
@@ -106,6 +107,8 @@ def foot_offsets(points, fps, floor=None, skate=True):
             known = known | far
             if known.any() and not known.all():
                 d[~known, c] = np.interp(idx[~known], idx[known], d[known, c])
+        if floor is not None:  # a fade that lowers a hovering foot stops at the floor
+            d[:, 2] = np.maximum(d[:, 2], floor - p[..., 2].min(axis=1))
         out[side] = d
     return out
 
@@ -184,6 +187,49 @@ def move_feet(skeleton, traj, offsets, tolerance=1e-5):
             continue
         q, joints = reach(skeleton, traj, side, d, frames)
         quats[np.ix_(frames, joints)] = q
+        moved[side] = frames
+    quats = rotations.make_continuous(quats)
+    return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
+
+
+def pin_toes(skeleton, traj, fps=None):
+    """Trajectories whose toe tips stay where they landed while the ball is down too (a flat
+    foot): each toe bone turned about its head (the ball) to put its tip back, faded out over
+    RAMP_SECONDS after the contact. Returns (trajectories, {side: frames moved})."""
+    from ..trajectories import Trajectories
+    sk, fps = skeleton, fps or traj.fps
+    world = traj.world_frames(sk)
+    points = foot_points(sk, world)
+    planted = planted_points(points, fps)
+    ramp = max(1, int(round(RAMP_SECONDS * fps)))
+    quats = traj.rotations.copy()
+    moved = {}
+    for side, p in points.items():
+        toe, foot = sk.role_index(f"toe.{side}"), sk.role_index(f"foot.{side}")
+        if toe is None or p.shape[1] < 2 or sk.parents[toe] != foot:
+            continue
+        F = len(p)
+        omega = np.zeros((F, 3))
+        head = world[:, toe, :3, 3]
+        for a, b in contact_runs(planted[side].all(axis=1)):
+            now = p[a:b, 1] - head[a:b]
+            reach = np.linalg.norm(now, axis=1)
+            want = np.zeros_like(now)
+            want[:, :2] = p[a, 1, :2] - head[a:b, :2]
+            flat = np.linalg.norm(want[:, :2], axis=1)
+            want[:, 2] = np.sign(now[:, 2]) * np.sqrt(np.maximum(reach ** 2 - flat ** 2, 0.0))
+            axis = np.cross(_unit(now), _unit(want))
+            angle = np.arctan2(np.linalg.norm(axis, axis=1), np.einsum("fi,fi->f", _unit(now), _unit(want)))
+            omega[a:b] = _unit(axis) * angle[:, None]
+            end = min(F, b + ramp)
+            omega[b:end] = omega[b - 1] * (1.0 - np.arange(1, end - b + 1) / (ramp + 1))[:, None]
+        frames = np.flatnonzero(np.linalg.norm(omega, axis=1) > 1e-9)
+        if not len(frames):
+            continue
+        turn = _axis_rotation(_unit(omega[frames]), np.linalg.norm(omega[frames], axis=1))
+        parent = world[frames, foot, :3, :3] @ sk.rest_local[toe, :3, :3]
+        local = np.swapaxes(parent, -1, -2) @ turn @ world[frames, toe, :3, :3]
+        quats[frames, toe] = rotations.from_matrix(local)
         moved[side] = frames
     quats = rotations.make_continuous(quats)
     return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved

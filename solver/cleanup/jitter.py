@@ -4,8 +4,8 @@ A zero-phase low-pass (Butterworth, forward and back) at `cutoff_hz` gives the s
 residual (what the low-pass took away, per joint a rotation vector, per point a displacement) is
 jitter where it is small and motion where it is large: a kick's snap leaves a residual many times
 the noise. So the residual is shrunk with a non-negative garrote, r * max(0, 1 - (t/|r|)^2), at
-t = 3 sigma, sigma the residual's robust scale (1.4826 x its median absolute size): noise is
-removed, a large residual is kept almost whole. The cut-off is in Hz, so it means the same at any
+t = 3 sigma, sigma the jitter's size estimated from the residual's second differences: noise is
+removed, a large residual (fast intended motion) is kept almost whole. The cut-off is in Hz, so it means the same at any
 frame rate; it is capped below the clip's Nyquist frequency.
 """
 
@@ -28,11 +28,18 @@ def low_pass(x, fps, cutoff_hz, axis=0):
     return filtfilt(b, a, x, axis=axis)
 
 
-def garrote(residual, sigmas=NOISE_SIGMAS):
+def noise_scale(residual):
+    """Per channel (1, K, 1) the jitter's size, from the residual's second differences (white
+    noise of size s has second differences of size s * sqrt(6); smooth motion has almost none):
+    a clean clip's fast motion is not mistaken for noise."""
+    second = np.linalg.norm(np.diff(residual, 2, axis=0), axis=-1, keepdims=True)
+    return np.median(second, axis=0, keepdims=True) / np.sqrt(6.0)
+
+
+def garrote(residual, sigmas=None):
     """Shrink residual vectors (F, K, d): small ones (noise) to zero, large ones kept."""
     size = np.linalg.norm(residual, axis=-1, keepdims=True)
-    sigma = 1.4826 * np.median(size, axis=0, keepdims=True)
-    t = sigmas * sigma
+    t = (NOISE_SIGMAS if sigmas is None else sigmas) * noise_scale(residual)
     keep = np.clip(1.0 - (t / np.maximum(size, 1e-12)) ** 2, 0.0, 1.0)
     return residual * keep
 
