@@ -134,9 +134,9 @@ def _skate(skeleton, traj, o, report):
     contacts = feet.find_contacts(points, traj.fps)
     report["contacts"] = {s: [[float(traj.frames[a]), float(traj.frames[b - 1])] for a, b in feet.contact_runs(c)]
                           for s, c in contacts.items()}
-    offsets = feet.foot_offsets(points, traj.fps, floor=None, skate=True)
+    offsets = feet.foot_offsets(points, traj.fps, floor=report.get("ground_m"), skate=True)
     traj, moved = feet.move_feet(skeleton, traj, offsets)
-    traj, _ = feet.pin_toes(skeleton, traj)
+    traj, _ = feet.pin_toes(skeleton, traj, report.get("ground_m"))
     slide = {s: float(100 * np.linalg.norm(d[:, :2], axis=1).max()) for s, d in offsets.items()}
     return traj, {"contacts": report["contacts"], "largest_correction_cm": slide}
 

@@ -11,6 +11,7 @@ contacts shorter than `min_seconds` are merged into their neighbours.
 import numpy as np
 
 from .. import rotations
+from ..dynamics.spatial import quat_log
 from ..motion_control.contacts import hysteresis, remove_short_runs, runs
 
 HEIGHT_ON, HEIGHT_OFF = 0.03, 0.05  # m above the point's own lowest level
@@ -126,6 +127,17 @@ def _unit(v):
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
+def knee_hinge(skeleton, quats, side):
+    """The axis (shin bone frame) the knee bends about in this motion: the principal direction of
+    its rotation vectors, signed so the mean bend is positive; the bone's X axis (Blender's knee
+    axis) for a knee that hardly bends."""
+    r = quat_log(quats[:, skeleton.role_index(f"shin.{side}")])
+    if np.linalg.norm(r, axis=1).max() < np.radians(5):
+        return np.array([1.0, 0.0, 0.0])
+    axis = np.linalg.eigh(r.T @ r)[1][:, -1]
+    return axis if (r @ axis).mean() >= 0 else -axis
+
+
 def reach(skeleton, traj, side, offset, frames):
     """Local rotations (n, 3, 4) of thigh, shin and foot on `frames` that move the foot by
     offset[frames] ((F, 3), or (F, 7) from foot_offsets: with a turn about a pivot), changing the
@@ -155,9 +167,10 @@ def reach(skeleton, traj, side, offset, frames):
     c_new = np.clip(np.linalg.norm(target - hip, axis=1), np.abs(a - b) + 1e-6, a + b - 1e-6)
     inner = lambda d: np.arccos(np.clip((a * a + b * b - d * d) / (2 * a * b), -1.0, 1.0))
     delta = inner(c) - inner(c_new)  # more bend: a smaller angle at the knee
-    n = np.cross(u, v)
-    straight = np.linalg.norm(n, axis=1) < 1e-6 * a * b
-    n[straight] = R[straight, shin][:, :, 0]  # a straight leg bends about the shin's X axis
+    # the knee bends about its own axis in this motion (not u x v, which turns over as the leg
+    # straightens), towards the side it bends to
+    hinge = knee_hinge(sk, traj.rotations, side)
+    n = np.einsum("fij,j->fi", R[:, shin], hinge)
     bend = _axis_rotation(_unit(n), delta)
     ankle1 = knee + np.einsum("fij,fj->fi", bend, v)
     p, q = _unit(ankle1 - hip), _unit(target - hip)
@@ -192,12 +205,15 @@ def move_feet(skeleton, traj, offsets, tolerance=1e-5):
     return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
 
 
-def pin_toes(skeleton, traj, fps=None):
+MAX_TOE_TURN_DEG = 60.0
+
+
+def pin_toes(skeleton, traj, floor=None):
     """Trajectories whose toe tips stay where they landed while the ball is down too (a flat
     foot): each toe bone turned about its head (the ball) to put its tip back, faded out over
-    RAMP_SECONDS after the contact. Returns (trajectories, {side: frames moved})."""
+    RAMP_SECONDS after the contact, by at most MAX_TOE_TURN_DEG. Returns (trajectories, {side: frames moved})."""
     from ..trajectories import Trajectories
-    sk, fps = skeleton, fps or traj.fps
+    sk, fps = skeleton, traj.fps
     world = traj.world_frames(sk)
     points = foot_points(sk, world)
     planted = planted_points(points, fps)
@@ -217,10 +233,12 @@ def pin_toes(skeleton, traj, fps=None):
             want = np.zeros_like(now)
             want[:, :2] = p[a, 1, :2] - head[a:b, :2]
             flat = np.linalg.norm(want[:, :2], axis=1)
-            want[:, 2] = np.sign(now[:, 2]) * np.sqrt(np.maximum(reach ** 2 - flat ** 2, 0.0))
+            want[:, 2] = (1.0 if now[0, 2] >= 0 else -1.0) * np.sqrt(np.maximum(reach ** 2 - flat ** 2, 0.0))
+            if floor is not None:  # the tip stays on or above the floor
+                want[:, 2] = np.maximum(want[:, 2], floor - head[a:b, 2])
             axis = np.cross(_unit(now), _unit(want))
             angle = np.arctan2(np.linalg.norm(axis, axis=1), np.einsum("fi,fi->f", _unit(now), _unit(want)))
-            omega[a:b] = _unit(axis) * angle[:, None]
+            omega[a:b] = _unit(axis) * np.minimum(angle, np.radians(MAX_TOE_TURN_DEG))[:, None]
             end = min(F, b + ramp)
             omega[b:end] = omega[b - 1] * (1.0 - np.arange(1, end - b + 1) / (ramp + 1))[:, None]
         frames = np.flatnonzero(np.linalg.norm(omega, axis=1) > 1e-9)
