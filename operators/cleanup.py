@@ -20,7 +20,7 @@ class HUMANANIM_OT_clean_up_capture(bpy.types.Operator):
 
     glitches: BoolProperty(name="Glitches", default=True, description="Repair flips, spikes and dropouts")
     glitch_strength: FloatProperty(name="Sensitivity", default=1.0, min=0.1, max=4.0,
-                                   description="Speed limits (1800 deg/s, 10 m/s) are divided by this")
+                                   description="Glitch limits (1800 deg/s for joints, 5 g for the root) are divided by this")
     jitter: BoolProperty(name="Jitter", default=True, description="Remove jitter, keeping fast intended motion")
     jitter_hz: FloatProperty(name="Cut-off", default=6.0, min=0.5, soft_max=30.0, description="Low-pass cut-off, Hz")
     jitter_strength: FloatProperty(name="Strength", default=1.0, min=0.0, max=1.0, subtype="FACTOR")

@@ -4,7 +4,7 @@ continuity of every quaternion channel.
 
 A glitch is told from fast intended motion by speed: no human joint turns faster than about
 1800 deg/s (a pitcher's elbow; a kick's knee stays near 1500), and no root moves faster than
-about 10 m/s. A burst of steps above that speed that comes back (the rotation after it is close
+about 5 g. A burst of steps above that speed that comes back (the rotation after it is close
 to the one before) is a spike: its frames are refilled from their neighbours by a cubic spline
 through the good frames. A burst that does not come back is a step: the frames after it are
 turned back by the jump (less the motion the neighbours predict), so the joint stays continuous.
@@ -19,7 +19,7 @@ from .. import rotations
 from ..dynamics.spatial import quat_exp, quat_log
 
 MAX_JOINT_SPEED_DEG_S = 1800.0
-MAX_ROOT_SPEED_M_S = 10.0
+MAX_ROOT_ACCEL_M_S2 = 50.0  # a hard landing; a spike is a jump out and back at once
 MAX_GLITCH_SECONDS = 0.2  # longer runs are motion, not a glitch
 MIN_GLITCH_FRAMES = 10
 # a burst that does not come back is repaired only if one of its steps is this large (and twice
@@ -143,12 +143,18 @@ def _remove_step(q, a, e):
 
 def position_spikes(p, fps, strength=1.0):
     """One point's positions (F, 3): the repaired copy and its spikes [("spike", first, last)]:
-    runs entered and left faster than a body moves that come back near where they started."""
+    runs entered and left with a change of velocity no body makes (beyond MAX_ROOT_ACCEL_M_S2,
+    and 1 cm) that come back near where they started."""
     p = np.array(p, float)
-    if len(p) < 3:
+    if len(p) < 5:
         return p, []
-    limit = MAX_ROOT_SPEED_M_S / fps / max(strength, 1e-3)
-    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    steps = np.diff(p, axis=0)
+    # each step against the local velocity (the median of its neighbours'): a jump out and back
+    # stands out however fast the body travels
+    pad = np.pad(steps, ((3, 3), (0, 0)), mode="edge")
+    around = np.stack([pad[k:k + len(steps)] for k in (0, 1, 2, 4, 5, 6)])
+    step = np.linalg.norm(steps - np.median(around, axis=0), axis=1)
+    limit = max(MAX_ROOT_ACCEL_M_S2 / fps ** 2, 0.01) / max(strength, 1e-3)
     events, bad = [], np.zeros(len(p), bool)
     bursts = _bursts(step, limit, limit / 3)
     for i, (a, b) in enumerate(bursts):
@@ -160,7 +166,8 @@ def position_spikes(p, fps, strength=1.0):
                 break
             path += step[a2:b2 + 1].sum()
             end = b2 + 1
-            if end < len(p) and np.linalg.norm(p[end] - p[a]) < 0.25 * path:
+            if end < len(p) and np.linalg.norm(p[end] - p[a] - (end - a) * np.median(around[:, a], axis=0)) \
+                    < 0.25 * path:
                 bad[a + 1:end] = True
                 events.append(("spike", a + 1, end - 1))
                 break
