@@ -251,3 +251,16 @@ def pin_toes(skeleton, traj, floor=None):
         moved[side] = frames
     quats = rotations.make_continuous(quats)
     return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
+
+
+def planted_slide(skeleton, traj, planted):
+    """The largest distance (m) a planted foot point moves over the ground from where it landed,
+    over the contacts `planted` ({side: (F, k) bool}, from planted_points, e.g. of the input)."""
+    points = foot_points(skeleton, traj.world_frames(skeleton))
+    worst = 0.0
+    for side, down in planted.items():
+        for i in range(down.shape[1]):
+            for a, b in contact_runs(down[:, i]):
+                p = points[side][a:b, i, :2]
+                worst = max(worst, float(np.linalg.norm(p - p[0], axis=1).max()))
+    return worst

@@ -155,18 +155,6 @@ def test_floor_offset_removed():
     assert report["repairs"][2]["hovering_frames"] > 0  # planted feet on it, neither sinking nor hovering
 
 
-def _planted_slide(sk, tr, planted):
-    """Largest movement over the ground of a planted point (ball, toe tip) since it landed, m."""
-    points = feet.foot_points(sk, tr.world_frames(sk))
-    worst = 0.0
-    for side, down in planted.items():
-        for i in range(down.shape[1]):
-            for a, b in feet.contact_runs(down[:, i]):
-                p = points[side][a:b, i, :2]
-                worst = max(worst, np.linalg.norm(p - p[0], axis=1).max())
-    return worst
-
-
 def test_skate_removed_under_2_mm():
     sk, tr = clip()
     position, orientation = tr.root_pose(sk)
@@ -174,9 +162,9 @@ def test_skate_removed_under_2_mm():
     drift[:, 0] = 0.05 * np.sin(2 * np.pi * 0.3 * tr.times)  # the root drifts: the feet skate
     skating = tr.with_root_pose(sk, position + drift, orientation)
     planted = feet.planted_points(feet.foot_points(sk, skating.world_frames(sk)), tr.fps)
-    assert _planted_slide(sk, skating, planted) > 0.02
+    assert feet.planted_slide(sk, skating, planted) > 0.02
     out, report = clean_up(sk, skating, Options(glitches=False, jitter=False, floor=False))
-    assert _planted_slide(sk, out, planted) < 0.002
+    assert feet.planted_slide(sk, out, planted) < 0.002
     np.testing.assert_allclose(out.root_pose(sk)[0], skating.root_pose(sk)[0], atol=1e-9)  # body on its path
     entry = report["repairs"][3]
     assert entry["qa_after"]["slide"]["value"] < entry["qa_before"]["slide"]["value"]
