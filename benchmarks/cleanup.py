@@ -271,7 +271,7 @@ def main():
     print(f"jitter: {j['before_rms_deg']:.2f} -> {j['after_rms_deg']:.2f} deg RMS (median), tails "
           f"{j['before_tail_rms_mm']:.1f} -> {j['after_tail_rms_mm']:.1f} mm")
     f = result["feet"]
-    print(f"floor: found within {f['floor_error_mm_max']:.1f} mm; lowest point {f['lowest_mm_min']:.1f} mm; slide "
+    print(f"floor: found within {f['floor_error_mm_max']:.1f} mm; lowest point {f['lowest_mm_min']:.1f} mm (feet {f['lowest_foot_mm_min']:.1f} mm); slide "
           f"{f['slide_before_mm_median']:.1f} -> {f['slide_after_mm_median']:.2f} mm median, worst {f['slide_after_mm_max']:.2f} mm, "
           f"{f['slide_after_under_2mm_clips']}/{f['clips']} clips under 2 mm")
     print(f"clean clip: change {result['clean_rms_deg_median']:.3f} deg RMS median, worst {result['clean_rms_deg_max']:.3f}")
