@@ -73,6 +73,7 @@ def clean_up(skeleton, traj, options=None):
             entry["qa_before"] = qa_measures(skeleton, before, ground)
             entry["qa_after"] = qa_measures(skeleton, traj, ground)
         report["repairs"].append(entry)
+    report.pop("planted", None)  # arrays: not part of the report
     return traj, report
 
 
@@ -110,6 +111,9 @@ def _floor(skeleton, traj, o, report):
     """The whole body moved up or down so the floor under the planted feet is at the ground; then
     each planted foot put on it (no sinking, no hovering) by the legs' IK."""
     points = _points(skeleton, traj)
+    # contacts found before the feet are put on the floor (which makes every planted frame
+    # equally low and would merge them): the skate repair holds the same ones
+    report["planted"] = feet.planted_points(points, traj.fps)
     found = feet.find_floor(points, feet.find_contacts(points, traj.fps))
     ground = found if o.ground is None else float(o.ground)
     position, orientation = traj.root_pose(skeleton)
@@ -131,10 +135,11 @@ def _floor(skeleton, traj, o, report):
 
 def _skate(skeleton, traj, o, report):
     points = _points(skeleton, traj)
-    contacts = feet.find_contacts(points, traj.fps)
+    planted = report.pop("planted", None) or feet.planted_points(points, traj.fps)
+    contacts = {side: down.any(axis=1) for side, down in planted.items()}
     report["contacts"] = {s: [[float(traj.frames[a]), float(traj.frames[b - 1])] for a, b in feet.contact_runs(c)]
                           for s, c in contacts.items()}
-    offsets = feet.foot_offsets(points, traj.fps, floor=report.get("ground_m"), skate=True)
+    offsets = feet.foot_offsets(points, traj.fps, floor=report.get("ground_m"), skate=True, planted=planted)
     traj, moved = feet.move_feet(skeleton, traj, offsets)
     traj, _ = feet.pin_toes(skeleton, traj, report.get("ground_m"))
     slide = {s: float(100 * np.linalg.norm(d[:, :2], axis=1).max()) for s, d in offsets.items()}

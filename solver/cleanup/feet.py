@@ -70,15 +70,16 @@ def _heading(v):
     return np.arctan2(v[..., 1], v[..., 0])
 
 
-def foot_offsets(points, fps, floor=None, skate=True):
+def foot_offsets(points, fps, floor=None, skate=True, planted=None):
     """{side: (F, 7)} how to move each foot: a translation (0:3), a turn about the vertical (3)
     and the point it turns about (4:7). Horizontally (skate): while a point of the foot is
     planted, back to where that point landed (the ball while it is down, else the toe tip, so the
     heel can rise and the foot roll); while both are down, the foot turned back to its heading at
     landing. Vertically (with `floor`): a planted foot's lowest point on the floor, a foot in the
-    air never below it. Faded in and out around each contact."""
+    air never below it. Faded in and out around each contact. `planted`: the contacts
+    (planted_points) when already known, e.g. found before the floor repair flattened them."""
     ramp = max(1, int(round(RAMP_SECONDS * fps)))
-    planted = planted_points(points, fps)
+    planted = planted_points(points, fps) if planted is None else planted
     out = {}
     for side, p in points.items():
         F, k = p.shape[:2]
@@ -208,7 +209,7 @@ def move_feet(skeleton, traj, offsets, tolerance=1e-5):
 MAX_TOE_TURN_DEG = 60.0
 
 
-def pin_toes(skeleton, traj, floor=None):
+def pin_toes(skeleton, traj, floor=None, planted=None):
     """Trajectories whose toe tips stay where they landed while the ball is down too (a flat
     foot): each toe bone turned about its head (the ball) to put its tip back, faded out over
     RAMP_SECONDS after the contact, by at most MAX_TOE_TURN_DEG. Returns (trajectories, {side: frames moved})."""
@@ -216,7 +217,7 @@ def pin_toes(skeleton, traj, floor=None):
     sk, fps = skeleton, traj.fps
     world = traj.world_frames(sk)
     points = foot_points(sk, world)
-    planted = planted_points(points, fps)
+    planted = planted_points(points, fps) if planted is None else planted
     ramp = max(1, int(round(RAMP_SECONDS * fps)))
     quats = traj.rotations.copy()
     moved = {}
