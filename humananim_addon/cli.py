@@ -559,4 +559,4 @@ COMMANDS = {"info": cmd_info, "demo": cmd_demo, "simulate": cmd_simulate}
 # Modules of this package with `add_commands(subparsers, add_common_options) -> {name: run(args)}`;
 # `run` returns the summary dict (with "command" and "wrote") and raises HumanAnimError/UsageError.
 COMMAND_MODULES = ("sequence_cli", "control_cli", "cloth_cli", "flexible_cli", "walking_cli", "capture_cli",
-                   "hands_cli", "synthesis_cli", "batch")
+                   "hands_cli", "synthesis_cli", "cleanup.cli", "batch")

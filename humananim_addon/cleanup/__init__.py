@@ -1,0 +1,92 @@
+"""Clean Up Capture in Blender (issue 26): the active action (or a file's) read as trajectories,
+repaired by solver.cleanup, written as a NEW action (the source untouched) with the contacts found
+as pose markers the Motion Queue reads ("foot.L=supporting" where a foot lands, "foot.L=angular"
+where it lifts), and the repair report stored on the armature for the panel. One home for the
+operator and the command line."""
+
+import json
+import time
+
+import bpy
+
+from ...solver.cleanup import Options, clean_up
+from ...solver.errors import MotionError
+from .. import action_api
+from ..actions import read_action, write_action
+from ..armature import skeleton_from_armature
+
+PROPERTY = "humananim_cleanup"  # the last clean-up report, JSON, on the armature object
+
+
+def clean_action(obj, scene, action, options=None, name=None):
+    """Clean `action` on armature `obj`; returns the summary (its `report`: per repair what
+    changed and the QA measures before and after)."""
+    t0 = time.perf_counter()
+    options = options or Options()
+    skeleton = skeleton_from_armature(obj, scene)
+    traj = read_action(obj, scene, skeleton, action)
+    if traj.frame_count < 3:
+        raise MotionError(f"'{action.name}' has {traj.frame_count} frames: cleaning needs at least 3")
+    cleaned, report = clean_up(skeleton, traj, options)
+    result = write_action(obj, skeleton, cleaned, name or f"{action.name}.clean", source=action)
+    markers = write_contact_markers(result, report.get("contacts", {}))
+    summary = {"command": "cleanup", "armature": obj.name, "source_action": action.name, "action": result.name,
+               "frame_range": [float(traj.frames[0]), float(traj.frames[-1])], "fps": traj.fps,
+               "markers": markers, "report": report, "ms": round(1000 * (time.perf_counter() - t0), 1)}
+    obj[PROPERTY] = json.dumps(report)
+    return summary
+
+
+def write_contact_markers(action, contacts):
+    """Pose markers for the contacts {side: [[first, last frame], ...]}: the foot supports from
+    its first frame and is free (angular) after its last. Returns how many were written."""
+    count = 0
+    for side, runs in contacts.items():
+        for first, last in runs:
+            _marker(action, first, f"foot.{side}=supporting")
+            _marker(action, last + 1, f"foot.{side}=angular")
+            count += 2
+    return count
+
+
+def _marker(action, frame, name):
+    m = action.pose_markers.new(name)
+    m.frame = int(round(frame))
+    return m
+
+
+def stored(obj):
+    """The last clean-up report on `obj`, or None."""
+    text = obj.get(PROPERTY) if obj is not None else None
+    try:
+        return json.loads(text) if text else None
+    except (TypeError, ValueError):
+        return None
+
+
+def lines(report):
+    """One line per repair for the panel and the command's text summary."""
+    out = []
+    for r in report.get("repairs", []):
+        if not r.get("enabled"):
+            out.append(f"{r['repair']}: off")
+            continue
+        head = f"{r['repair']}: {r['frame_count']} frames, {len(r['bones'])} bones, largest {r['max_change_deg']:.1f} deg"
+        if r["repair"] == "glitches":
+            head += f", {len(r['events'])} glitches"
+        elif r["repair"] == "floor":
+            head += f", floor {100 * r['floor_m']:+.1f} cm moved to {100 * r['ground_m']:.1f} cm"
+        qa = [f"{k} {r['qa_before'][k]['value']:g}->{r['qa_after'][k]['value']:g} {r['qa_after'][k]['unit']}"
+              for k in ("slide", "penetration", "pop_velocity") if k in r.get("qa_after", {})
+              and r["qa_before"][k]["value"] is not None and r["qa_after"][k]["value"] is not None]
+        out.append(head + ("; " + ", ".join(qa) if qa else ""))
+    return out
+
+
+def active_action(obj):
+    ad = obj.animation_data if obj is not None else None
+    return ad.action if ad is not None else None
+
+
+def assign(obj, action):
+    action_api.assign_action(obj, action, action_api.object_slot(action, obj))

@@ -1,0 +1,171 @@
+"""Clean Up Capture (issue 26): repairs for raw motion capture, each a small function on plain
+arrays (glitches, jitter) or on a Skeleton and its Trajectories (floor, contacts, foot skate),
+chained by `clean_up`, which reports per repair what changed (frames, bones, sizes) and the motion
+QA's measures before and after it.
+
+Order: glitches (so the filter and the contacts never see a flip), jitter, floor (the whole body
+moved so the floor found under the planted feet is at `ground`), then contacts and skate (planted
+feet held where they land, at the floor, the legs solved to reach them)."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import qa, rotations
+from ..trajectories import Trajectories
+from . import feet
+from . import glitches as glitch_repair
+from . import jitter as jitter_filter
+
+REPAIRS = ("glitches", "jitter", "floor", "skate")
+QA_KEYS = ("slide", "penetration", "pop_velocity", "pop_acceleration")
+
+
+@dataclass
+class Options:
+    glitches: bool = True
+    jitter: bool = True
+    floor: bool = True
+    skate: bool = True
+    glitch_strength: float = 1.0  # detection: speed limits divided by it
+    jitter_strength: float = 1.0  # 0..1: how much of the jitter is removed
+    jitter_hz: float = jitter_filter.DEFAULT_CUTOFF_HZ
+    ground: float = 0.0  # floor height (m, world Z) the feet are put on; None keeps the found floor
+
+
+def motion(skeleton, traj):
+    """The motion QA's Motion of trajectories (bone heads and tails in the world)."""
+    world = traj.world_frames(skeleton)
+    heads = world[..., :3, 3]
+    tails = heads + world[..., :3, 1] * skeleton.lengths[:, None]
+    return qa.Motion(heads, traj.rotations, skeleton.names, traj.fps, skeleton.parents, tails, traj.frames)
+
+
+def qa_measures(skeleton, traj, ground=None):
+    """The QA measures of one motion, each {value, unit, bone, frames}."""
+    m = motion(skeleton, traj)
+    report = qa.measure(m, None, qa.feet_from_roles(skeleton.roles, skeleton.names), ground)
+    return {k: {f: report["measures"][k].get(f) for f in ("value", "unit", "bone", "frames")}
+            for k in QA_KEYS if k in report["measures"]}
+
+
+def translating_joints(traj, tolerance=1e-6):
+    """Joints whose location channel moves (the root, and any other that translates)."""
+    t = traj.translations
+    return np.flatnonzero(np.ptp(t, axis=0).max(axis=1) > tolerance)
+
+
+def clean_up(skeleton, traj, options=None):
+    """The cleaned Trajectories and a report: {"repairs": [per repair], "contacts": {side: [(first,
+    last frame)]}, "floor_m": found floor, "ground_m": the floor it was put on}."""
+    o = options or Options()
+    report = {"repairs": []}
+    steps = (("glitches", _glitches), ("jitter", _jitter), ("floor", _floor), ("skate", _skate))
+    ground = None
+    for name, step in steps:
+        entry = {"repair": name, "enabled": bool(getattr(o, name))}
+        if entry["enabled"]:
+            before = traj
+            traj, details = step(skeleton, traj, o, report)
+            entry.update(details)
+            entry.update(_changes(skeleton, before, traj))
+            ground = report.get("ground_m", ground)
+            entry["qa_before"] = qa_measures(skeleton, before, ground)
+            entry["qa_after"] = qa_measures(skeleton, traj, ground)
+        report["repairs"].append(entry)
+    report.pop("planted", None)  # arrays: not part of the report
+    return traj, report
+
+
+def _with(traj, quats=None, translations=None):
+    return Trajectories(traj.frames, traj.fps, traj.rotations if quats is None else quats,
+                        traj.translations if translations is None else translations, traj.armature_to_world)
+
+
+def _glitches(skeleton, traj, o, report):
+    moving = translating_joints(traj)
+    q, p, events = glitch_repair.repair(traj.rotations, traj.translations[:, moving], traj.fps, o.glitch_strength)
+    trans = traj.translations.copy()
+    trans[:, moving] = p
+    listed = []
+    for kind, channel, a, b in events:
+        bone = None if channel is None else skeleton.names[channel[1] if channel[0] == "rotation" else moving[channel[1]]]
+        listed.append({"kind": kind if channel is None or channel[0] == "rotation" else f"position {kind}",
+                       "bone": bone, "frames": [float(traj.frames[a]), float(traj.frames[b])]})
+    return _with(traj, q, trans), {"strength": o.glitch_strength, "events": listed}
+
+
+def _jitter(skeleton, traj, o, report):
+    moving = translating_joints(traj)
+    q = jitter_filter.smooth_rotations(traj.rotations, traj.fps, o.jitter_hz, o.jitter_strength)
+    trans = traj.translations.copy()
+    trans[:, moving] = jitter_filter.smooth_positions(trans[:, moving], traj.fps, o.jitter_hz, o.jitter_strength)
+    return _with(traj, q, trans), {"strength": o.jitter_strength, "cutoff_hz": o.jitter_hz}
+
+
+def _points(skeleton, traj):
+    return feet.foot_points(skeleton, traj.world_frames(skeleton))
+
+
+def _floor(skeleton, traj, o, report):
+    """The whole body moved up or down so the floor under the planted feet is at the ground; then
+    each planted foot put on it (no sinking, no hovering) by the legs' IK."""
+    points = _points(skeleton, traj)
+    # contacts found before the feet are put on the floor (which makes every planted frame
+    # equally low and would merge them): the skate repair holds the same ones
+    report["planted"] = feet.planted_points(points, traj.fps)
+    found = feet.find_floor(points, feet.find_contacts(points, traj.fps))
+    ground = found if o.ground is None else float(o.ground)
+    position, orientation = traj.root_pose(skeleton)
+    position = position.copy()
+    position[:, 2] += ground - found
+    traj = traj.with_root_pose(skeleton, position, orientation)
+    report.update(floor_m=found, ground_m=ground)
+    points = _points(skeleton, traj)
+    offsets = feet.foot_offsets(points, traj.fps, floor=ground, skate=False)
+    traj, moved = feet.move_feet(skeleton, traj, offsets)
+    contacts = feet.find_contacts(points, traj.fps)
+    after = _points(skeleton, traj)
+    # a hovering foot on a straight leg can't be lowered without moving the body off its path
+    hovering = sum(int((p[contacts[s]][..., 2].min(axis=1) > ground + 0.002).sum()) for s, p in after.items())
+    return traj, {"floor_m": found, "ground_m": ground, "shift_m": ground - found,
+                  "feet_moved_cm": {s: float(100 * np.abs(d[:, 2]).max()) for s, d in offsets.items()},
+                  "hovering_frames": hovering}
+
+
+def _skate(skeleton, traj, o, report):
+    points = _points(skeleton, traj)
+    planted = report.pop("planted", None) or feet.planted_points(points, traj.fps)
+    contacts = {side: down.any(axis=1) for side, down in planted.items()}
+    report["contacts"] = {s: [[float(traj.frames[a]), float(traj.frames[b - 1])] for a, b in feet.contact_runs(c)]
+                          for s, c in contacts.items()}
+    offsets = feet.foot_offsets(points, traj.fps, floor=report.get("ground_m"), skate=True, planted=planted)
+    traj, moved = feet.move_feet(skeleton, traj, offsets)
+    traj, _ = feet.pin_toes(skeleton, traj, report.get("ground_m"))
+    slide = {s: float(100 * np.linalg.norm(d[:, :2], axis=1).max()) for s, d in offsets.items()}
+    return traj, {"contacts": report["contacts"], "largest_correction_cm": slide}
+
+
+def _changes(skeleton, before, after):
+    """What a repair changed: frames and bones whose rotation moved by more than 0.1 deg or whose
+    location moved more than 1 mm, and the largest changes."""
+    deg = np.degrees(rotations.angle_between(before.rotations, after.rotations))  # (F, J)
+    cm = 100 * np.linalg.norm(after.translations - before.translations, axis=-1)
+    changed = (deg > 0.1) | (cm > 0.1)
+    frames = before.frames[changed.any(axis=1)]
+    bones = [skeleton.names[j] for j in np.flatnonzero(changed.any(axis=0))]
+    return {"changed": bool(changed.any()), "frames": _ranges(frames), "frame_count": int(len(frames)),
+            "bones": bones, "max_change_deg": round(float(deg.max()), 3) if deg.size else 0.0,
+            "rms_change_deg": round(float(np.sqrt(np.mean(deg ** 2))), 4) if deg.size else 0.0,
+            "max_change_cm": round(float(cm.max()), 3) if cm.size else 0.0}
+
+
+def _ranges(frames):
+    """Frame numbers as [[first, last], ...] runs of consecutive frames."""
+    out = []
+    for f in frames:
+        if out and f - out[-1][1] <= 1.0 + 1e-9:
+            out[-1][1] = float(f)
+        else:
+            out.append([float(f), float(f)])
+    return out

@@ -1,0 +1,267 @@
+"""Feet on the floor: contacts found from the motion, the floor under them, and foot skate
+removed with the legs' analytic IK (motion_control.limb_ik) while the body keeps its path.
+
+Foot points: each foot's ball (the foot bone's tail) and toe tip (the toe bone's tail), as the
+motion QA plants them. A point is planted when it is low (within `height_on` of its own lowest
+level in the clip) and slow (slower than `speed_on` over the ground), and stays planted until it
+rises above `height_off` or moves faster than `speed_off` (hysteresis: motion_control.contacts);
+contacts shorter than `min_seconds` are merged into their neighbours.
+"""
+
+import numpy as np
+
+from .. import rotations
+from ..dynamics.spatial import quat_log
+from ..motion_control.contacts import hysteresis, remove_short_runs, runs
+
+HEIGHT_ON, HEIGHT_OFF = 0.03, 0.05  # m above the point's own lowest level
+SPEED_ON, SPEED_OFF = 0.3, 0.6  # m/s over the ground
+MIN_SECONDS = 0.1
+RAMP_SECONDS = 0.15  # the IK correction fades in and out over this time around a contact
+FLOOR_PERCENTILE = 10.0
+
+
+def foot_points(skeleton, world):
+    """{side: (F, k, 3)} world points of each foot (ball, toe tip) from world frames (F, J, 4, 4)."""
+    out = {}
+    for side in ("L", "R"):
+        joints = [j for j in (skeleton.role_index(f"{r}.{side}") for r in ("foot", "toe")) if j is not None]
+        if joints:
+            w = world[:, joints]
+            tails = w[..., :3, 3] + w[..., :3, 1] * skeleton.lengths[joints][None, :, None]
+            out[side] = tails
+    return out
+
+
+def planted_points(points, fps):
+    """{side: bool (F, k)} each foot point is planted (low and slow, with hysteresis)."""
+    out = {}
+    shortest = max(2, int(round(MIN_SECONDS * fps)))
+    for side, p in points.items():
+        h = p[..., 2] - np.percentile(p[..., 2], 5, axis=0)
+        speed = np.linalg.norm(np.gradient(p[..., :2], axis=0), axis=-1) * fps
+        down = hysteresis(h < HEIGHT_ON, speed < SPEED_ON, (h > HEIGHT_OFF) | (speed > SPEED_OFF))
+        out[side] = np.stack([remove_short_runs(d, shortest) for d in down.T], axis=1)
+    return out
+
+
+def find_contacts(points, fps):
+    """{side: bool (F,)} the foot is planted (any of its points). `points` from foot_points."""
+    return {side: d.any(axis=1) for side, d in planted_points(points, fps).items()}
+
+
+def contact_runs(mask):
+    return [(a, b) for on, a, b in runs(mask) if on]  # b exclusive
+
+
+def find_floor(points, contacts=None):
+    """The floor height: a low percentile, over the frames, of the lowest foot point (over the
+    contact frames when given), so a few toe dips or a foot through the floor do not set it, and
+    few planted frames hover above it (lowering a foot needs a leg that can still stretch)."""
+    low = np.min([p[..., 2].min(axis=1) for p in points.values()], axis=0)
+    if contacts:
+        on = np.any([c for c in contacts.values()], axis=0)
+        if on.sum() >= 3:
+            return float(np.percentile(low[on], FLOOR_PERCENTILE))
+    return float(np.percentile(low, FLOOR_PERCENTILE))
+
+
+def _heading(v):
+    return np.arctan2(v[..., 1], v[..., 0])
+
+
+def foot_offsets(points, fps, floor=None, skate=True, planted=None):
+    """{side: (F, 7)} how to move each foot: a translation (0:3), a turn about the vertical (3)
+    and the point it turns about (4:7). Horizontally (skate): while a point of the foot is
+    planted, back to where that point landed (the ball while it is down, else the toe tip, so the
+    heel can rise and the foot roll); while both are down, the foot turned back to its heading at
+    landing. Vertically (with `floor`): a planted foot's lowest point on the floor, a foot in the
+    air never below it. Faded in and out around each contact. `planted`: the contacts
+    (planted_points) when already known, e.g. found before the floor repair flattened them."""
+    ramp = max(1, int(round(RAMP_SECONDS * fps)))
+    planted = planted_points(points, fps) if planted is None else planted
+    out = {}
+    for side, p in points.items():
+        F, k = p.shape[:2]
+        d = np.zeros((F, 7))
+        down = planted[side]
+        on = down.any(axis=1)
+        pick = np.where(down[:, 0], 0, np.argmax(down, axis=1))  # the ball first
+        d[:, 4:7] = p[np.arange(F), pick]
+        flat = down.all(axis=1) if k > 1 else np.zeros(F, bool)
+        if skate:
+            slip = np.zeros((F, k, 2))
+            for i in range(k):
+                for a, b in contact_runs(down[:, i]):
+                    slip[a:b, i] = p[a, i, :2] - p[a:b, i, :2]
+            d[:, :2] = np.where(on[:, None], slip[np.arange(F), pick], 0.0)
+            for a, b in contact_runs(flat):
+                h = _heading(p[a:b, 1, :2] - p[a:b, 0, :2])
+                d[a:b, 3] = np.angle(np.exp(1j * (h[0] - h)))
+        if floor is not None:  # planted: on the floor; in the air: never below it
+            low = p[..., 2].min(axis=1)
+            d[on, 2] = floor - low[on]
+            d[~on, 2] = np.maximum(floor - low[~on], 0.0)
+        moved = on | (d[:, 2] > 0)
+        far = np.convolve(moved.astype(float), np.ones(2 * ramp + 1), "same") == 0
+        idx = np.arange(F)
+        for c, known in ((0, moved), (1, moved), (2, moved), (3, flat if skate else moved)):
+            known = known | far
+            if known.any() and not known.all():
+                d[~known, c] = np.interp(idx[~known], idx[known], d[known, c])
+        if floor is not None:  # a fade that lowers a hovering foot stops at the floor
+            d[:, 2] = np.maximum(d[:, 2], floor - p[..., 2].min(axis=1))
+        out[side] = d
+    return out
+
+
+def _axis_rotation(axis, angle):
+    """(F, 3, 3) rotations by `angle` (F,) about unit `axis` (F, 3) (Rodrigues)."""
+    k = np.zeros(axis.shape[:-1] + (3, 3))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -axis[..., 2], axis[..., 1], -axis[..., 0]
+    k -= np.swapaxes(k, -1, -2)
+    s, c = np.sin(angle)[..., None, None], np.cos(angle)[..., None, None]
+    return np.eye(3) + s * k + (1 - c) * (k @ k)
+
+
+def _unit(v):
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
+def knee_hinge(skeleton, quats, side):
+    """The axis (shin bone frame) the knee bends about in this motion: the principal direction of
+    its rotation vectors, signed so the mean bend is positive; the bone's X axis (Blender's knee
+    axis) for a knee that hardly bends."""
+    r = quat_log(quats[:, skeleton.role_index(f"shin.{side}")])
+    if np.linalg.norm(r, axis=1).max() < np.radians(5):
+        return np.array([1.0, 0.0, 0.0])
+    axis = np.linalg.eigh(r.T @ r)[1][:, -1]
+    return axis if (r @ axis).mean() >= 0 else -axis
+
+
+def reach(skeleton, traj, side, offset, frames):
+    """Local rotations (n, 3, 4) of thigh, shin and foot on `frames` that move the foot by
+    offset[frames] ((F, 3), or (F, 7) from foot_offsets: with a turn about a pivot), changing the
+    leg least: the knee bends
+    about its own current axis to give the hip-ankle distance, then the thigh swings (no twist)
+    to point the ankle at its target. The thigh keeps its twist and the knee its off-hinge
+    rotation, which a hinge-and-swivel solve (motion_control.limb_ik.LimbIK) would re-derive:
+    on CMU's three-axis knees that moved the thighs' twist by up to 90 deg for a 0.1 mm target."""
+    sk = skeleton
+    thigh, shin, foot = (sk.role_index(f"{r}.{side}") for r in ("thigh", "shin", "foot"))
+    if None in (thigh, shin, foot) or sk.parents[shin] != thigh or sk.parents[foot] != shin:
+        raise ValueError(f"leg {side}: thigh, shin and foot must be a parent-child chain")
+    basis = traj.basis()[frames]
+    world = sk.world_frames(basis, traj.armature_to_world)
+    R = world[..., :3, :3]
+    hip, knee, ankle = (world[:, j, :3, 3] for j in (thigh, shin, foot))
+    off = np.asarray(offset, float)[frames]
+    if off.shape[1] < 7:
+        off = np.concatenate((off[:, :3], np.zeros((len(off), 1)), ankle), axis=1)
+    turn = _axis_rotation(np.broadcast_to([0.0, 0.0, 1.0], (len(off), 3)), off[:, 3])
+    pivot = off[:, 4:7]
+    target = pivot + off[:, :3] + np.einsum("fij,fj->fi", turn, ankle - pivot)
+    r_foot = turn @ R[:, foot]
+    u, v = knee - hip, ankle - knee
+    a, b = np.linalg.norm(u, axis=1), np.linalg.norm(v, axis=1)
+    c = np.linalg.norm(ankle - hip, axis=1)
+    c_new = np.clip(np.linalg.norm(target - hip, axis=1), np.abs(a - b) + 1e-6, a + b - 1e-6)
+    inner = lambda d: np.arccos(np.clip((a * a + b * b - d * d) / (2 * a * b), -1.0, 1.0))
+    delta = inner(c) - inner(c_new)  # more bend: a smaller angle at the knee
+    # the knee bends about its own axis in this motion (not u x v, which turns over as the leg
+    # straightens), towards the side it bends to
+    hinge = knee_hinge(sk, traj.rotations, side)
+    n = np.einsum("fij,j->fi", R[:, shin], hinge)
+    bend = _axis_rotation(_unit(n), delta)
+    ankle1 = knee + np.einsum("fij,fj->fi", bend, v)
+    p, q = _unit(ankle1 - hip), _unit(target - hip)
+    axis = np.cross(p, q)
+    swing = _axis_rotation(_unit(axis), np.arctan2(np.linalg.norm(axis, axis=1), np.einsum("fi,fi->f", p, q)))
+    r_thigh = swing @ R[:, thigh]
+    r_shin = swing @ bend @ R[:, shin]
+    rest = sk.rest_local[:, :3, :3]
+    parent = sk.parents[thigh]
+    r_parent = R[:, parent] if parent >= 0 else traj.armature_to_world[:3, :3]
+    local = [np.swapaxes(r_parent @ rest[thigh], -1, -2) @ r_thigh,
+             np.swapaxes(r_thigh @ rest[shin], -1, -2) @ r_shin,
+             np.swapaxes(r_shin @ rest[foot], -1, -2) @ r_foot]
+    return np.stack([rotations.from_matrix(m) for m in local], axis=1), (thigh, shin, foot)
+
+
+def move_feet(skeleton, traj, offsets, tolerance=1e-5):
+    """Trajectories with each leg solved (`reach`) so its foot moves by offsets[side] (F, 3)
+    and keeps its world orientation; the body is untouched. Returns (trajectories, {side:
+    frames moved})."""
+    from ..trajectories import Trajectories
+    quats = traj.rotations.copy()
+    moved = {}
+    for side, d in offsets.items():
+        frames = np.flatnonzero(np.linalg.norm(d[:, :4], axis=1) > tolerance)
+        if not len(frames):
+            continue
+        q, joints = reach(skeleton, traj, side, d, frames)
+        quats[np.ix_(frames, joints)] = q
+        moved[side] = frames
+    quats = rotations.make_continuous(quats)
+    return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
+
+
+MAX_TOE_TURN_DEG = 60.0
+
+
+def pin_toes(skeleton, traj, floor=None, planted=None):
+    """Trajectories whose toe tips stay where they landed while the ball is down too (a flat
+    foot): each toe bone turned about its head (the ball) to put its tip back, faded out over
+    RAMP_SECONDS after the contact, by at most MAX_TOE_TURN_DEG. Returns (trajectories, {side: frames moved})."""
+    from ..trajectories import Trajectories
+    sk, fps = skeleton, traj.fps
+    world = traj.world_frames(sk)
+    points = foot_points(sk, world)
+    planted = planted_points(points, fps) if planted is None else planted
+    ramp = max(1, int(round(RAMP_SECONDS * fps)))
+    quats = traj.rotations.copy()
+    moved = {}
+    for side, p in points.items():
+        toe, foot = sk.role_index(f"toe.{side}"), sk.role_index(f"foot.{side}")
+        if toe is None or p.shape[1] < 2 or sk.parents[toe] != foot:
+            continue
+        F = len(p)
+        omega = np.zeros((F, 3))
+        head = world[:, toe, :3, 3]
+        for a, b in contact_runs(planted[side].all(axis=1)):
+            now = p[a:b, 1] - head[a:b]
+            reach = np.linalg.norm(now, axis=1)
+            want = np.zeros_like(now)
+            want[:, :2] = p[a, 1, :2] - head[a:b, :2]
+            flat = np.linalg.norm(want[:, :2], axis=1)
+            want[:, 2] = (1.0 if now[0, 2] >= 0 else -1.0) * np.sqrt(np.maximum(reach ** 2 - flat ** 2, 0.0))
+            if floor is not None:  # the tip stays on or above the floor
+                want[:, 2] = np.maximum(want[:, 2], floor - head[a:b, 2])
+            axis = np.cross(_unit(now), _unit(want))
+            angle = np.arctan2(np.linalg.norm(axis, axis=1), np.einsum("fi,fi->f", _unit(now), _unit(want)))
+            omega[a:b] = _unit(axis) * np.minimum(angle, np.radians(MAX_TOE_TURN_DEG))[:, None]
+            end = min(F, b + ramp)
+            omega[b:end] = omega[b - 1] * (1.0 - np.arange(1, end - b + 1) / (ramp + 1))[:, None]
+        frames = np.flatnonzero(np.linalg.norm(omega, axis=1) > 1e-9)
+        if not len(frames):
+            continue
+        turn = _axis_rotation(_unit(omega[frames]), np.linalg.norm(omega[frames], axis=1))
+        parent = world[frames, foot, :3, :3] @ sk.rest_local[toe, :3, :3]
+        local = np.swapaxes(parent, -1, -2) @ turn @ world[frames, toe, :3, :3]
+        quats[frames, toe] = rotations.from_matrix(local)
+        moved[side] = frames
+    quats = rotations.make_continuous(quats)
+    return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
+
+
+def planted_slide(skeleton, traj, planted):
+    """The largest distance (m) a planted foot point moves over the ground from where it landed,
+    over the contacts `planted` ({side: (F, k) bool}, from planted_points, e.g. of the input)."""
+    points = foot_points(skeleton, traj.world_frames(skeleton))
+    worst = 0.0
+    for side, down in planted.items():
+        for i in range(down.shape[1]):
+            for a, b in contact_runs(down[:, i]):
+                p = points[side][a:b, i, :2]
+                worst = max(worst, float(np.linalg.norm(p - p[0], axis=1).max()))
+    return worst

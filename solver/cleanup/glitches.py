@@ -1,0 +1,194 @@
+"""Glitch repair on plain arrays: dropouts (held or zero frames), single- and few-frame rotation
+flips and spikes, rotation steps (a joint that jumps and stays), position spikes, and the sign
+continuity of every quaternion channel.
+
+A glitch is told from fast intended motion by speed: no human joint turns faster than about
+1800 deg/s (a pitcher's elbow; a kick's knee stays near 1500), and no root moves faster than
+about 5 g. A burst of steps above that speed that comes back (the rotation after it is close
+to the one before) is a spike: its frames are refilled from their neighbours by a cubic spline
+through the good frames. A burst that does not come back is a step: the frames after it are
+turned back by the jump (less the motion the neighbours predict), so the joint stays continuous.
+
+Arrays: local quaternions (F, J, 4) (w, x, y, z); positions (F, K, 3) in metres; fps.
+"""
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from .. import rotations
+from ..dynamics.spatial import quat_exp, quat_log
+
+MAX_JOINT_SPEED_DEG_S = 1800.0
+MAX_ROOT_ACCEL_M_S2 = 50.0  # a hard landing; a spike is a jump out and back at once
+MAX_GLITCH_SECONDS = 0.2  # longer runs are motion, not a glitch
+MIN_GLITCH_FRAMES = 10
+# a burst that does not come back is repaired only if one of its steps is this large (and twice
+# the speed limit): a fast turn that stays is more likely motion than a glitch
+STEP_MIN_DEG = 30.0
+
+
+def max_run(fps):
+    return max(MIN_GLITCH_FRAMES, int(round(MAX_GLITCH_SECONDS * fps)))
+
+
+def dropouts(quats, positions, fps, tolerance=1e-9):
+    """Bool (F,): frames of short dropouts, frames that repeat the frame before exactly (held) or
+    whose every rotation is the identity and every position zero (zeroed), in runs of at most
+    max_run(fps) frames inside moving motion."""
+    F = len(quats)
+    flat = np.concatenate((quats.reshape(F, -1), positions.reshape(F, -1)), axis=1)
+    held = np.zeros(F, bool)
+    held[1:] = np.all(np.abs(np.diff(flat, axis=0)) <= tolerance, axis=1)
+    zero = np.all(np.abs(np.abs(quats[..., 0]) - 1.0) <= tolerance, axis=1) & np.all(
+        np.abs(positions) <= tolerance, axis=(1, 2))
+    bad = held | zero
+    out = np.zeros(F, bool)
+    for a, b in _runs(bad):
+        if b - a <= max_run(fps) and a > 0 and b < F:  # a run reaching a clip end is no dropout
+            out[a:b] = True
+    return out
+
+
+def _runs(mask):
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], np.asarray(mask, int), [0]))))
+    return list(zip(edges[::2], edges[1::2]))
+
+
+def fill(values, bad, kind="rotation"):
+    """Frames `bad` of values (F, K, 4 or 3) refilled by a cubic spline through the good frames
+    (quaternions on the hemisphere of their good neighbours, normalised)."""
+    out = np.array(values, float)
+    good = np.flatnonzero(~bad)
+    if len(good) < 2 or not bad.any():
+        return out
+    v = out[good]
+    if kind == "rotation":
+        v = rotations.make_continuous(v)
+    spline = CubicSpline(good, v, axis=0)
+    idx = np.flatnonzero(bad)
+    inside = (idx > good[0]) & (idx < good[-1])
+    out[idx[inside]] = spline(idx[inside])
+    out[idx[~inside]] = out[good[np.abs(good[:, None] - idx[~inside][None]).argmin(axis=0)]]
+    if kind == "rotation":
+        out = rotations.make_continuous(rotations.normalize(out))
+    return out
+
+
+def _bursts(step, limit, low):
+    """Runs (first step, last step) of steps above `low` that contain one above `limit`."""
+    out = []
+    for a, b in _runs(step > low):
+        if (step[a:b] > limit).any():
+            out.append((a, b - 1))
+    return out
+
+
+def rotation_glitches(q, fps, strength=1.0):
+    """One joint's quaternions (F, 4): the repaired copy and the events [(kind, first, last
+    frame index)]. Step i is the rotation from frame i to i + 1."""
+    q = rotations.make_continuous(rotations.normalize(np.asarray(q, float)))
+    F = len(q)
+    if F < 3:
+        return q, []
+    limit = np.radians(MAX_JOINT_SPEED_DEG_S) / fps / max(strength, 1e-3)
+    hard = max(2 * limit, np.radians(STEP_MIN_DEG))
+    events, passed = [], set()
+    for _ in range(64):  # each pass repairs the first glitch; a step changes the frames after it
+        step = rotations.angle_between(q[:-1], q[1:])
+        bursts = [(a, b) for a, b in _bursts(step, limit, limit / 3) if a not in passed]
+        if not bursts:
+            break
+        a, b = bursts[0]  # frames a .. b + 1 take part; a is the last good frame before
+        end = _return(q, step, bursts, a, fps)
+        if end is not None:  # a spike: frames a+1 .. end-1 are wrong
+            bad = np.zeros(F, bool)
+            bad[a + 1:end] = True
+            q = fill(q, bad)
+            events.append(("spike", a + 1, end - 1))
+        elif step[a:b + 1].max() >= hard:  # a jump no joint makes, and it stays
+            q = _remove_step(q, a, b + 1)
+            events.append(("step", a + 1, b + 1))
+        passed.add(a)
+    return q, events
+
+
+def _return(q, step, bursts, a, fps):
+    """The first frame after a burst starting at step a where the rotation is back near frame a's
+    (within max_run frames): that frame, or None."""
+    span = max_run(fps)
+    path = 0.0
+    for a2, b2 in bursts:
+        if a2 > a + span:
+            break
+        path += step[a2:b2 + 1].sum()
+        end = b2 + 1
+        if end < len(q) and rotations.angle_between(q[a], q[end]) < 0.25 * path \
+                and end - a - 1 <= span:
+            return end
+    return None
+
+
+def _remove_step(q, a, e):
+    """Frames e.. turned so frame e follows frame a by the motion its neighbours predict."""
+    v_in = quat_log(rotations.multiply(rotations.conjugate(q[max(a - 1, 0)]), q[a]))
+    v_out = quat_log(rotations.multiply(rotations.conjugate(q[e]), q[min(e + 1, len(q) - 1)]))
+    predicted = rotations.multiply(q[a], quat_exp(0.5 * (v_in + v_out) * (e - a)))
+    offset = rotations.multiply(rotations.conjugate(q[e]), predicted)
+    out = q.copy()
+    out[e:] = rotations.multiply(q[e:], offset)
+    bad = np.zeros(len(q), bool)
+    bad[a + 1:e] = True
+    return fill(out, bad)
+
+
+def position_spikes(p, fps, strength=1.0):
+    """One point's positions (F, 3): the repaired copy and its spikes [("spike", first, last)]:
+    runs entered and left with a change of velocity no body makes (beyond MAX_ROOT_ACCEL_M_S2,
+    and 1 cm) that come back near where they started."""
+    p = np.array(p, float)
+    if len(p) < 5:
+        return p, []
+    steps = np.diff(p, axis=0)
+    # each step against the local velocity (the median of its neighbours'): a jump out and back
+    # stands out however fast the body travels
+    pad = np.pad(steps, ((3, 3), (0, 0)), mode="edge")
+    around = np.stack([pad[k:k + len(steps)] for k in (0, 1, 2, 4, 5, 6)])
+    step = np.linalg.norm(steps - np.median(around, axis=0), axis=1)
+    limit = max(MAX_ROOT_ACCEL_M_S2 / fps ** 2, 0.01) / max(strength, 1e-3)
+    events, bad = [], np.zeros(len(p), bool)
+    bursts = _bursts(step, limit, limit / 3)
+    for i, (a, b) in enumerate(bursts):
+        if bad[a + 1]:
+            continue
+        path = 0.0
+        for a2, b2 in bursts[i:]:
+            if a2 > a + max_run(fps):
+                break
+            path += step[a2:b2 + 1].sum()
+            end = b2 + 1
+            if end < len(p) and np.linalg.norm(p[end] - p[a] - (end - a) * np.median(around[:, a], axis=0)) \
+                    < 0.25 * path:
+                bad[a + 1:end] = True
+                events.append(("spike", a + 1, end - 1))
+                break
+    return fill(p, bad, "position"), events
+
+
+def repair(quats, positions, fps, strength=1.0):
+    """Every glitch of a motion: quats (F, J, 4), positions (F, K, 3) (the root's and any other
+    translating joint's). Returns repaired copies and events [(kind, channel, first, last)],
+    channel a joint index ('rotation'), a point index ('position') or None (the whole pose)."""
+    quats = rotations.make_continuous(rotations.normalize(np.asarray(quats, float)))
+    positions = np.array(positions, float)
+    events = []
+    gone = dropouts(quats, positions, fps)
+    if gone.any():
+        quats, positions = fill(quats, gone), fill(positions, gone, "position")
+        events += [("dropout", None, int(a), int(b - 1)) for a, b in _runs(gone)]
+    for j in range(quats.shape[1]):
+        quats[:, j], found = rotation_glitches(quats[:, j], fps, strength)
+        events += [(kind, ("rotation", j), a, b) for kind, a, b in found]
+    for k in range(positions.shape[1]):
+        positions[:, k], found = position_spikes(positions[:, k], fps, strength)
+        events += [(kind, ("position", k), a, b) for kind, a, b in found]
+    return rotations.make_continuous(quats), positions, events

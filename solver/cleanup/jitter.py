@@ -1,0 +1,60 @@
+"""Jitter removal that leaves fast intended motion alone.
+
+A zero-phase low-pass (Butterworth, forward and back) at `cutoff_hz` gives the smooth motion; the
+residual (what the low-pass took away, per joint a rotation vector, per point a displacement) is
+jitter where it is small and motion where it is large: a kick's snap leaves a residual many times
+the noise. So the residual is shrunk with a non-negative garrote, r * max(0, 1 - (t/|r|)^2), at
+t = 3 sigma, sigma the jitter's size estimated from the residual's second differences: noise is
+removed, a large residual (fast intended motion) is kept almost whole. The cut-off is in Hz, so it means the same at any
+frame rate; it is capped below the clip's Nyquist frequency.
+"""
+
+import numpy as np
+from scipy.signal import butter, filtfilt
+
+from .. import rotations
+from ..dynamics.spatial import quat_exp, quat_log
+
+DEFAULT_CUTOFF_HZ = 6.0
+NOISE_SIGMAS = 3.0
+
+
+def low_pass(x, fps, cutoff_hz, axis=0):
+    nyquist = 0.5 * fps
+    wn = min(cutoff_hz / nyquist, 0.9)
+    b, a = butter(2, wn)
+    if x.shape[axis] <= 3 * max(len(a), len(b)):
+        return np.array(x, float)
+    return filtfilt(b, a, x, axis=axis)
+
+
+def noise_scale(residual):
+    """Per channel (1, K, 1) the jitter's size, from the residual's second differences (white
+    noise of size s has second differences of size s * sqrt(6); smooth motion has almost none):
+    a clean clip's fast motion is not mistaken for noise."""
+    second = np.linalg.norm(np.diff(residual, 2, axis=0), axis=-1, keepdims=True)
+    return np.median(second, axis=0, keepdims=True) / np.sqrt(6.0)
+
+
+def garrote(residual, sigmas=None):
+    """Shrink residual vectors (F, K, d): small ones (noise) to zero, large ones kept."""
+    size = np.linalg.norm(residual, axis=-1, keepdims=True)
+    t = (NOISE_SIGMAS if sigmas is None else sigmas) * noise_scale(residual)
+    keep = np.clip(1.0 - (t / np.maximum(size, 1e-12)) ** 2, 0.0, 1.0)
+    return residual * keep
+
+
+def smooth_rotations(quats, fps, cutoff_hz=DEFAULT_CUTOFF_HZ, strength=1.0):
+    """Quaternions (F, J, 4) with their jitter removed; `strength` 0..1 blends."""
+    q = rotations.make_continuous(rotations.normalize(np.asarray(quats, float)))
+    smooth = rotations.normalize(low_pass(q, fps, cutoff_hz))
+    residual = quat_log(rotations.multiply(rotations.conjugate(smooth), q))  # smooth * exp(r) = q
+    kept = residual - strength * (residual - garrote(residual))
+    return rotations.make_continuous(rotations.multiply(smooth, quat_exp(kept)))
+
+
+def smooth_positions(positions, fps, cutoff_hz=DEFAULT_CUTOFF_HZ, strength=1.0):
+    p = np.asarray(positions, float)
+    smooth = low_pass(p, fps, cutoff_hz)
+    residual = p - smooth
+    return smooth + residual - strength * (residual - garrote(residual))

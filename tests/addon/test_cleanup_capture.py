@@ -1,0 +1,103 @@
+"""Clean Up Capture in Blender: the operator on the bundled CMU walk (its right wrist turns 55 deg
+in one frame near frame 236 and its right thumb flips 180 deg: both repaired, as Blender evaluates
+the new action), the contacts as Motion Queue pose markers, the source untouched, the panel's
+report; and `python -m humananim cleanup` as a user runs it."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import CMU_CLIPS, world_pose
+
+bpy = pytest.importorskip("bpy")
+
+from humananim.humananim_addon import cleanup, qa  # noqa: E402
+
+
+def _turn_deg(m):
+    """Per frame step the rotation angle of each bone's local (parent-relative) orientation."""
+    r = m[..., :3, :3] / np.linalg.norm(m[..., :3, :3], axis=-2, keepdims=True)
+    rel = np.einsum("fjki,fjkl->fjil", r[:-1], r[1:])
+    return np.degrees(np.arccos(np.clip((np.trace(rel, axis1=-2, axis2=-1) - 1) / 2, -1, 1)))
+
+
+def _local(obj, scene, frames):
+    world = world_pose(obj, scene, frames)
+    names = [pb.name for pb in obj.pose.bones]
+    parents = [names.index(pb.parent.name) if pb.parent else -1 for pb in obj.pose.bones]
+    local = world.copy()
+    for j, p in enumerate(parents):
+        if p >= 0:
+            local[:, j] = np.linalg.inv(world[:, p]) @ world[:, j]
+    return local, names
+
+
+def test_operator_repairs_the_wrist_and_thumb_and_writes_markers(cmu_rig):
+    scene = bpy.context.scene
+    source = cmu_rig.animation_data.action
+    digest = qa.action_digest(source)
+    frames = list(range(225, 250))
+    before, names = _local(cmu_rig, scene, frames)
+    assert bpy.ops.humananim.clean_up_capture() == {"FINISHED"}
+    result = cmu_rig.animation_data.action
+    assert result is not source and result.name == f"{source.name}.clean"
+    assert qa.action_digest(source) == digest  # the source untouched
+    after, _ = _local(cmu_rig, scene, frames)
+    wrist, thumb = names.index("RightWrist"), names.index("RThumb")
+    assert _turn_deg(before)[:, wrist].max() > 50 and _turn_deg(before)[:, thumb].max() > 170
+    assert _turn_deg(after)[:, wrist].max() < 20 and _turn_deg(after)[:, thumb].max() < 30
+    markers = {m.name for m in result.pose_markers}
+    assert {"foot.L=supporting", "foot.R=supporting", "foot.L=angular", "foot.R=angular"} <= markers
+    from humananim.humananim_addon.synthesis import marker_overrides
+    overrides = marker_overrides(result, [float(f) for f in range(1, 996)])
+    assert any(limb == "foot.L" and cons == "supporting" for limb, _, _, cons in overrides)
+    report = cleanup.stored(cmu_rig)
+    glitches = report["repairs"][0]
+    assert {"RightWrist", "RThumb"} <= {e["bone"] for e in glitches["events"]}
+    assert glitches["qa_after"]["pop_velocity"]["value"] < glitches["qa_before"]["pop_velocity"]["value"] / 5
+    stored = qa.stored(cmu_rig)
+    assert stored["action"] == result.name and stored["measures"]["source_untouched"]["value"] is True
+    from test_panels import RecordingLayout
+    from humananim.panels.cleanup import VIEW3D_PT_humananim_cleanup
+    log = []
+    VIEW3D_PT_humananim_cleanup.draw(type("P", (), {"layout": RecordingLayout(log)})(), bpy.context)
+    labels = [entry[1] for entry in log if entry[0] == "label"]
+    assert len(labels) == 4 and labels[0].startswith("glitches: ") and "glitches;" in labels[0]
+    assert [text.split(":")[0] for text in labels] == ["glitches", "jitter", "floor", "skate"]
+
+
+def test_operator_with_every_repair_off_but_glitches(cmu_rig):
+    assert bpy.ops.humananim.clean_up_capture(jitter=False, floor=False, skate=False) == {"FINISHED"}
+    report = cleanup.stored(cmu_rig)
+    assert [r["enabled"] for r in report["repairs"]] == [True, False, False, False]
+    assert len(cmu_rig.animation_data.action.pose_markers) == 0  # no contacts without the skate repair
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "humananim", *args], capture_output=True, text=True,
+                          timeout=300, env=dict(os.environ))
+
+
+@pytest.mark.slow
+def test_cleanup_command_json(tmp_path):
+    out = tmp_path / "clean.blend"
+    r = run("cleanup", CMU_CLIPS[0], "--no-jitter", "--jitter-hz", "8", "--out", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert s["command"] == "cleanup" and s["action"] == "cmu_131_01.clean" and out.exists()
+    assert [x["repair"] for x in s["report"]["repairs"]] == ["glitches", "jitter", "floor", "skate"]
+    assert s["report"]["repairs"][1] == {"repair": "jitter", "enabled": False}
+    assert s["qa"]["measures"]["source_untouched"]["value"] is True
+    assert s["qa"]["measures"]["penetration"]["value"] < 1.0  # cm: no foot through the floor
+    bones = {e["bone"] for e in s["report"]["repairs"][0]["events"]}
+    assert {"RightWrist", "RThumb"} <= bones and s["markers"] > 0
+
+
+def test_cleanup_command_refuses_bad_options(tmp_path):
+    r = run("cleanup", CMU_CLIPS[0], "--jitter-hz", "nan", "--out", str(tmp_path / "x.blend"))
+    assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "x.blend").exists()

@@ -1,0 +1,181 @@
+"""Clean Up Capture's repairs (solver/cleanup) on hand-made faults injected into the bundled CMU
+walk at known frames, and on the clean clip (nothing changes beyond the tolerances)."""
+
+import functools
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from humananim.solver import bvh, rotations
+from humananim.solver.cleanup import Options, clean_up, feet, glitches, jitter, qa_measures
+from humananim.solver.trajectories import Trajectories
+
+CMU = Path(__file__).resolve().parents[2] / "humananim_addon" / "data" / "mocap" / "cmu_131_01.bvh"
+
+
+@functools.lru_cache(maxsize=None)
+def _clip():
+    raw = bvh.read(CMU)
+    b = bvh.read(CMU, scale=1.7 / bvh.figure_height(raw))
+    sk = bvh.skeleton(b)
+    return sk, bvh.trajectories(b, sk)
+
+
+def clip(step=1):
+    """The CMU walk (120 fps, or every `step`-th frame) with its own glitches (the right wrist's
+    turn, the thumb's flips) repaired: the clean original the faults are injected into."""
+    sk, tr = _clip()
+    q, p, _ = glitches.repair(tr.rotations[::step], tr.translations[::step, :1], tr.fps / step)
+    t = tr.translations[::step].copy()
+    t[:, :1] = p
+    return sk, Trajectories(np.arange(1, len(q) + 1.0), tr.fps / step, q, t, np.eye(4))
+
+
+def turned(q, angle_deg, axis):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    return rotations.multiply(q, rotations.from_axis_angle(np.concatenate(([np.radians(angle_deg)], axis))))
+
+
+def deg(a, b):
+    return np.degrees(rotations.angle_between(a, b))
+
+
+def test_the_clip_own_glitches_are_found():
+    sk, tr = _clip()
+    q, _, events = glitches.repair(tr.rotations, tr.translations[:, :1], tr.fps)
+    bones = {sk.names[ch[1]] for _, ch, _, _ in events if ch}
+    assert {"RightWrist", "RThumb"} <= bones
+    wrist = [(kind, a, b) for kind, ch, a, b in events if ch and sk.names[ch[1]] == "RightWrist"]
+    assert any(a <= 236 <= b for _, a, b in wrist)  # the 55 deg turn in one frame near frame 236
+    for name in ("RightWrist", "RThumb"):
+        j = sk.names.index(name)
+        assert deg(q[:-1, j], q[1:, j]).max() < deg(tr.rotations[:-1, j], tr.rotations[1:, j]).max() / 2
+    untouched = [j for j, n in enumerate(sk.names) if n not in bones]
+    assert deg(q[:, untouched], tr.rotations[:, untouched]).max() < 1e-6
+
+
+@pytest.mark.parametrize("step, angle", [(1, 150.0), (4, 90.0), (4, 180.0)])
+def test_single_frame_flip_repaired_within_2_deg(step, angle):
+    sk, tr = clip(step)
+    j, f = sk.names.index("LeftElbow"), len(tr.frames) // 2
+    bad = tr.rotations.copy()
+    bad[f, j] = turned(bad[f, j], angle, (0.3, -0.5, 0.8))
+    q, _, events = glitches.repair(bad, tr.translations[:, :1], tr.fps)
+    assert ("spike", ("rotation", j), f, f) in events
+    assert deg(q[f, j], tr.rotations[f, j]) < 2.0
+    assert deg(q, tr.rotations).max() < 2.0
+
+
+@pytest.mark.parametrize("kind", ["held", "zero"])
+def test_five_frame_dropout_filled(kind):
+    sk, tr = clip()
+    f = 500
+    q, t = tr.rotations.copy(), tr.translations.copy()
+    if kind == "held":
+        q[f:f + 5], t[f:f + 5] = q[f - 1], t[f - 1]
+    else:
+        q[f:f + 5], t[f:f + 5] = [1.0, 0.0, 0.0, 0.0], 0.0
+    out_q, out_p, events = glitches.repair(q, t[:, :1], tr.fps)
+    assert ("dropout", None, f, f + 4) in events
+    assert deg(out_q, tr.rotations).max() < 2.0
+    assert np.abs(out_p[:, 0] - tr.translations[:, 0]).max() < 0.01
+
+
+def test_position_spike_repaired():
+    sk, tr = clip()
+    p = tr.translations[:, :1].copy()
+    p[300, 0] += [0.0, 0.25, 0.1]
+    _, out, events = glitches.repair(tr.rotations, p, tr.fps)
+    assert ("spike", ("position", 0), 300, 300) in events
+    assert np.abs(out - tr.translations[:, :1]).max() < 0.002
+
+
+def test_quaternion_signs_made_continuous():
+    sk, tr = clip()
+    q = tr.rotations.copy()
+    q[::7, 3] *= -1.0
+    out, _, events = glitches.repair(q, tr.translations[:, :1], tr.fps)
+    assert not events
+    assert ((out[1:] * out[:-1]).sum(axis=-1) > 0).all()
+    assert deg(out, tr.rotations).max() < 1e-6
+
+
+def test_clean_clip_left_alone():
+    sk, tr = clip()
+    q, p, events = glitches.repair(tr.rotations, tr.translations[:, :1], tr.fps)
+    assert not events and deg(q, tr.rotations).max() < 1e-6
+    out, report = clean_up(sk, tr, Options(floor=False, skate=False))
+    rms = np.sqrt(np.mean(deg(out.rotations, tr.rotations) ** 2))
+    assert rms < 0.5
+    assert report["repairs"][1]["rms_change_deg"] < 0.5
+
+
+def kick(fps=30.0, seconds=4.0, noise_deg=1.0, seed=1):
+    """One joint: a slow sway and a fast kick (90 deg out and back in 0.2 s), with jitter."""
+    t = np.arange(0.0, seconds, 1.0 / fps)
+    clean = np.radians(10 * np.sin(2 * np.pi * 0.5 * t) + 90 * np.exp(-0.5 * ((t - 2.0) / 0.04) ** 2))
+    noisy = clean + np.radians(noise_deg) * np.random.default_rng(seed).standard_normal(len(t))
+    to_q = lambda a: np.stack([np.cos(a / 2), np.sin(a / 2), 0 * a, 0 * a], axis=-1)[:, None]
+    return t, to_q(clean), to_q(noisy)
+
+
+@pytest.mark.parametrize("fps", [30.0, 120.0])
+def test_jitter_removed_kick_kept(fps):
+    t, clean, noisy = kick(fps)
+    out = jitter.smooth_rotations(noisy, fps)
+    calm = np.abs(t - 2.0) > 0.3
+    before, after = deg(noisy, clean)[calm], deg(out, clean)[calm]
+    assert np.sqrt(np.mean(after ** 2)) < 0.6 * np.sqrt(np.mean(before ** 2))
+    peak = np.argmax(np.abs(t - 2.0) < 0.5 / fps)
+    assert deg(out, clean)[peak] < 3.0  # the kick's peak kept
+    plain = rotations.normalize(jitter.low_pass(rotations.make_continuous(noisy), fps, jitter.DEFAULT_CUTOFF_HZ))
+    assert deg(plain, clean)[peak] > 10.0  # where a plain low-pass cuts the kick short
+
+
+def test_floor_offset_removed():
+    sk, tr = clip()
+    position, orientation = tr.root_pose(sk)
+    lifted = tr.with_root_pose(sk, position + [0.0, 0.0, 0.08], orientation)
+    out, report = clean_up(sk, lifted, Options(glitches=False, jitter=False, skate=False))
+    points = feet.foot_points(sk, tr.world_frames(sk))
+    original_floor = feet.find_floor(points, feet.find_contacts(points, tr.fps))
+    assert report["floor_m"] == pytest.approx(original_floor + 0.08, abs=0.005)
+    after = feet.foot_points(sk, out.world_frames(sk))
+    lowest = np.min([p[..., 2].min(axis=1) for p in after.values()], axis=0)
+    assert lowest.min() > -0.001  # no point below the floor
+    planted = feet.find_contacts(feet.foot_points(sk, lifted.world_frames(sk)), tr.fps)
+    for side, p in after.items():  # the feet planted in the capture: on it, neither sinking nor hovering
+        low = p[planted[side]][..., 2].min(axis=1)
+        own = points[side][planted[side]][..., 2].min(axis=1) - original_floor
+        assert low.min() > -0.001  # no sinking
+        # the 8 cm offset gone: planted feet as high above the floor as in the clean capture (the
+        # stance leg is straight: a foot it can't reach further down is left hovering, and counted)
+        assert np.median(low) <= np.median(own) + 0.003
+    assert report["repairs"][2]["hovering_frames"] > 0  # planted feet on it, neither sinking nor hovering
+
+
+def test_skate_removed_under_2_mm():
+    sk, tr = clip()
+    position, orientation = tr.root_pose(sk)
+    drift = np.zeros_like(position)
+    drift[:, 0] = 0.05 * np.sin(2 * np.pi * 0.3 * tr.times)  # the root drifts: the feet skate
+    skating = tr.with_root_pose(sk, position + drift, orientation)
+    planted = feet.planted_points(feet.foot_points(sk, skating.world_frames(sk)), tr.fps)
+    assert feet.planted_slide(sk, skating, planted) > 0.02
+    out, report = clean_up(sk, skating, Options(glitches=False, jitter=False, floor=False))
+    assert feet.planted_slide(sk, out, planted) < 0.002
+    np.testing.assert_allclose(out.root_pose(sk)[0], skating.root_pose(sk)[0], atol=1e-9)  # body on its path
+    entry = report["repairs"][3]
+    assert entry["qa_after"]["slide"]["value"] < entry["qa_before"]["slide"]["value"]
+    assert set(entry["bones"]) <= {sk.roles.bone(f"{r}.{s}") for r in ("thigh", "shin", "foot", "toe") for s in "LR"}
+
+
+def test_report_lists_every_repair_with_qa():
+    sk, tr = clip(4)
+    _, report = clean_up(sk, tr, Options(jitter=False))
+    assert [r["repair"] for r in report["repairs"]] == ["glitches", "jitter", "floor", "skate"]
+    assert report["repairs"][1] == {"repair": "jitter", "enabled": False}
+    for r in (report["repairs"][0], report["repairs"][2], report["repairs"][3]):
+        assert {"frames", "bones", "max_change_deg", "qa_before", "qa_after"} <= set(r)
+        assert "penetration" in r["qa_after"]
