@@ -120,7 +120,7 @@ def main(argv=None):
                                        {h.side: h.grip}), 1)[0] / 48
     follow_cpu = CPU[-1] / 48
     med = (lambda v: round(statistics.median(v), 1) if v else None)
-    out = {"numpy_add_us": round(numpy_op_us(), 3),  # this host's speed right now
+    out = {"numpy_op_66x3_us": round(numpy_op_us(), 3),  # this host's speed now, in the solver's array size
            "grasp_one_hand_median_cpu_ms": med(cpu_one), "grasp_one_hand_max_cpu_ms": max(cpu_one, default=None),
            "grasp_two_hands_median_cpu_ms": med(cpu_two), "grasp_two_hands_max_cpu_ms": max(cpu_two, default=None),
            "grasp_all_max_cpu_ms": max(per_cpu.values(), default=None),
@@ -140,7 +140,7 @@ def main(argv=None):
     print(f"  two hands  median {out['grasp_two_hands_median_cpu_ms']} ms, max {out['grasp_two_hands_max_cpu_ms']} ms")
     print(f"  a 6 cm cylinder: {with_body_cpu:.1f} ms ({no_body_cpu:.1f} ms without the reach's self-collision pass)")
     print(f"IK step (12 DOF, null-space term): {step_cpu:.4f} ms; following a held object: {follow_cpu:.2f} ms/frame")
-    print(f"aim: a complete grasp under 50 ms (this host now: numpy a+b on (66, 3) {out['numpy_add_us']:.2f} us)")
+    print(f"aim: a complete grasp under 50 ms (this host now: numpy a+b on (66, 3) {out['numpy_op_66x3_us']:.2f} us)")
 
 
 if __name__ == "__main__":
