@@ -1,10 +1,15 @@
 """Reading and writing actions: HumanAnim's bridge beside Blender's own Bake Action, same clip, same run.
 
 Run with a Python that has the bpy module:  python benchmarks/actions.py [--json] [--clip FILE]
+
+Wall milliseconds (best of 3 runs; one for the depsgraph read and Blender's bake) of reading the
+clip's action from its F-curves and through the depsgraph, writing it to a new action, and
+HumanAnim's bake (depsgraph read + write) beside Blender's Bake Action with visual keying on the
+same armature and frames. The claim is the ratio of the two bakes, measured in the same run.
+`--json` prints one object and writes benchmarks/results/actions.json (machine.py's contract).
 """
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -18,6 +23,7 @@ import humananim  # noqa: E402
 from humananim.humananim_addon import actions  # noqa: E402
 from humananim.humananim_addon.armature import skeleton_from_armature  # noqa: E402
 from humananim.humananim_addon.bvh_import import import_bvh  # noqa: E402
+from machine import claim, emit, result  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_CLIP = os.path.join(HERE, "..", "humananim_addon", "data", "mocap", "cmu_131_01.bvh")
@@ -76,7 +82,13 @@ def main():
     }
     figures["bake_speedup_vs_blender"] = figures["blender_bake_action_ms"] / figures["humananim_bake_ms"]
     if args.json:
-        print(json.dumps(figures))
+        emit(result("actions", [
+            claim("HumanAnim bake (depsgraph read + new action) speed-up over Blender's Bake Action, same clip",
+                  figures["bake_speedup_vs_blender"], "x"),
+            claim("HumanAnim bake of the clip", figures["humananim_bake_ms"], "ms wall"),
+            claim("reading an action from its F-curves, per frame", figures["read_fcurves_us_per_frame"], "us wall"),
+        ], clip=os.path.basename(args.clip), **{k: round(v, 4) if isinstance(v, float) else v
+                                               for k, v in figures.items()}))
     else:
         print(f"{os.path.basename(args.clip)}: {n_frames} frames x {n_bones} bones")
         print(f"  read, F-curves       {figures['read_fcurves_ms']:8.1f} ms")

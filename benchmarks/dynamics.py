@@ -2,17 +2,19 @@
 """Speed of the articulated-body dynamics (solver/dynamics).
 
     python3 benchmarks/dynamics.py          # a table
-    python3 benchmarks/dynamics.py --json   # one JSON object, units in the names
+    python3 benchmarks/dynamics.py --json   # one JSON object, also benchmarks/results/dynamics.json
 
 Microseconds of CPU time per call (best of several repeats, so other load on a shared machine
 counts as little as possible) of forward kinematics, inverse dynamics (RNEA), the inertia matrix
 (CRBA), forward dynamics (ABA, and Cholesky of H), the ZMP and a full control step (RNEA, CRBA
 and ZMP for one state), for the 18-segment, 39-DOF Oshita-like figure; and the real-time factor
-of Huang's closed-loop simulation tracking 2 s of the CMU clip 131_01 (31 bones, role-based masses).
+of Huang's closed-loop simulation tracking 2 s of the CMU clip 131_01 (31 bones, role-based masses),
+with its tracking error (joint positions and rotations against the clip). The real-time factor is
+simulated seconds per wall second, so it swings with the host's load: read it beside the
+machine-speed indicator (machine.py).
 """
 
 import argparse
-import json
 import time
 import timeit
 from pathlib import Path
@@ -27,6 +29,7 @@ from humananim.solver.dynamics import (GroundModel, Settings, aba, build_model, 
                                        update_frames, zmp)
 from humananim.solver.dynamics.closed_loop import _Constant, step_implicit  # noqa: E402
 from humananim.solver.trajectories import Trajectories  # noqa: E402
+from machine import claim, emit, result  # noqa: E402
 
 CMU = Path(__file__).resolve().parent.parent / "humananim_addon" / "data" / "mocap" / "cmu_131_01.bvh"
 
@@ -111,6 +114,25 @@ def cmu_closed_loop(seconds=2.0, start=300):
     }
 
 
+def claims(out):
+    figure = "18-segment, 39-DOF figure"
+    found = [
+        claim(f"{figure}: inverse dynamics (RNEA), per call", out["rnea_us"], "us CPU"),
+        claim(f"{figure}: forward dynamics (ABA), per call", out["aba_us"], "us CPU"),
+        claim(f"{figure}: one control step (RNEA, CRBA and ZMP of one state)", out["control_step_us"], "us CPU"),
+        claim(f"{figure}: one implicit simulation step standing on eight contacts", out["simulation_step_us"],
+              "us CPU"),
+    ]
+    if "cmu_realtime_factor" in out:
+        found += [
+            claim("CMU 131_01 closed-loop tracking (31 bones, 2 s): simulated seconds per wall second",
+                  out["cmu_realtime_factor"], "x"),
+            claim("CMU 131_01 closed-loop tracking: mean joint position error against the clip",
+                  out["cmu_joint_position_error_mean_m"] * 1000, "mm"),
+        ]
+    return found
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -120,7 +142,8 @@ def main(argv=None):
     if CMU.exists():
         out.update(cmu_closed_loop())
     if args.json:
-        print(json.dumps({k: (round(v, 4) if isinstance(v, float) else v) for k, v in out.items()}))
+        emit(result("dynamics", claims(out), **{k: (round(v, 4) if isinstance(v, float) else v)
+                                                for k, v in out.items()}))
     else:
         for k, v in out.items():
             print(f"{k:36s} {v:.4g}" if isinstance(v, float) else f"{k:36s} {v}")

@@ -16,19 +16,12 @@ Measured on each result, over the transition window only:
     root's linear acceleration;
   * ms to compute the transition (solver modes).
 
-Measured here (bpy 5.0 and 4.2, same figures; ms vary with load on the 2 shared cores):
-  mode          foot slide mm  spike (angular)  spike (root)  ms
-  blend                  0.00             0.28          0.04  115-160
-  connect                0.00             0.27          0.08  270-410 (a 1.1 s connective step)
-  inertialize            0.00             0.38          0.05  110-140
-  NLA crossfade         38.62             0.36          0.09  -
-The NLA crossfade blends two sections whose roots and feet are in different places: the planted
-foot slides 39 mm in 30 frames; HumanAnim's modes place the next action on the planted feet and
-hold them (IK), so none slides.
+The claims set each mode's planted-foot slide and angular spike beside the NLA crossfade's, all
+measured in the same run. `--json` prints one object and writes benchmarks/results/transitions.json
+(machine.py's contract).
 """
 
 import argparse
-import json
 import os
 import tempfile
 import time
@@ -48,6 +41,7 @@ from humananim.solver.skeleton import decompose  # noqa: E402
 from humananim.solver.synthesis import from_trajectories, transition  # noqa: E402
 from humananim.solver.synthesis.metrics import planted_slide, spike_ratio  # noqa: E402
 from humananim.solver.trajectories import Trajectories  # noqa: E402
+from machine import claim, emit, result  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_CLIP = os.path.join(HERE, "..", "humananim_addon", "data", "mocap", "cmu_131_01.bvh")
@@ -95,6 +89,21 @@ def nla_crossfade(obj, scene, sk, source, fps):
     return tr, window
 
 
+def claims(out):
+    nla = out["nla_crossfade"]
+    found = [claim("NLA crossfade (Blender's own): planted foot slide in the transition", nla["foot_slide_mm"], "mm")]
+    for mode in ("blend", "connect", "inertialize"):
+        m = out[mode]
+        found += [
+            claim(f"{mode}: planted foot slide in the transition (NLA crossfade: {nla['foot_slide_mm']:.1f} mm)",
+                  m["foot_slide_mm"], "mm"),
+            claim(f"{mode}: angular acceleration spike over the NLA crossfade's", m["spike_ratio_angular"]
+                  / nla["spike_ratio_angular"] if nla["spike_ratio_angular"] else None, "ratio"),
+            claim(f"{mode}: time to compute the transition", m["transition_ms"], "ms wall"),
+        ]
+    return found
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--clip", default=DEFAULT_CLIP)
@@ -126,7 +135,7 @@ def main():
     finally:
         humananim.unregister()
     if args.json:
-        print(json.dumps(out))
+        emit(result("transitions", claims(out), **out))
         return
     print(f"{out['clip']} sections {A} and {B}, blend {BLEND} s, {out['fps']:.0f} fps")
     print(f"{'mode':<14}{'foot slide mm':>15}{'spike (angular)':>17}{'spike (root)':>14}{'ms':>8}")

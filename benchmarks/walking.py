@@ -2,7 +2,7 @@
 """Speed and realism of the procedural walk (solver/walking, Boulic's model).
 
     python3 benchmarks/walking.py          # a table
-    python3 benchmarks/walking.py --json   # one JSON object, units in the names
+    python3 benchmarks/walking.py --json   # one JSON object, also benchmarks/results/walking.json
 
 Speed: wall milliseconds per generated second of walk (median of 3 runs) for the Rigify metarig's
 skeleton (159 bones) and the CMU skeleton (31 bones) along a 10 m S curve at 1.3 m/s, at 24 and
@@ -15,19 +15,12 @@ pelvis vertical and lateral oscillation (peak to peak). The generated walk of th
 the clip's measured speed is measured by the same code (solver/walking/clip.gait) and set beside
 it, with eq. 2-5's cycle length for the clip's own relative velocity.
 
-Measured here (2 shared cores, other jobs running; ms per generated second of walk): metarig 24 fps
-~150, 120 fps ~590; CMU 24 fps ~110, 120 fps ~460. About two thirds of it is the analytic limb IK
-(motion_control.limb_ik, two solves per frame of small numpy operations). The clip has a single
-walking cycle above 0.6 m/s (131_01 is a stylised "Michael Jackson" walk): 0.99 m/s, cycle 1.49 m
-in 1.10 s, double support 23 %, pelvis 8.9 cm vertical, 16 cm lateral; the generated walk at that
-speed: cycle 1.22 m in 1.23 s (eq. 2-5), double support 36 % by the contact detector (it counts
-the heel-strike and toe-off rolls as contact), 31 % from the walk's own supports over the whole walk
-(start and stop included), 27 % by eq. 2-6 for the steady cycle; pelvis 9.2 cm vertical, 1.9 cm
-lateral.
+`--json` prints one object and writes benchmarks/results/walking.json (machine.py's contract):
+the speed figures, and the generated walk's cycle length, duration and double-support share over
+the clip's, measured side by side.
 """
 
 import argparse
-import json
 import statistics
 import sys
 import time
@@ -39,6 +32,7 @@ ROOT = FilePath(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests" / "solver"))
 
 from humananim.solver.walking import Path, clip, metrics, model, walk  # noqa: E402
+from machine import claim, emit, result  # noqa: E402
 
 CMU = ROOT / "humananim_addon" / "data" / "mocap" / "cmu_131_01.bvh"
 
@@ -71,6 +65,24 @@ def comparison(sk, tr):
     return ref, gen, ht, v
 
 
+def claims(out):
+    found = [claim(f"{'Rigify metarig (159 bones)' if name == 'metarig' else 'CMU skeleton (31 bones)'} "
+                   f"at {fps} fps: time per generated second of walk", out[f"{name}_{fps}fps_ms_per_walk_second"],
+                   "ms wall") for name in ("metarig", "cmu") for fps in (24, 120)]
+    at = f"at the clip's speed ({out['speed_m_s']:.2f} m/s)"
+    found += [
+        claim(f"generated walk {at}: cycle length over CMU 131_01's",
+              out["generated_cycle_length_m"] / out["cmu_cycle_length_m"], "ratio"),
+        claim(f"generated walk {at}: cycle duration over CMU 131_01's",
+              out["generated_cycle_duration_s"] / out["cmu_cycle_duration_s"], "ratio"),
+        claim(f"generated walk {at}: double-support share (CMU 131_01: {out['cmu_double_support_share']:.2f})",
+              out["generated_double_support_share"], "share"),
+        claim(f"generated walk {at}: pelvis vertical oscillation over CMU 131_01's",
+              out["generated_pelvis_vertical_m"] / out["cmu_pelvis_vertical_m"], "ratio"),
+    ]
+    return found
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -97,7 +109,8 @@ def main(argv=None):
         "cmu_pelvis_lateral_m": ref["pelvis_lateral_m"], "generated_pelvis_lateral_m": gen["pelvis_lateral_m"],
     })
     if args.json:
-        print(json.dumps({k: (round(v, 4) if isinstance(v, float) else v) for k, v in out.items()}))
+        emit(result("walking", claims(out), **{k: (round(v, 4) if isinstance(v, float) else v)
+                                               for k, v in out.items()}))
         return
     print("ms per generated second of walk (10 m S curve at 1.3 m/s):")
     for name in ("metarig", "cmu"):
