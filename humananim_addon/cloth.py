@@ -16,6 +16,8 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProp
 
 from ..solver.cloth import (CapsuleBody, ClothParams, ClothSimulation, MeshBody, PRESETS, build_mesh, capsule_ends,
                             capsule_mesh, capsules_from_roles, fit_radii, fit_skirt, write_pc2)
+from ..solver.cloth.body import skin_radii, skinning_weights
+from ..solver.cloth.skinned import SkinnedBody
 from ..solver.cloth.mesh import ClothError
 from ..solver.skeleton import reach_of_made_up_tail
 from .actions import scene_fps
@@ -213,6 +215,18 @@ def body_mesh_positions(body, depsgraph, scene):
     return (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]) * _metres(scene), tris.reshape(-1, 3).astype(np.int64)
 
 
+def skinned_collider(body, arm, triangles, positions, world):
+    """The body mesh as a collider: a SkinnedBody (searched in its bones' frames, built at this
+    pose) when the armature deforms it through vertex groups named after its bones that weigh
+    every vertex; else a MeshBody (searched anew at every pose)."""
+    deformed = any(m.type == "ARMATURE" and m.object == arm and m.show_viewport for m in body.modifiers)
+    if deformed and len(positions) == len(body.data.vertices):
+        weights = group_weights(body, [b.name for b in arm.data.bones])
+        if weights.sum(axis=1).min() > 0.0:
+            return SkinnedBody(triangles, positions, world, weights)
+    return MeshBody(triangles, len(positions))
+
+
 def roles_of(arm):
     return detect(arm).roles.with_overrides(role_overrides(arm.data.humananim))
 
@@ -330,8 +344,9 @@ class ClothJob:
                 bodies.append(caps)
             if use_mesh:
                 verts_prev, body_tris = body_mesh_positions(p.body, depsgraph, scene)
-                skin = MeshBody(body_tris, len(verts_prev))
-                skin.set_motion(verts_prev)
+                skin = skinned_collider(p.body, arm, body_tris, verts_prev, world)
+                world_prev = world
+                skin.set_motion(*self._body_motion(skin, verts_prev, world))
                 bodies.append(skin)
             self.sim = sim = ClothSimulation(mesh, params_of(p), pins, bodies, p.level, fps / (frames[1] - frames[0]),
                                              positions, p.normal_control, p.edge_control)
@@ -344,14 +359,14 @@ class ClothJob:
                 for _, f in chunk:
                     poses.append(self._pose(f, arm, specs, binding, None if skin is None else len(verts_prev)))
                     yield len(self.frames_done) / len(frames)  # (the UI stays responsive while reading)
-                for (i, f), (ends, verts, targets) in zip(chunk, poses):
+                for (i, f), (ends, verts, targets, bones) in zip(chunk, poses):
                     dt = (f - frames[i - 1]) / fps
                     if caps is not None:
                         caps.set_motion(*caps_prev, *ends, dt)
                         caps_prev = ends
                     if skin is not None:
-                        skin.set_motion(verts_prev, verts, dt)
-                        verts_prev = verts
+                        skin.set_motion(*self._body_motion(skin, verts_prev, world_prev, verts, bones), dt=dt)
+                        verts_prev, world_prev = verts, bones
                     sim.step(targets, dt)
                     self._record(f)
                     yield (i + 1) / len(frames)
@@ -362,7 +377,7 @@ class ClothJob:
     def _pose(self, frame, arm, specs, binding, vertex_count):
         """What the simulation needs of the scene at `frame`: (capsule ends (None without
         `specs`), skinned body vertices (None without `vertex_count`), pin targets (None without
-        `binding`))."""
+        `binding`), the bones' world matrices)."""
         scene, p = self.scene, self.props
         scene.frame_set(frame)
         world = bone_world(arm, scene)
@@ -372,7 +387,14 @@ class ClothJob:
             verts, _ = body_mesh_positions(p.body, bpy.context.evaluated_depsgraph_get(), scene)
             if len(verts) != vertex_count:
                 raise ClothError(f"'{p.body.name}' changes its vertex count between frames")
-        return ends, verts, pin_targets(binding, world) if binding is not None else None
+        return ends, verts, pin_targets(binding, world) if binding is not None else None, world
+
+    @staticmethod
+    def _body_motion(skin, v0, bones0, v1=None, bones1=None):
+        """set_motion's arguments for the skinned body (its bones' matrices too) or a plain mesh."""
+        if isinstance(skin, SkinnedBody):
+            return (v0, bones0, v1, bones1)
+        return (v0, v1)
 
     def _record(self, frame):
         sim = self.sim
@@ -604,6 +626,112 @@ def add_capsule_body(armature, scene=None, name="Body", segments=16):
     for bone, idx in groups:
         vg = obj.vertex_groups.get(bone) or obj.vertex_groups.new(name=bone)
         vg.add([int(i) for i in idx], 1.0, "REPLACE")
+    mod = obj.modifiers.new("Armature", "ARMATURE")
+    mod.object = armature
+    obj.parent = armature
+    obj.matrix_parent_inverse = armature.matrix_world.inverted()
+    return obj
+
+
+def _grown_skin(scene, heads, tails, radius, resolution):
+    """A closed skin over the bones: a metaball capsule on each bone of some length (radius at
+    its head), polygonised by Blender at `resolution` (Blender units). A new mesh datablock."""
+    balls = bpy.data.metaballs.new("skin")
+    balls.resolution = balls.render_resolution = resolution
+    balls.threshold = 0.6
+    for head, tail, r in zip(heads, tails, radius):
+        axis = tail - head
+        length = float(np.linalg.norm(axis))
+        if length < 1e-6 or r <= 0.0:
+            continue
+        e = balls.elements.new(type="CAPSULE")
+        e.co = tuple((head + tail) / 2.0)
+        e.radius = 1.35 * r  # (the surface of a lone ball sits inside its radius at this threshold)
+        e.size_x = length / 2.0
+        x = axis / length
+        from mathutils import Vector
+        e.rotation = Vector((1.0, 0.0, 0.0)).rotation_difference(Vector(tuple(x)))
+    grower = bpy.data.objects.new("skin", balls)
+    scene.collection.objects.link(grower)
+    try:
+        return bpy.data.meshes.new_from_object(grower.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+    finally:
+        bpy.data.objects.remove(grower, do_unlink=True)
+        bpy.data.metaballs.remove(balls)
+        bpy.context.view_layer.update()  # (no stale base of the removed object for operators)
+
+
+def _automatic_weights(obj, armature, names):
+    """Blender's automatic (bone heat) weights, as Ctrl P > With Automatic Weights; False if
+    some vertex got none (the heat solve fails on some meshes)."""
+    view_layer = bpy.context.view_layer
+    selected = [o for o in view_layer.objects if o.select_get()]
+    active = view_layer.objects.active
+    try:
+        for o in selected:
+            o.select_set(False)
+        obj.select_set(True)
+        armature.select_set(True)
+        view_layer.objects.active = armature
+        bpy.ops.object.parent_set(type="ARMATURE_AUTO")
+    except RuntimeError:
+        return False
+    finally:
+        obj.select_set(False)
+        armature.select_set(False)
+        for o in selected:
+            o.select_set(True)
+        view_layer.objects.active = active
+    return bool(group_weights(obj, names).sum(axis=1).min() > 0.5)
+
+
+def add_skin_body(armature, scene=None, name="Body", triangles=20000):
+    """A stand-in for the character's skinned mesh, grown over the bones: a metaball capsule
+    on each bone (radii by body role: skin_radii), polygonised by Blender at the resolution
+    that gives about `triangles` triangles (one closed surface, blended at the joints), skinned
+    with Blender's automatic weights (by distance, skinning_weights, where they fail) and
+    deformed by an Armature modifier. Returns the new mesh object."""
+    scene = scene or bpy.context.scene
+    bones = armature.data.bones
+    names = [b.name for b in bones]
+    parents = [names.index(b.parent.name) if b.parent else -1 for b in bones]
+    world = bone_world(armature, scene, rest=True)
+    unit = _metres(scene)
+    heads = world[:, :3, 3] / unit
+    tails = np.array([world[j, :3, :3] @ [0.0, b.length, 0.0] + world[j, :3, 3] for j, b in enumerate(bones)]) / unit
+    scale = float(np.mean(armature.matrix_world.to_scale())) * unit
+    radius = skin_radii(names, parents, np.array([b.length for b in bones]), roles_of(armature), scale) / unit
+    resolution = 0.02 / unit
+    for _ in range(4):  # triangles go as 1 / resolution^2
+        mesh = _grown_skin(scene, heads, tails, radius, resolution)
+        mesh.calc_loop_triangles()
+        count = len(mesh.loop_triangles)
+        if abs(count - triangles) < 0.08 * triangles:
+            break
+        bpy.data.meshes.remove(mesh)
+        resolution *= (count / triangles) ** 0.5
+    else:
+        mesh = _grown_skin(scene, heads, tails, radius, resolution)
+    mesh.name = name
+    obj = bpy.data.objects.new(name, mesh)
+    for c in list(armature.users_collection) or [scene.collection]:
+        c.objects.link(obj)
+    mesh.polygons.foreach_set("use_smooth", np.ones(len(mesh.polygons), dtype=bool))
+    mesh.update()
+    if not _automatic_weights(obj, armature, names):
+        co = np.empty(len(mesh.vertices) * 3)
+        mesh.vertices.foreach_get("co", co)
+        weights = skinning_weights(co.reshape(-1, 3) * unit, heads * unit, tails * unit,
+                                   [b.use_deform for b in bones])
+        obj.vertex_groups.clear()
+        levels = np.round(weights * 64.0).astype(int)  # vertex groups take one weight per call
+        for j, bone_name in enumerate(names):
+            column = levels[:, j]
+            if column.any():
+                vg = obj.vertex_groups.new(name=bone_name)
+                for level in np.unique(column[column > 0]):
+                    vg.add(np.flatnonzero(column == level).tolist(), level / 64.0, "REPLACE")
+    obj.modifiers.clear()
     mod = obj.modifiers.new("Armature", "ARMATURE")
     mod.object = armature
     obj.parent = armature
