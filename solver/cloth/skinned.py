@@ -25,8 +25,9 @@ from .fast import dot
 
 SLACK = 0.03  # metres a carried point may be from its place where skinning blends bones
 REACH = 0.05  # metres: the default max_distance of queries, and the grids' margin beyond it
+NEAR = 0.02  # metres: phi is exact below this; farther points may get a lower bound instead
 DEEP = 0.03  # metres: a point found farther inside is taken to be outside (see SkinnedBody)
-MAX_CELLS = 1_500_000  # the grids' cells over all bones, at most (their spacing grows to fit)
+MAX_CELLS = 2_000_000  # the grids' cells over all bones, at most (their spacing grows to fit)
 
 
 class SkinnedBody:
@@ -42,7 +43,7 @@ class SkinnedBody:
     the frames of the bones whose bounding capsule it is near; a cell whose bound is beyond the
     query's reach ends the search there; otherwise its candidates are evaluated exactly."""
 
-    def __init__(self, triangles, reference, bones, weights, neighbours=8, spacing=None):
+    def __init__(self, triangles, reference, bones, weights, neighbours=12, spacing=None):
         self.triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
         reference = np.asarray(reference, float)
         bones = np.asarray(bones, float)
@@ -68,14 +69,15 @@ class SkinnedBody:
         hi = np.array([corner_local[g].reshape(-1, 3).max(axis=0) for g in groups]) + margin
         if spacing is None:  # about the triangles' size, coarser if the cells would be too many
             edge = np.linalg.norm(corners[:, 1] - corners[:, 0], axis=1)
-            spacing = max(float(np.median(edge)), (np.prod(hi - lo, axis=1).sum() / MAX_CELLS) ** (1 / 3))
+            spacing = max(0.75 * float(np.median(edge)), (np.prod(hi - lo, axis=1).sum() / MAX_CELLS) ** (1 / 3))
         self.spacing = h = spacing
         shape = np.ceil((hi - lo) / h).astype(np.int64) + 1
         self.lo, self.shape = lo, shape
         self.start = np.r_[0, np.cumsum(np.prod(shape, axis=1))[:-1]]
         cells = int(np.prod(shape, axis=1).sum())
         self.bound = np.full(cells, np.inf, dtype=np.float32)
-        self.candidates = np.full((cells, neighbours), -1, dtype=np.int32)
+        self.row_of = np.full(cells, -1, dtype=np.int32)  # a cell's row in `candidates` (-1: none)
+        candidates = []
         for i, g in enumerate(groups):
             axes = [lo[i, d] + h * np.arange(shape[i, d]) for d in range(3)]
             centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
@@ -85,15 +87,19 @@ class SkinnedBody:
             reach = spread[g]
             d1, _ = tree.query(centres, k=1)
             lower = d1 - reach.max() - 0.5 * np.sqrt(3.0) * h
-            band = np.flatnonzero(lower < margin)
+            band = np.flatnonzero(lower < NEAR + SLACK)  # (the cells whose candidates are looked at)
             dist, idx = tree.query(centres[band], k=k)
             dist, idx = dist.reshape(len(band), k), idx.reshape(len(band), k)
             # tighter where the candidates tell: the nearest candidate's own reach, the others'
             # beyond the K-th at most the bone's largest
             lower[band] = np.minimum((dist - reach[idx]).min(axis=1), dist[:, -1] - reach.max()) - 0.5 * np.sqrt(3.0) * h
-            rows = self.start[i] + band
             self.bound[self.start[i]:self.start[i] + len(centres)] = lower
-            self.candidates[rows[:, None], np.arange(k)] = g[idx]
+            found = sum(len(c) for c in candidates)
+            self.row_of[self.start[i] + band] = found + np.arange(len(band))
+            rows = np.full((len(band), neighbours), -1, dtype=np.int32)
+            rows[:, :k] = g[idx]
+            candidates.append(rows)
+        self.candidates = np.concatenate(candidates)
         # a capsule around each bone's triangles, fixed in the bone (a segment along the bone's
         # axis over its triangles' extent, and a radius holding every corner): the bones a query
         # point can reach are those whose capsule it is near
@@ -157,18 +163,26 @@ class SkinnedBody:
         inside = np.all((cell >= 0) & (cell < shape), axis=1)  # (outside the grid: beyond reach)
         flat = self.start[bone] + (cell[:, 0] * shape[:, 1] + cell[:, 1]) * shape[:, 2] + cell[:, 2]
         flat = np.where(inside, flat, 0)
-        keep = inside & (self.bound[flat] < max_distance + SLACK)
+        # a row whose cell is far from the bone's triangles gives a lower bound (the cell's,
+        # less what skinning may have moved them); the others are evaluated exactly
+        lower = np.where(inside, self.bound[flat] - SLACK, np.inf)
+        far = lower >= NEAR
+        if far.any():
+            np.minimum.at(phi, rows[far], np.minimum(lower[far], max_distance))
+        keep = ~far
         rows, flat = rows[keep], flat[keep]
         if len(rows) == 0:
             return phi, normal, velocity
-        idx = self.candidates[flat].astype(np.int64)
+        idx = self.candidates[self.row_of[flat]].astype(np.int64)
         valid = idx >= 0
         ids = np.where(valid, idx, 0)
         signed, nrm, vel, unsigned = self._exact(points[rows], ids, valid, s, max_distance)
-        # per point, the row with the nearest surface
+        # per point, the row with the nearest surface, unless a far row's bound is below it
         order = np.lexsort((unsigned, rows))
         pick = order[np.r_[True, rows[order][1:] != rows[order][:-1]]]
         out = rows[pick]
+        take = signed[pick] <= phi[out]
+        out, pick = out[take], pick[take]
         phi[out], normal[out], velocity[out] = signed[pick], nrm[pick], vel[pick]
         return phi, normal, velocity
 
