@@ -17,6 +17,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProp
 from ..solver.cloth import (CapsuleBody, ClothParams, ClothSimulation, MeshBody, PRESETS, build_mesh, capsule_ends,
                             capsule_mesh, capsules_from_roles, fit_radii, fit_skirt, write_pc2)
 from ..solver.cloth.body import skin_radii, skinning_weights
+from ..solver.cloth.collision import resolve_particles
 from ..solver.cloth.skinned import SkinnedBody
 from ..solver.cloth.mesh import ClothError
 from ..solver.skeleton import reach_of_made_up_tail
@@ -29,6 +30,7 @@ log = logging.getLogger(__name__)
 # Blender 4.5+ warns about a '//' path unless the property says it takes one (4.2 has no such option)
 _RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
 
+FITTED_AT = "humananim_fitted_frame"  # custom property: the frame whose pose a garment was made at
 PHYSICAL = ("density", "stretch", "bend", "damping", "drag", "air_damping")
 
 
@@ -227,6 +229,19 @@ def skinned_collider(body, arm, triangles, positions, world):
     return MeshBody(triangles, len(positions))
 
 
+FIGURE_HEIGHT = (0.3, 3.0)  # metres: the figures cloth accepts (its thickness, speeds and grids are for people)
+
+
+def figure_height(arm, scene):
+    """The rest-pose skeleton's height (metres): from its lowest to its highest bone end."""
+    world = bone_world(arm, scene, rest=True)
+    ends = [world[:, :3, 3]]
+    ends.append(np.array([world[j, :3, :3] @ [0.0, b.length, 0.0] + world[j, :3, 3]
+                          for j, b in enumerate(arm.data.bones)]))
+    z = np.concatenate(ends)[:, 2]
+    return float(z.max() - z.min()) if len(z) else 0.0
+
+
 def roles_of(arm):
     return detect(arm).roles.with_overrides(role_overrides(arm.data.humananim))
 
@@ -302,6 +317,8 @@ class ClothJob:
         self.sim = None
         self.seconds = 0.0
         self.depth_max = 0.0
+        self.measure_surface = False  # also measure the rendered surface's depth (tests, benchmarks)
+        self.surface_depth_max = 0.0
         self.stretch = []
 
     # setup
@@ -315,6 +332,10 @@ class ClothJob:
             raise ClothError("pick the body mesh to collide with (or collide with capsules)")
         if p.body is not None and p.body.type != "MESH":
             raise ClothError(f"'{p.body.name}' is not a mesh")
+        height = figure_height(p.armature, self.scene)
+        if not FIGURE_HEIGHT[0] <= height <= FIGURE_HEIGHT[1]:
+            raise ClothError(f"the figure is {height:.3g} m tall: cloth needs a human-sized figure "
+                             f"({FIGURE_HEIGHT[0]}-{FIGURE_HEIGHT[1]} m); check the clip's unit (--scale)")
 
     def steps(self):
         self._check()
@@ -329,10 +350,11 @@ class ClothJob:
             depsgraph = bpy.context.evaluated_depsgraph_get()
             positions, tris = garment_data(p.garment, scene)
             pins = pinned_vertices(p.garment, p.pin_group)
-            mesh = build_mesh(positions, tris)
             arm = p.armature
+            positions, _ = self._carried(positions, pins, frames[0])
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            mesh = build_mesh(positions, tris)
             world = bone_world(arm, scene)
-            binding = pin_binding(p.garment, pins, positions, arm, world) if len(pins) else None
             use_mesh = p.collider in ("MESH", "BOTH") or (p.collider == "AUTO" and p.body is not None)
             use_caps = p.collider in ("CAPSULES", "BOTH") or (p.collider == "AUTO" and p.body is None)
             bodies, caps, skin, specs = [], None, None, None
@@ -348,7 +370,13 @@ class ClothJob:
                 world_prev = world
                 skin.set_motion(*self._body_motion(skin, verts_prev, world))
                 bodies.append(skin)
-            self.sim = sim = ClothSimulation(mesh, params_of(p), pins, bodies, p.level, fps / (frames[1] - frames[0]),
+            params = params_of(p)
+            if bodies:  # a garment made at another pose (or over capsules) may cut this body: out
+                positions = positions.copy()  # first, pinned vertices too (their binding is taken after)
+                resolve_particles(positions, np.zeros_like(positions), bodies, 1.0, params.thickness,
+                                  np.ones(len(positions), dtype=bool), passes=16)
+            binding = pin_binding(p.garment, pins, positions, arm, world) if len(pins) else None
+            self.sim = sim = ClothSimulation(mesh, params, pins, bodies, p.level, fps / (frames[1] - frames[0]),
                                              positions, p.normal_control, p.edge_control)
             self.mesh, self.frames_all = mesh, frames
             self._record(frames[0])
@@ -389,6 +417,29 @@ class ClothJob:
                 raise ClothError(f"'{p.body.name}' changes its vertex count between frames")
         return ends, verts, pin_targets(binding, world) if binding is not None else None, world
 
+    def _carried(self, positions, pins, frame):
+        """The garment at `frame`'s pose: a garment made at another frame's pose (a generated
+        skirt records it: FITTED_AT) moves there rigidly with the bone its pinned vertices follow
+        most (the pelvis without pins). (positions, whether they moved.) Leaves the scene at
+        `frame`."""
+        p, scene, arm = self.props, self.scene, self.props.armature
+        fitted = p.garment.get(FITTED_AT)
+        if fitted is None or int(fitted) == frame:
+            return positions, False
+        scene.frame_set(int(fitted))
+        then = bone_world(arm, scene)
+        scene.frame_set(frame)
+        now = bone_world(arm, scene)
+        if len(pins):
+            bones = pin_binding(p.garment, pins, positions, arm, then)[0][:, 0]
+            anchor = int(np.bincount(bones).argmax())
+        else:
+            anchor = arm.data.bones.find(roles_of(arm).bone("pelvis") or arm.data.bones[0].name)
+        move = now[anchor] @ np.linalg.inv(then[anchor])
+        log.info("garment '%s' made at frame %s: carried to frame %d with bone '%s'", p.garment.name, fitted, frame,
+                 arm.data.bones[anchor].name)
+        return positions @ move[:3, :3].T + move[:3, 3], True
+
     @staticmethod
     def _body_motion(skin, v0, bones0, v1=None, bones1=None):
         """set_motion's arguments for the skinned body (its bones' matrices too) or a plain mesh."""
@@ -403,6 +454,9 @@ class ClothJob:
         self.frames_done.append(frame)
         if sim.bodies:
             self.depth_max = max(self.depth_max, float(sim.depth_inside().max()))
+            if self.measure_surface:  # (every rendered vertex too: a query of them all)
+                self.surface_depth_max = max(self.surface_depth_max,
+                                             float(sim.depth_inside(self.fine[-1].astype(float)).max()))
         self.stretch.append(sim.stretch())
 
     # output
@@ -599,6 +653,7 @@ def add_skirt(armature, scene=None, name="Skirt", rings=6, columns=11, length=0.
     positions, faces, pinned = fit_skirt(heads, knees, up, [caps], rings, columns, length, waist, flare, clearance)
     obj = new_mesh_object(name, positions / _metres(scene), faces, armature, smooth=True)
     obj.data.materials.clear()
+    obj[FITTED_AT] = int(frame if frame is not None else saved)
     for group in (pin_group, roles.bone("pelvis")):
         vg = obj.vertex_groups.new(name=group)
         vg.add([int(i) for i in pinned], 1.0, "REPLACE")

@@ -46,7 +46,7 @@ class SkinnedBody:
     def __init__(self, triangles, reference, bones, weights, neighbours=12, spacing=None):
         self.triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
         reference = np.asarray(reference, float)
-        bones = np.asarray(bones, float)
+        bones = _rigid(bones)
         weights = np.asarray(weights, float)
         self.k = neighbours
         t = self.triangles
@@ -118,8 +118,8 @@ class SkinnedBody:
         """The skinned vertices and the bones' world matrices at the frame's start and end."""
         self.v0 = np.asarray(v0, float)
         self.v1 = self.v0 if v1 is None else np.asarray(v1, float)
-        b0 = np.asarray(bones0, float)[self.bones]
-        b1 = b0 if bones1 is None else np.asarray(bones1, float)[self.bones]
+        b0 = _rigid(np.asarray(bones0, float)[self.bones])
+        b1 = b0 if bones1 is None else _rigid(np.asarray(bones1, float)[self.bones])
         self.b0, self.b1 = b0, b1
         self.dt = dt
         self.motions = getattr(self, "motions", 0) + 1
@@ -127,20 +127,21 @@ class SkinnedBody:
         self._v_at = None
 
     def _pose(self, s):
-        """Per bone at time s: the map from world to its reference-pose frame (B, 4, 4), its
-        capsule's ends in the world (B, 3) twice."""
+        """Per bone at time s, the map from world to its reference-pose frame as one (3, 3B)
+        rotation block and a (3B,) offset: points @ block + offset are every point's coordinates
+        in every bone's frame at once."""
         if self._at is not None and self._at[0] == s:
             return self._at[1]
         m = self.b0 + s * (self.b1 - self.b0)  # (nearly rigid over a frame's short motion)
-        to_ref = np.linalg.inv(m)
-        a = np.einsum("bij,bj->bi", m[:, :3, :3], self.ends_local[:, 0]) + m[:, :3, 3]
-        b = np.einsum("bij,bj->bi", m[:, :3, :3], self.ends_local[:, 1]) + m[:, :3, 3]
-        self._at = (s, (to_ref, a, b))
+        rot = m[:, :3, :3].transpose(0, 2, 1)  # the inverse rotation (orthonormal frames)
+        offset = -np.einsum("bij,bj->bi", rot, m[:, :3, 3])
+        block = rot.transpose(2, 0, 1).reshape(3, -1)  # column 3 b + i: row i of bone b's inverse
+        self._at = (s, (block, offset.ravel()))
         return self._at[1]
 
-    def query(self, points, s=1.0, max_distance=0.05):
-        """(phi (N,), outward unit normal (N, 3), surface velocity (N, 3)); points with no
-        triangle within max_distance report phi = max_distance (a lower bound)."""
+    def query(self, points, s=1.0, max_distance=REACH):
+        """(phi (N,), outward unit normal (N, 3), surface velocity (N, 3)). phi is exact below
+        NEAR; beyond, a lower bound (at most max_distance, which is at most REACH)."""
         points = np.asarray(points, float)
         n = len(points)
         phi = np.full(n, float(max_distance))
@@ -149,15 +150,17 @@ class SkinnedBody:
         velocity = np.zeros((n, 3))
         if n == 0:
             return phi, normal, velocity
-        to_ref, a, b = self._pose(s)
-        q, _ = closest_on_segments(points[:, None, :], a[None], b[None])
-        gap = points[:, None, :] - q
+        block, offset = self._pose(s)
+        local = (points @ block + offset).reshape(n, -1, 3)  # (N, B, 3) in every bone's frame
+        # the distance to each bone's capsule: along its y axis, clipped to the triangles' extent
+        y = np.clip(local[:, :, 1], self.ends_local[:, 0, 1], self.ends_local[:, 1, 1])
+        gap = local - 0.0
+        gap[:, :, 1] -= y
         near = dot(gap, gap) < (self.radius + max_distance + SLACK)[None] ** 2
         rows, bone = np.nonzero(near)  # (point, bone) pairs
         if len(rows) == 0:
             return phi, normal, velocity
-        m = to_ref[bone]
-        local = np.einsum("rij,rj->ri", m[:, :3, :3], points[rows]) + m[:, :3, 3]
+        local = local[rows, bone]
         cell = np.rint((local - self.lo[bone]) / self.spacing).astype(np.int64)
         shape = self.shape[bone]
         inside = np.all((cell >= 0) & (cell < shape), axis=1)  # (outside the grid: beyond reach)
@@ -192,18 +195,18 @@ class SkinnedBody:
         the nearest point's feature (face, edge or vertex: exact for a closed mesh, Baerentzen and
         Aanaes 2005), made from the skinned triangles around it. (phi, normal, velocity, distance)."""
         v = self._vertices(s)
-        corners = self.triangles[ids]  # (M, C, 3)
-        tri = v(corners)  # (M, C, 3, 3)
-        q, bary = closest_on_triangles(p[:, None, :], tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
-        d = p[:, None, :] - q
-        dist = np.where(valid, np.sqrt(dot(d, d)), np.inf)
-        nearest = np.argmin(dist, axis=1)
-        r = np.arange(len(p))
-        best = dist[r, nearest]
-        t_best = ids[r, nearest]
-        b = bary[r, nearest]
+        best, t_best, b, dk = _nearest(p, ids, valid, self.triangles, v)
+        # one step of local search: the triangles around the nearest one's corners (where
+        # skinning blends bones the cell's candidates can miss the nearest, never by far)
+        found = np.isfinite(best)
+        if found.any():
+            h = np.flatnonzero(found)
+            ring = self.ring[self.triangles[t_best[h]]].reshape(len(h), -1)  # (m, 3 D)
+            best2, t2, b2, d2 = _nearest(p[h], np.maximum(ring, 0), ring >= 0, self.triangles, v)
+            better = best2 < best[h]
+            k = h[better]
+            best[k], t_best[k], b[k], dk[k] = best2[better], t2[better], b2[better], d2[better]
         pseudo = self._pseudo_normal(t_best, b, v)
-        dk = d[r, nearest]
         # inside only within DEEP of the surface: cloth collided every substep is never deeper
         # (it enters by what the body moves in a substep), while a skinned mesh folded or cut
         # into itself around a bent joint shows "inside" sides far out in the air
@@ -212,7 +215,6 @@ class SkinnedBody:
         far = best[:, None] > 1e-9
         pk = pseudo / np.maximum(np.sqrt(dot(pseudo, pseudo)), 1e-18)[:, None]
         normal = np.where(far, sign[:, None] * dk / np.maximum(best, 1e-12)[:, None], pk)
-        found = np.isfinite(best)
         normal[~found] = (0.0, 0.0, 1.0)
         phi[~found] = max_distance
         c = self.triangles[t_best]
@@ -257,6 +259,26 @@ class SkinnedBody:
             angle = np.arccos(np.clip(cosang, -1.0, 1.0)) * (ring >= 0)
             out[vert] = np.einsum("md,mdk->mk", angle, fn)
         return out
+
+
+def _nearest(p, ids, valid, triangles, v):
+    """Per point p (M, 3), the nearest of its candidate triangles ids (M, C) (valid (M, C)) with
+    vertices v(indices): (distance (M,), triangle (M,), barycentric (M, 3), p minus the point)."""
+    tri = v(triangles[ids])  # (M, C, 3, 3)
+    q, bary = closest_on_triangles(p[:, None, :], tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
+    d = p[:, None, :] - q
+    dist = np.where(valid, np.sqrt(dot(d, d)), np.inf)
+    nearest = np.argmin(dist, axis=1)
+    r = np.arange(len(p))
+    return dist[r, nearest], ids[r, nearest], bary[r, nearest], d[r, nearest]
+
+
+def _rigid(matrices):
+    """The bones' frames without their scale (unit axes): distances in a bone's frame are
+    metres, as in the world."""
+    m = np.array(matrices, float)
+    m[:, :3, :3] /= np.linalg.norm(m[:, :3, :3], axis=1, keepdims=True)
+    return m
 
 
 def _face_normals(tri):

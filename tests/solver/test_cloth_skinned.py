@@ -12,7 +12,7 @@ from humananim.solver.cloth.skinned import NEAR, SkinnedBody
 # where skinning blends two bones the point carried into a bone's frame is a little off, and its
 # cell's candidates can miss the nearest triangle (a neighbour's distance is taken): rarely, and
 # by a few millimetres at most on this leg bent at the knee
-MISS = 3e-3
+MISS = 1e-6
 
 
 def rotation_x(angle):
