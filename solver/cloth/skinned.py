@@ -27,6 +27,7 @@ SLACK = 0.03  # metres a carried point may be from its place where skinning blen
 REACH = 0.05  # metres: the default max_distance of queries, and the grids' margin beyond it
 NEAR = 0.02  # metres: phi is exact below this; farther points may get a lower bound instead
 DEEP = 0.03  # metres: a point found farther inside is taken to be outside (see SkinnedBody)
+LOCAL_SEARCH = True
 MAX_CELLS = 2_000_000  # the grids' cells over all bones, at most (their spacing grows to fit)
 
 
@@ -196,16 +197,18 @@ class SkinnedBody:
         Aanaes 2005), made from the skinned triangles around it. (phi, normal, velocity, distance)."""
         v = self._vertices(s)
         best, t_best, b, dk = _nearest(p, ids, valid, self.triangles, v)
-        # one step of local search: the triangles around the nearest one's corners (where
-        # skinning blends bones the cell's candidates can miss the nearest, never by far)
+        # one step of local search where the nearest point is on a candidate's edge or corner:
+        # the triangles around its corners (where skinning blends bones the cell's candidates
+        # can miss the nearest, never by far; inside a face the nearest is a local minimum)
         found = np.isfinite(best)
-        if found.any():
-            h = np.flatnonzero(found)
-            ring = self.ring[self.triangles[t_best[h]]].reshape(len(h), -1)  # (m, 3 D)
-            best2, t2, b2, d2 = _nearest(p[h], np.maximum(ring, 0), ring >= 0, self.triangles, v)
-            better = best2 < best[h]
-            k = h[better]
-            best[k], t_best[k], b[k], dk[k] = best2[better], t2[better], b2[better], d2[better]
+        zero = b <= 1e-12
+        count = zero.sum(axis=1)
+        if LOCAL_SEARCH:
+            for h, around in self._neighbours(t_best, zero, count, found):
+                best2, t2, b2, d2 = _nearest(p[h], np.maximum(around, 0), around >= 0, self.triangles, v)
+                better = best2 < best[h]
+                k = h[better]
+                best[k], t_best[k], b[k], dk[k] = best2[better], t2[better], b2[better], d2[better]
         pseudo = self._pseudo_normal(t_best, b, v)
         # inside only within DEEP of the surface: cloth collided every substep is never deeper
         # (it enters by what the body moves in a substep), while a skinned mesh folded or cut
@@ -220,6 +223,14 @@ class SkinnedBody:
         c = self.triangles[t_best]
         velocity = np.einsum("ij,ijk->ik", np.where(found[:, None], b, 0.0), (self.v1[c] - self.v0[c]) / self.dt)
         return phi, normal, velocity, best
+
+    def _neighbours(self, tri, zero, count, found):
+        """Where the nearest point is on an edge or a corner of triangle `tri`, the triangles
+        around its three corners (those across the feature alone miss some). Yields (rows,
+        triangles (m, n), -1 padded)."""
+        h = np.flatnonzero(found & (count >= 1))
+        if len(h):
+            yield h, self.ring[self.triangles[tri[h]]].reshape(len(h), -1)
 
     def _vertices(self, s):
         """A gather of the skinned vertices at time s (all of them interpolated once per time:
