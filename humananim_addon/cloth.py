@@ -242,6 +242,14 @@ def figure_height(arm, scene):
     return float(z.max() - z.min()) if len(z) else 0.0
 
 
+def check_figure(arm, scene):
+    """A ClothError unless the armature is a human-sized figure."""
+    height = figure_height(arm, scene)
+    if not FIGURE_HEIGHT[0] <= height <= FIGURE_HEIGHT[1]:
+        raise ClothError(f"the figure is {height:.3g} m tall: cloth needs a human-sized figure "
+                         f"({FIGURE_HEIGHT[0]}-{FIGURE_HEIGHT[1]} m); check the clip's unit (--scale)")
+
+
 def roles_of(arm):
     return detect(arm).roles.with_overrides(role_overrides(arm.data.humananim))
 
@@ -332,10 +340,7 @@ class ClothJob:
             raise ClothError("pick the body mesh to collide with (or collide with capsules)")
         if p.body is not None and p.body.type != "MESH":
             raise ClothError(f"'{p.body.name}' is not a mesh")
-        height = figure_height(p.armature, self.scene)
-        if not FIGURE_HEIGHT[0] <= height <= FIGURE_HEIGHT[1]:
-            raise ClothError(f"the figure is {height:.3g} m tall: cloth needs a human-sized figure "
-                             f"({FIGURE_HEIGHT[0]}-{FIGURE_HEIGHT[1]} m); check the clip's unit (--scale)")
+        check_figure(p.armature, self.scene)
 
     def steps(self):
         self._check()
@@ -633,6 +638,7 @@ def add_skirt(armature, scene=None, name="Skirt", rings=6, columns=11, length=0.
     scene = scene or bpy.context.scene
     if armature is None or armature.type != "ARMATURE":
         raise ClothError("add_skirt needs an armature")
+    check_figure(armature, scene)
     saved = scene.frame_current
     if frame is not None:
         scene.frame_set(frame)
@@ -667,6 +673,7 @@ def add_capsule_body(armature, scene=None, name="Body", segments=16):
     """A stand-in skinned body: a closed capsule mesh per body part, each in the vertex group of
     its bone, deformed by the armature (an Armature modifier). Returns the new mesh object."""
     scene = scene or bpy.context.scene
+    check_figure(armature, scene)
     world = bone_world(armature, scene, rest=True)  # the Armature modifier deforms from the rest pose
     specs = body_capsules(armature, scene, world)
     a, b = capsule_ends(specs, world)
@@ -747,6 +754,7 @@ def add_skin_body(armature, scene=None, name="Body", triangles=20000):
     with Blender's automatic weights (by distance, skinning_weights, where they fail) and
     deformed by an Armature modifier. Returns the new mesh object."""
     scene = scene or bpy.context.scene
+    check_figure(armature, scene)
     bones = armature.data.bones
     names = [b.name for b in bones]
     parents = [names.index(b.parent.name) if b.parent else -1 for b in bones]
