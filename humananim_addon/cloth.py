@@ -18,7 +18,7 @@ from ..solver.cloth import (CapsuleBody, ClothParams, ClothSimulation, MeshBody,
                             capsule_mesh, capsules_from_roles, fit_radii, fit_skirt, write_pc2)
 from ..solver.cloth.body import skin_radii, skinning_weights
 from ..solver.cloth.collision import resolve_particles
-from ..solver.cloth.skinned import SkinnedBody
+from ..solver.cloth.skinned import SkinnedBody, closed_parts
 from ..solver.cloth.mesh import ClothError
 from ..solver.skeleton import reach_of_made_up_tail
 from .actions import scene_fps
@@ -219,10 +219,12 @@ def body_mesh_positions(body, depsgraph, scene):
 
 def skinned_collider(body, arm, triangles, positions, world):
     """The body mesh as a collider: a SkinnedBody (searched in its bones' frames, built at this
-    pose) when the armature deforms it through vertex groups named after its bones that weigh
-    every vertex; else a MeshBody (searched anew at every pose)."""
+    pose) when it is one closed skin that the armature deforms through vertex groups named after
+    its bones weighing every vertex; else a MeshBody (searched anew at every pose; a body of
+    separate, overlapping pieces needs its union, where a point pushed out of one piece can be
+    deep in another)."""
     deformed = any(m.type == "ARMATURE" and m.object == arm and m.show_viewport for m in body.modifiers)
-    if deformed and len(positions) == len(body.data.vertices):
+    if deformed and len(positions) == len(body.data.vertices) and closed_parts(triangles, len(positions)).max() == 0:
         weights = group_weights(body, [b.name for b in arm.data.bones])
         if weights.sum(axis=1).min() > 0.0:
             return SkinnedBody(triangles, positions, world, weights)

@@ -17,6 +17,8 @@ See docs/cloth.md for the measurements behind this choice.
 """
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..vectors import cross
@@ -112,6 +114,8 @@ class SkinnedBody:
         self.ends_local = np.array(ends)  # (B, 2, 3)
         self.radius = np.array(radius)
         self.across, self.ring = _topology(t, len(reference))
+        # closed parts (a body of separate pieces is their union: the smallest phi over them)
+        self.part_of = closed_parts(t, len(reference))
         self.v0 = self.v1 = None
         self._at = None
 
@@ -180,9 +184,14 @@ class SkinnedBody:
         idx = self.candidates[self.row_of[flat]].astype(np.int64)
         valid = idx >= 0
         ids = np.where(valid, idx, 0)
-        signed, nrm, vel, unsigned = self._exact(points[rows], ids, valid, s, max_distance)
-        # per point, the row with the nearest surface, unless a far row's bound is below it
-        order = np.lexsort((unsigned, rows))
+        signed, nrm, vel, unsigned, tri = self._exact(points[rows], ids, valid, s, max_distance)
+        # per point and closed part, the row with the nearest surface; per point, the part with
+        # the smallest phi (the union), unless a far row's bound is below it
+        part = self.part_of[tri]
+        order = np.lexsort((unsigned, part, rows))
+        first = np.r_[True, (rows[order][1:] != rows[order][:-1]) | (part[order][1:] != part[order][:-1])]
+        pick = order[first]
+        order = pick[np.lexsort((signed[pick], rows[pick]))]
         pick = order[np.r_[True, rows[order][1:] != rows[order][:-1]]]
         out = rows[pick]
         take = signed[pick] <= phi[out]
@@ -194,7 +203,7 @@ class SkinnedBody:
         """Signed distances of points p (M, 3) to their candidate triangles ids (M, C) on the
         skinned mesh at time s: the nearest; its side from the angle-weighted pseudo-normal of
         the nearest point's feature (face, edge or vertex: exact for a closed mesh, Baerentzen and
-        Aanaes 2005), made from the skinned triangles around it. (phi, normal, velocity, distance)."""
+        Aanaes 2005), made from the skinned triangles around it. (phi, normal, velocity, distance, triangle)."""
         v = self._vertices(s)
         best, t_best, b, dk = _nearest(p, ids, valid, self.triangles, v)
         # one step of local search where the nearest point is on a candidate's edge or corner:
@@ -222,7 +231,7 @@ class SkinnedBody:
         phi[~found] = max_distance
         c = self.triangles[t_best]
         velocity = np.einsum("ij,ijk->ik", np.where(found[:, None], b, 0.0), (self.v1[c] - self.v0[c]) / self.dt)
-        return phi, normal, velocity, best
+        return phi, normal, velocity, best, t_best
 
     def _neighbours(self, tri, zero, count, found):
         """Where the nearest point is on an edge or a corner of triangle `tri`, the triangles
@@ -270,6 +279,13 @@ class SkinnedBody:
             angle = np.arccos(np.clip(cosang, -1.0, 1.0)) * (ring >= 0)
             out[vert] = np.einsum("md,mdk->mk", angle, fn)
         return out
+
+
+def closed_parts(triangles, vertex_count):
+    """The connected part (0, 1, ...) of each triangle."""
+    t = np.asarray(triangles, dtype=np.int64)
+    graph = coo_matrix((np.ones(2 * len(t)), (t[:, :2].ravel(), t[:, 1:].ravel())), shape=(vertex_count, vertex_count))
+    return connected_components(graph, directed=False)[1][t[:, 0]]
 
 
 def _nearest(p, ids, valid, triangles, v):

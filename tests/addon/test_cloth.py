@@ -79,7 +79,7 @@ def simulated(request, tmp_path_factory):
 def test_no_cloth_particle_is_inside_the_skinned_body_on_any_frame(simulated):
     job, scene, body = simulated["job"], simulated["scene"], simulated["body"]
     assert job.frames_done == list(range(FRAMES[0], FRAMES[1] + 1, 4))  # 30 fps from the 120 fps clip
-    assert simulated["summary"]["colliders"] == ["SkinnedBody"]  # (an armature-deformed body)
+    assert simulated["summary"]["colliders"] == ["MeshBody"]  # (a body of separate capsules)
     worst = worst_fine = 0.0
     for frame, coarse, fine in zip(job.frames_done, job.coarse, job.fine):
         verts, tris = evaluated_body(body, scene, frame)

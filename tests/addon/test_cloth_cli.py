@@ -30,7 +30,7 @@ def test_cloth_command_writes_a_blend_and_point_caches(tmp_path):
                                                       str(cache / "Skirt.cloth_coarse.pc2")]
     assert out.exists() and not (tmp_path / "skirt.blend1").exists()
     assert s["particles"] == 66 and s["fine_faces"] == 110 * 16 and s["frames"] == 16 and s["frame_step"] == 4
-    assert s["colliders"] == ["SkinnedBody"] and s["body"] == "Body" and s["preset"] == "denim"
+    assert s["colliders"] == ["MeshBody"] and s["body"] == "Body" and s["preset"] == "denim"
     assert s["max_depth_inside_mm"] < 2.0 and s["max_mean_stretch"] < 0.02
     for key in ("integration_ms", "collision_ms", "smoothing_ms", "total_ms"):
         assert s["timing_ms_per_frame"][key] > 0.0
