@@ -202,19 +202,24 @@ def pin_targets(binding, world):
     return np.einsum("kb,kbi->ki", weights, p)
 
 
-def body_mesh_positions(body, depsgraph, scene):
+def body_mesh_positions(body, depsgraph, scene, triangles=True):
+    """The evaluated body's world vertices (metres) and its triangles (None without
+    `triangles`: per frame only the vertices move, and triangulating costs as much as reading)."""
     evaluated = body.evaluated_get(depsgraph)
     mesh = evaluated.to_mesh()
+    tris = None
     try:
         co = np.empty(len(mesh.vertices) * 3)
         mesh.vertices.foreach_get("co", co)
-        mesh.calc_loop_triangles()
-        tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
-        mesh.loop_triangles.foreach_get("vertices", tris)
+        if triangles:
+            mesh.calc_loop_triangles()
+            tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+            mesh.loop_triangles.foreach_get("vertices", tris)
+            tris = tris.reshape(-1, 3).astype(np.int64)
     finally:
         evaluated.to_mesh_clear()
     m = np.array(evaluated.matrix_world)
-    return (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]) * _metres(scene), tris.reshape(-1, 3).astype(np.int64)
+    return (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]) * _metres(scene), tris
 
 
 def skinned_collider(body, arm, triangles, positions, world):
@@ -279,7 +284,7 @@ def body_capsules(arm, scene, world, body=None, depsgraph=None):
     unit = float(np.mean(arm.matrix_world.to_scale())) * _metres(scene)
     specs = capsules_from_roles(names, lengths, roles_of(arm), unit, reach_ends(arm, 0.005 / unit))
     if body is not None and body.type == "MESH" and body.vertex_groups:
-        points, _ = body_mesh_positions(body, depsgraph or bpy.context.evaluated_depsgraph_get(), scene)
+        points, _ = body_mesh_positions(body, depsgraph or bpy.context.evaluated_depsgraph_get(), scene, triangles=False)
         weights = group_weights(body, names)
         radii = fit_radii(specs, world, points, weights)
         for spec, r in zip(specs, radii):
@@ -419,7 +424,7 @@ class ClothJob:
         ends = capsule_ends(specs, world) if specs is not None else None
         verts = None
         if vertex_count is not None:
-            verts, _ = body_mesh_positions(p.body, bpy.context.evaluated_depsgraph_get(), scene)
+            verts, _ = body_mesh_positions(p.body, bpy.context.evaluated_depsgraph_get(), scene, triangles=False)
             if len(verts) != vertex_count:
                 raise ClothError(f"'{p.body.name}' changes its vertex count between frames")
         return ends, verts, pin_targets(binding, world) if binding is not None else None, world
