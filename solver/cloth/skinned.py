@@ -27,8 +27,8 @@ from .fast import dot
 
 SLACK = 0.03  # metres a carried point may be from its place where skinning blends bones
 REACH = 0.05  # metres: the default max_distance of queries, and the grids' margin beyond it
-NEAR = 0.02  # metres: phi is exact below this; farther points may get a lower bound instead
-DEEP = 0.03  # metres: a point found farther inside is taken to be outside (see SkinnedBody)
+NEAR = 0.02  # metres: phi is exact below this (beyond the thickness); farther, possibly a lower bound
+DEEP = 0.02  # metres: a point found farther inside is taken to be outside (see SkinnedBody)
 LOCAL_SEARCH = True
 MAX_CELLS = 2_000_000  # the grids' cells over all bones, at most (their spacing grows to fit)
 

@@ -6,7 +6,7 @@ import numpy as np
 
 from humananim.solver.cloth import capsule_mesh
 from humananim.solver.cloth.collision import closest_on_triangles
-from humananim.solver.cloth.skinned import NEAR, SkinnedBody
+from humananim.solver.cloth.skinned import DEEP, NEAR, SkinnedBody
 
 
 # where skinning blends two bones the point carried into a bone's frame is a little off, and its
@@ -95,7 +95,7 @@ def test_skinned_body_matches_brute_force_on_a_bent_leg():
         assert np.allclose(np.linalg.norm(normal, axis=1), 1.0)
         # farther: a lower bound of the distance outside, never "outside" for a point inside
         assert (phi[~exact & ~inside] <= truth[~exact & ~inside] + 1e-9).all()
-        assert (phi[inside & (dist < 0.025)] < 0.0).all()
+        assert (phi[inside & (dist < DEEP)] < 0.0).all()
         assert np.allclose(velocity, 0.0)  # (no motion within the frame)
 
 
