@@ -16,6 +16,9 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProp
 
 from ..solver.cloth import (CapsuleBody, ClothParams, ClothSimulation, MeshBody, PRESETS, build_mesh, capsule_ends,
                             capsule_mesh, capsules_from_roles, fit_radii, fit_skirt, write_pc2)
+from ..solver.cloth.body import skin_radii, skinning_weights
+from ..solver.cloth.collision import resolve_particles
+from ..solver.cloth.skinned import SkinnedBody, closed_parts
 from ..solver.cloth.mesh import ClothError
 from ..solver.skeleton import reach_of_made_up_tail
 from .actions import scene_fps
@@ -27,6 +30,7 @@ log = logging.getLogger(__name__)
 # Blender 4.5+ warns about a '//' path unless the property says it takes one (4.2 has no such option)
 _RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
 
+FITTED_AT = "humananim_fitted_frame"  # custom property: the frame whose pose a garment was made at
 PHYSICAL = ("density", "stretch", "bend", "damping", "drag", "air_damping")
 
 
@@ -198,19 +202,59 @@ def pin_targets(binding, world):
     return np.einsum("kb,kbi->ki", weights, p)
 
 
-def body_mesh_positions(body, depsgraph, scene):
+def body_mesh_positions(body, depsgraph, scene, triangles=True):
+    """The evaluated body's world vertices (metres) and its triangles (None without
+    `triangles`: per frame only the vertices move, and triangulating costs as much as reading)."""
     evaluated = body.evaluated_get(depsgraph)
     mesh = evaluated.to_mesh()
+    tris = None
     try:
         co = np.empty(len(mesh.vertices) * 3)
         mesh.vertices.foreach_get("co", co)
-        mesh.calc_loop_triangles()
-        tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
-        mesh.loop_triangles.foreach_get("vertices", tris)
+        if triangles:
+            mesh.calc_loop_triangles()
+            tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+            mesh.loop_triangles.foreach_get("vertices", tris)
+            tris = tris.reshape(-1, 3).astype(np.int64)
     finally:
         evaluated.to_mesh_clear()
     m = np.array(evaluated.matrix_world)
-    return (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]) * _metres(scene), tris.reshape(-1, 3).astype(np.int64)
+    return (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]) * _metres(scene), tris
+
+
+def skinned_collider(body, arm, triangles, positions, world):
+    """The body mesh as a collider: a SkinnedBody (searched in its bones' frames, built at this
+    pose) when it is one closed skin that the armature deforms through vertex groups named after
+    its bones weighing every vertex; else a MeshBody (searched anew at every pose; a body of
+    separate, overlapping pieces needs its union, where a point pushed out of one piece can be
+    deep in another)."""
+    deformed = any(m.type == "ARMATURE" and m.object == arm and m.show_viewport for m in body.modifiers)
+    if deformed and len(positions) == len(body.data.vertices) and closed_parts(triangles, len(positions)).max() == 0:
+        weights = group_weights(body, [b.name for b in arm.data.bones])
+        if weights.sum(axis=1).min() > 0.0:
+            return SkinnedBody(triangles, positions, world, weights)
+    return MeshBody(triangles, len(positions))
+
+
+FIGURE_HEIGHT = (0.3, 3.0)  # metres: the figures cloth accepts (its thickness, speeds and grids are for people)
+
+
+def figure_height(arm, scene):
+    """The rest-pose skeleton's height (metres): from its lowest to its highest bone end."""
+    world = bone_world(arm, scene, rest=True)
+    ends = [world[:, :3, 3]]
+    ends.append(np.array([world[j, :3, :3] @ [0.0, b.length, 0.0] + world[j, :3, 3]
+                          for j, b in enumerate(arm.data.bones)]))
+    z = np.concatenate(ends)[:, 2]
+    return float(z.max() - z.min()) if len(z) else 0.0
+
+
+def check_figure(arm, scene):
+    """A ClothError unless the armature is a human-sized figure."""
+    height = figure_height(arm, scene)
+    if not FIGURE_HEIGHT[0] <= height <= FIGURE_HEIGHT[1]:
+        raise ClothError(f"the figure is {height:.3g} m tall: cloth needs a human-sized figure "
+                         f"({FIGURE_HEIGHT[0]}-{FIGURE_HEIGHT[1]} m); check the clip's unit (--scale)")
 
 
 def roles_of(arm):
@@ -240,7 +284,7 @@ def body_capsules(arm, scene, world, body=None, depsgraph=None):
     unit = float(np.mean(arm.matrix_world.to_scale())) * _metres(scene)
     specs = capsules_from_roles(names, lengths, roles_of(arm), unit, reach_ends(arm, 0.005 / unit))
     if body is not None and body.type == "MESH" and body.vertex_groups:
-        points, _ = body_mesh_positions(body, depsgraph or bpy.context.evaluated_depsgraph_get(), scene)
+        points, _ = body_mesh_positions(body, depsgraph or bpy.context.evaluated_depsgraph_get(), scene, triangles=False)
         weights = group_weights(body, names)
         radii = fit_radii(specs, world, points, weights)
         for spec, r in zip(specs, radii):
@@ -288,6 +332,8 @@ class ClothJob:
         self.sim = None
         self.seconds = 0.0
         self.depth_max = 0.0
+        self.measure_surface = False  # also measure the rendered surface's depth (tests, benchmarks)
+        self.surface_depth_max = 0.0
         self.stretch = []
 
     # setup
@@ -301,6 +347,7 @@ class ClothJob:
             raise ClothError("pick the body mesh to collide with (or collide with capsules)")
         if p.body is not None and p.body.type != "MESH":
             raise ClothError(f"'{p.body.name}' is not a mesh")
+        check_figure(p.armature, self.scene)
 
     def steps(self):
         self._check()
@@ -315,10 +362,11 @@ class ClothJob:
             depsgraph = bpy.context.evaluated_depsgraph_get()
             positions, tris = garment_data(p.garment, scene)
             pins = pinned_vertices(p.garment, p.pin_group)
-            mesh = build_mesh(positions, tris)
             arm = p.armature
+            positions, _ = self._carried(positions, pins, frames[0])
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            mesh = build_mesh(positions, tris)
             world = bone_world(arm, scene)
-            binding = pin_binding(p.garment, pins, positions, arm, world) if len(pins) else None
             use_mesh = p.collider in ("MESH", "BOTH") or (p.collider == "AUTO" and p.body is not None)
             use_caps = p.collider in ("CAPSULES", "BOTH") or (p.collider == "AUTO" and p.body is None)
             bodies, caps, skin, specs = [], None, None, None
@@ -330,10 +378,17 @@ class ClothJob:
                 bodies.append(caps)
             if use_mesh:
                 verts_prev, body_tris = body_mesh_positions(p.body, depsgraph, scene)
-                skin = MeshBody(body_tris, len(verts_prev))
-                skin.set_motion(verts_prev)
+                skin = skinned_collider(p.body, arm, body_tris, verts_prev, world)
+                world_prev = world
+                skin.set_motion(*self._body_motion(skin, verts_prev, world))
                 bodies.append(skin)
-            self.sim = sim = ClothSimulation(mesh, params_of(p), pins, bodies, p.level, fps / (frames[1] - frames[0]),
+            params = params_of(p)
+            if bodies:  # a garment made at another pose (or over capsules) may cut this body: out
+                positions = positions.copy()  # first, pinned vertices too (their binding is taken after)
+                resolve_particles(positions, np.zeros_like(positions), bodies, 1.0, params.thickness,
+                                  np.ones(len(positions), dtype=bool), passes=16)
+            binding = pin_binding(p.garment, pins, positions, arm, world) if len(pins) else None
+            self.sim = sim = ClothSimulation(mesh, params, pins, bodies, p.level, fps / (frames[1] - frames[0]),
                                              positions, p.normal_control, p.edge_control)
             self.mesh, self.frames_all = mesh, frames
             self._record(frames[0])
@@ -344,14 +399,14 @@ class ClothJob:
                 for _, f in chunk:
                     poses.append(self._pose(f, arm, specs, binding, None if skin is None else len(verts_prev)))
                     yield len(self.frames_done) / len(frames)  # (the UI stays responsive while reading)
-                for (i, f), (ends, verts, targets) in zip(chunk, poses):
+                for (i, f), (ends, verts, targets, bones) in zip(chunk, poses):
                     dt = (f - frames[i - 1]) / fps
                     if caps is not None:
                         caps.set_motion(*caps_prev, *ends, dt)
                         caps_prev = ends
                     if skin is not None:
-                        skin.set_motion(verts_prev, verts, dt)
-                        verts_prev = verts
+                        skin.set_motion(*self._body_motion(skin, verts_prev, world_prev, verts, bones), dt=dt)
+                        verts_prev, world_prev = verts, bones
                     sim.step(targets, dt)
                     self._record(f)
                     yield (i + 1) / len(frames)
@@ -362,17 +417,47 @@ class ClothJob:
     def _pose(self, frame, arm, specs, binding, vertex_count):
         """What the simulation needs of the scene at `frame`: (capsule ends (None without
         `specs`), skinned body vertices (None without `vertex_count`), pin targets (None without
-        `binding`))."""
+        `binding`), the bones' world matrices)."""
         scene, p = self.scene, self.props
         scene.frame_set(frame)
         world = bone_world(arm, scene)
         ends = capsule_ends(specs, world) if specs is not None else None
         verts = None
         if vertex_count is not None:
-            verts, _ = body_mesh_positions(p.body, bpy.context.evaluated_depsgraph_get(), scene)
+            verts, _ = body_mesh_positions(p.body, bpy.context.evaluated_depsgraph_get(), scene, triangles=False)
             if len(verts) != vertex_count:
                 raise ClothError(f"'{p.body.name}' changes its vertex count between frames")
-        return ends, verts, pin_targets(binding, world) if binding is not None else None
+        return ends, verts, pin_targets(binding, world) if binding is not None else None, world
+
+    def _carried(self, positions, pins, frame):
+        """The garment at `frame`'s pose: a garment made at another frame's pose (a generated
+        skirt records it: FITTED_AT) moves there rigidly with the bone its pinned vertices follow
+        most (the pelvis without pins). (positions, whether they moved.) Leaves the scene at
+        `frame`."""
+        p, scene, arm = self.props, self.scene, self.props.armature
+        fitted = p.garment.get(FITTED_AT)
+        if fitted is None or int(fitted) == frame:
+            return positions, False
+        scene.frame_set(int(fitted))
+        then = bone_world(arm, scene)
+        scene.frame_set(frame)
+        now = bone_world(arm, scene)
+        if len(pins):
+            bones = pin_binding(p.garment, pins, positions, arm, then)[0][:, 0]
+            anchor = int(np.bincount(bones).argmax())
+        else:
+            anchor = arm.data.bones.find(roles_of(arm).bone("pelvis") or arm.data.bones[0].name)
+        move = now[anchor] @ np.linalg.inv(then[anchor])
+        log.info("garment '%s' made at frame %s: carried to frame %d with bone '%s'", p.garment.name, fitted, frame,
+                 arm.data.bones[anchor].name)
+        return positions @ move[:3, :3].T + move[:3, 3], True
+
+    @staticmethod
+    def _body_motion(skin, v0, bones0, v1=None, bones1=None):
+        """set_motion's arguments for the skinned body (its bones' matrices too) or a plain mesh."""
+        if isinstance(skin, SkinnedBody):
+            return (v0, bones0, v1, bones1)
+        return (v0, v1)
 
     def _record(self, frame):
         sim = self.sim
@@ -381,6 +466,9 @@ class ClothJob:
         self.frames_done.append(frame)
         if sim.bodies:
             self.depth_max = max(self.depth_max, float(sim.depth_inside().max()))
+            if self.measure_surface:  # (every rendered vertex too: a query of them all)
+                self.surface_depth_max = max(self.surface_depth_max,
+                                             float(sim.depth_inside(self.fine[-1].astype(float)).max()))
         self.stretch.append(sim.stretch())
 
     # output
@@ -557,6 +645,7 @@ def add_skirt(armature, scene=None, name="Skirt", rings=6, columns=11, length=0.
     scene = scene or bpy.context.scene
     if armature is None or armature.type != "ARMATURE":
         raise ClothError("add_skirt needs an armature")
+    check_figure(armature, scene)
     saved = scene.frame_current
     if frame is not None:
         scene.frame_set(frame)
@@ -577,6 +666,7 @@ def add_skirt(armature, scene=None, name="Skirt", rings=6, columns=11, length=0.
     positions, faces, pinned = fit_skirt(heads, knees, up, [caps], rings, columns, length, waist, flare, clearance)
     obj = new_mesh_object(name, positions / _metres(scene), faces, armature, smooth=True)
     obj.data.materials.clear()
+    obj[FITTED_AT] = int(frame if frame is not None else saved)
     for group in (pin_group, roles.bone("pelvis")):
         vg = obj.vertex_groups.new(name=group)
         vg.add([int(i) for i in pinned], 1.0, "REPLACE")
@@ -590,6 +680,7 @@ def add_capsule_body(armature, scene=None, name="Body", segments=16):
     """A stand-in skinned body: a closed capsule mesh per body part, each in the vertex group of
     its bone, deformed by the armature (an Armature modifier). Returns the new mesh object."""
     scene = scene or bpy.context.scene
+    check_figure(armature, scene)
     world = bone_world(armature, scene, rest=True)  # the Armature modifier deforms from the rest pose
     specs = body_capsules(armature, scene, world)
     a, b = capsule_ends(specs, world)
@@ -604,6 +695,113 @@ def add_capsule_body(armature, scene=None, name="Body", segments=16):
     for bone, idx in groups:
         vg = obj.vertex_groups.get(bone) or obj.vertex_groups.new(name=bone)
         vg.add([int(i) for i in idx], 1.0, "REPLACE")
+    mod = obj.modifiers.new("Armature", "ARMATURE")
+    mod.object = armature
+    obj.parent = armature
+    obj.matrix_parent_inverse = armature.matrix_world.inverted()
+    return obj
+
+
+def _grown_skin(scene, heads, tails, radius, resolution):
+    """A closed skin over the bones: a metaball capsule on each bone of some length (radius at
+    its head), polygonised by Blender at `resolution` (Blender units). A new mesh datablock."""
+    balls = bpy.data.metaballs.new("skin")
+    balls.resolution = balls.render_resolution = resolution
+    balls.threshold = 0.6
+    for head, tail, r in zip(heads, tails, radius):
+        axis = tail - head
+        length = float(np.linalg.norm(axis))
+        if length < 1e-6 or r <= 0.0:
+            continue
+        e = balls.elements.new(type="CAPSULE")
+        e.co = tuple((head + tail) / 2.0)
+        e.radius = 1.35 * r  # (the surface of a lone ball sits inside its radius at this threshold)
+        e.size_x = length / 2.0
+        x = axis / length
+        from mathutils import Vector
+        e.rotation = Vector((1.0, 0.0, 0.0)).rotation_difference(Vector(tuple(x)))
+    grower = bpy.data.objects.new("skin", balls)
+    scene.collection.objects.link(grower)
+    try:
+        return bpy.data.meshes.new_from_object(grower.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+    finally:
+        bpy.data.objects.remove(grower, do_unlink=True)
+        bpy.data.metaballs.remove(balls)
+        bpy.context.view_layer.update()  # (no stale base of the removed object for operators)
+
+
+def _automatic_weights(obj, armature, names):
+    """Blender's automatic (bone heat) weights, as Ctrl P > With Automatic Weights; False if
+    some vertex got none (the heat solve fails on some meshes)."""
+    view_layer = bpy.context.view_layer
+    selected = [o for o in view_layer.objects if o.select_get()]
+    active = view_layer.objects.active
+    try:
+        for o in selected:
+            o.select_set(False)
+        obj.select_set(True)
+        armature.select_set(True)
+        view_layer.objects.active = armature
+        bpy.ops.object.parent_set(type="ARMATURE_AUTO")
+    except RuntimeError:
+        return False
+    finally:
+        obj.select_set(False)
+        armature.select_set(False)
+        for o in selected:
+            o.select_set(True)
+        view_layer.objects.active = active
+    return bool(group_weights(obj, names).sum(axis=1).min() > 0.5)
+
+
+def add_skin_body(armature, scene=None, name="Body", triangles=20000):
+    """A stand-in for the character's skinned mesh, grown over the bones: a metaball capsule
+    on each bone (radii by body role: skin_radii), polygonised by Blender at the resolution
+    that gives about `triangles` triangles (one closed surface, blended at the joints), skinned
+    with Blender's automatic weights (by distance, skinning_weights, where they fail) and
+    deformed by an Armature modifier. Returns the new mesh object."""
+    scene = scene or bpy.context.scene
+    check_figure(armature, scene)
+    bones = armature.data.bones
+    names = [b.name for b in bones]
+    parents = [names.index(b.parent.name) if b.parent else -1 for b in bones]
+    world = bone_world(armature, scene, rest=True)
+    unit = _metres(scene)
+    heads = world[:, :3, 3] / unit
+    tails = np.array([world[j, :3, :3] @ [0.0, b.length, 0.0] + world[j, :3, 3] for j, b in enumerate(bones)]) / unit
+    scale = float(np.mean(armature.matrix_world.to_scale())) * unit
+    radius = skin_radii(names, parents, np.array([b.length for b in bones]), roles_of(armature), scale) / unit
+    resolution = 0.02 / unit
+    for _ in range(4):  # triangles go as 1 / resolution^2
+        mesh = _grown_skin(scene, heads, tails, radius, resolution)
+        mesh.calc_loop_triangles()
+        count = len(mesh.loop_triangles)
+        if abs(count - triangles) < 0.08 * triangles:
+            break
+        bpy.data.meshes.remove(mesh)
+        resolution *= (count / triangles) ** 0.5
+    else:
+        mesh = _grown_skin(scene, heads, tails, radius, resolution)
+    mesh.name = name
+    obj = bpy.data.objects.new(name, mesh)
+    for c in list(armature.users_collection) or [scene.collection]:
+        c.objects.link(obj)
+    mesh.polygons.foreach_set("use_smooth", np.ones(len(mesh.polygons), dtype=bool))
+    mesh.update()
+    if not _automatic_weights(obj, armature, names):
+        co = np.empty(len(mesh.vertices) * 3)
+        mesh.vertices.foreach_get("co", co)
+        weights = skinning_weights(co.reshape(-1, 3) * unit, heads * unit, tails * unit,
+                                   [b.use_deform for b in bones])
+        obj.vertex_groups.clear()
+        levels = np.round(weights * 64.0).astype(int)  # vertex groups take one weight per call
+        for j, bone_name in enumerate(names):
+            column = levels[:, j]
+            if column.any():
+                vg = obj.vertex_groups.new(name=bone_name)
+                for level in np.unique(column[column > 0]):
+                    vg.add(np.flatnonzero(column == level).tolist(), level / 64.0, "REPLACE")
+    obj.modifiers.clear()
     mod = obj.modifiers.new("Armature", "ARMATURE")
     mod.object = armature
     obj.parent = armature

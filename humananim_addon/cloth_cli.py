@@ -3,6 +3,7 @@ character and saves a .blend whose new mesh object plays the cloth from a PC2 po
 (written next to the .blend), then prints a summary (--json: one object)."""
 
 import os
+import tempfile
 import time
 
 from ..solver.cloth.materials import ClothParams
@@ -63,21 +64,19 @@ def cmd_cloth(args):
     if args.level < 1 or args.substeps < 1 or args.step < 0:
         raise UsageError("--level and --substeps must be at least 1, --step at least 0")
     arm, scene, unit = _load(args.file, args.armature, args.scale)
-    props = scene.humananim_cloth
-    props.armature = arm
     out = os.path.abspath(args.out)
     os.makedirs(os.path.dirname(out), exist_ok=True)
-    had_backup = os.path.exists(out + "1")
-    bpy.ops.wm.save_as_mainfile(filepath=out)  # so the point caches sit next to it, by relative paths
     scene = bpy.context.scene
-    arm = bpy.data.objects[arm.name]
     props = scene.humananim_cloth
     props.armature = arm
+    if args.frames:
+        props.frame_start, props.frame_end = args.frames
     if args.skirt:
         rings, columns = args.skirt_size
         if rings < 2 or columns < 4:
             raise UsageError("--skirt-size needs at least 2 rings and 4 columns")
-        cloth.add_skirt(arm, scene, rings=rings, columns=columns)
+        # fitted at the pose of the first simulated frame
+        cloth.add_skirt(arm, scene, rings=rings, columns=columns, frame=props.frame_start or scene.frame_start)
     elif args.garment:
         obj = bpy.data.objects.get(args.garment)
         if obj is None or obj.type != "MESH":
@@ -102,15 +101,11 @@ def cmd_cloth(args):
     if not 0.0 <= args.compress_limit <= 0.5:
         raise UsageError("--compress-limit must be between 0 and 0.5")
     props.compress_limit = args.compress_limit
-    props.cache_dir = "//" + os.path.splitext(os.path.basename(out))[0] + "_cache"
+    props.cache_dir = os.path.join(os.path.dirname(out), os.path.splitext(os.path.basename(out))[0] + "_cache")
     if args.wind:
         props.wind = _vector(args.wind, "--wind")
-    if args.frames:
-        props.frame_start, props.frame_end = args.frames
     summary = run_to_end(cloth.run(scene))
-    bpy.ops.wm.save_as_mainfile(filepath=out)
-    if not had_backup and os.path.exists(out + "1"):  # the first save of this command made it
-        os.remove(out + "1")
+    save_blend(out, [bpy.data.objects[n] for n in (summary["object"], summary["coarse_object"]) if n])
     summary.update(command="cloth", file=os.path.abspath(args.file), armature=arm.name,
                    garment=props.garment.name, body=props.body.name if props.body else None,
                    preset=args.preset, wrote=[out] + summary["wrote"], seconds=round(time.perf_counter() - t0, 3))
@@ -118,6 +113,27 @@ def cmd_cloth(args):
         summary["bvh_unit"] = unit
     summary["summary"] = text_summary(summary)
     return summary
+
+
+def save_blend(out, objects):
+    """Save the .blend at `out` whole or not at all: written next to it under a temporary name
+    (the point caches' paths made relative to that folder), then renamed over it."""
+    import bpy
+    folder = os.path.dirname(out)
+    fd, tmp = tempfile.mkstemp(prefix=".cloth-", suffix=".blend", dir=folder)
+    os.close(fd)
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=tmp)  # (now '//' is the output's folder)
+        for obj in objects:
+            for mod in obj.modifiers:
+                if mod.type == "MESH_CACHE":
+                    mod.filepath = bpy.path.relpath(bpy.path.abspath(mod.filepath))
+        bpy.ops.wm.save_as_mainfile(filepath=tmp)
+        os.replace(tmp, out)
+    finally:
+        for leftover in (tmp, tmp + "1"):
+            if os.path.exists(leftover):
+                os.remove(leftover)
 
 
 def text_summary(s):

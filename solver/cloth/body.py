@@ -129,3 +129,51 @@ def capsule_mesh(a, b, radius, segments=16, spacing=0.03, rings=None):
     for i in range(s):
         tris.append((top, last + i, last + (i + 1) % s))
     return verts, np.array(tris)
+
+
+# skin radius over the mean thigh length per body role, for a stand-in body grown over the bones
+SKIN_RADIUS_OF = dict(RADIUS_OF, pelvis=0.21, chest=0.26, spine=0.26, neck=0.12, head=0.22, clavicle=0.12,
+                      thigh=0.17, toe=0.06)
+
+
+def skin_radii(names, parents, lengths, roles, unit=1.0):
+    """Per bone, the radius (metres) of a skin grown over it at its head: by the bone's body
+    role (a proportion of the mean thigh length), else its parent's (a finger has its hand's, a
+    hip joint bone the pelvis's)."""
+    index = {n: i for i, n in enumerate(names)}
+    base_of = {}
+    for role, bones in roles.bones.items():
+        base = role.split(".")[0]
+        if base in SKIN_RADIUS_OF:
+            for b in bones:
+                if b in index:
+                    base_of.setdefault(index[b], base)
+    thighs = [index.get(roles.bone(sided("thigh", s))) for s in "LR"]
+    if None in thighs:
+        raise ClothError("the rig needs thigh roles to grow a body over its bones")
+    ref = float(np.mean([lengths[t] for t in thighs])) * unit
+    radius = np.zeros(len(names))
+    for j in range(len(names)):  # parents come first
+        if j in base_of:
+            radius[j] = SKIN_RADIUS_OF[base_of[j]] * ref
+        elif parents[j] >= 0:
+            radius[j] = radius[parents[j]]
+        else:
+            radius[j] = SKIN_RADIUS_OF["pelvis"] * ref
+    return radius
+
+
+def skinning_weights(points, heads, tails, deform, blend=0.08, most=4):
+    """Smooth skinning weights (V, J) from the distances of the points to the bone segments:
+    the nearest bone and those within `blend` metres of as near, falling off quadratically,
+    at most `most` bones a vertex, normalised. (A stand-in for Blender's automatic weights,
+    which fail on grown skins in headless Blender.)"""
+    from .collision import closest_on_segments
+    q, _ = closest_on_segments(points[:, None], heads[None], tails[None])
+    d = np.linalg.norm(points[:, None] - q, axis=2)
+    d[:, ~np.asarray(deform, bool)] = np.inf
+    w = np.clip(1.0 - (d - d.min(axis=1, keepdims=True)) / blend, 0.0, 1.0) ** 2
+    if w.shape[1] > most:
+        cut = np.partition(w, -most, axis=1)[:, -most][:, None]
+        w[w < cut] = 0.0
+    return w / w.sum(axis=1, keepdims=True)

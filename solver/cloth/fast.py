@@ -1,14 +1,24 @@
 """Small helpers for the cloth's hot loops, where numpy's per-call cost dominates."""
 
+import os
+
 import numpy as np
 
-try:  # np.einsum's Python front end costs as much as the sum itself on a few hundred rows
-    from numpy._core.multiarray import c_einsum as _c_einsum
-except ImportError:  # numpy < 1.26
-    try:
-        from numpy.core.multiarray import c_einsum as _c_einsum
-    except ImportError:
-        _c_einsum = np.einsum
+# numpy's and scipy's compiled entry points below (c_einsum, the clip ufunc, csr_matvecs) are
+# private: each has the public call as its fallback, used when the import fails or when
+# HUMANANIM_PUBLIC_NUMPY=1 (tests/solver/test_cloth_public_numpy.py runs both; docs/cloth.md
+# has the measurement that keeps them: the simulation and smoothing 20-30 % faster)
+PUBLIC_ONLY = os.environ.get("HUMANANIM_PUBLIC_NUMPY", "") not in ("", "0")
+
+_c_einsum = np.einsum
+if not PUBLIC_ONLY:
+    try:  # np.einsum's Python front end costs as much as the sum itself on a few hundred rows
+        from numpy._core.multiarray import c_einsum as _c_einsum
+    except ImportError:  # numpy < 2
+        try:
+            from numpy.core.multiarray import c_einsum as _c_einsum
+        except ImportError:
+            _c_einsum = np.einsum
 
 
 def dot(a, b):
@@ -21,19 +31,20 @@ def rowdot(a, b):
     return _c_einsum("ij,ij->i", a, b)
 
 
-try:  # scipy's compiled CSR times dense kernel, without the sparse matrix's Python dispatch
-    from scipy.sparse._sparsetools import csr_matvecs as _csr_matvecs
-except ImportError:
-    _csr_matvecs = None
-
-
-try:  # the clip ufunc itself: np.clip's Python front end costs more than the clip
-    from numpy._core.umath import clip as clip
-except ImportError:  # numpy < 2
-    try:
-        from numpy.core.umath import clip as clip
+_csr_matvecs = None
+clip = np.clip
+if not PUBLIC_ONLY:
+    try:  # scipy's compiled CSR times dense kernel, without the sparse matrix's Python dispatch
+        from scipy.sparse._sparsetools import csr_matvecs as _csr_matvecs
     except ImportError:
-        clip = np.clip
+        _csr_matvecs = None
+    try:  # the clip ufunc itself: np.clip's Python front end costs more than the clip
+        from numpy._core.umath import clip as clip
+    except ImportError:  # numpy < 2
+        try:
+            from numpy.core.umath import clip as clip
+        except ImportError:
+            clip = np.clip
 
 
 class Product:

@@ -79,7 +79,7 @@ def simulated(request, tmp_path_factory):
 def test_no_cloth_particle_is_inside_the_skinned_body_on_any_frame(simulated):
     job, scene, body = simulated["job"], simulated["scene"], simulated["body"]
     assert job.frames_done == list(range(FRAMES[0], FRAMES[1] + 1, 4))  # 30 fps from the 120 fps clip
-    assert simulated["summary"]["colliders"] == ["MeshBody"]
+    assert simulated["summary"]["colliders"] == ["MeshBody"]  # (a body of separate capsules)
     worst = worst_fine = 0.0
     for frame, coarse, fine in zip(job.frames_done, job.coarse, job.fine):
         verts, tris = evaluated_body(body, scene, frame)
@@ -252,3 +252,24 @@ def test_hand_capsules_end_at_the_fingers_on_every_blender(empty_scene):
     _, ends = capsule_ends([specs["hand.L"], specs["hand.R"]], world)
     for end, side in zip(ends, "LR"):
         assert np.allclose(end, world[arm.data.bones.find(f"{side}Fingers"), :3, 3], atol=1e-6)
+
+
+def test_a_garment_made_at_another_frame_is_carried_to_the_first_simulated_frame(tmp_path):
+    """A skirt added at frame 1 and simulated from frame 241 (the walk has moved on): it starts
+    around the hips at frame 241, not where they were at frame 1, and not inside the body."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    arm = import_cmu(CMU_CLIPS[0])
+    scene = bpy.context.scene
+    scene.frame_set(1)
+    skirt = cloth.add_skirt(arm, scene)
+    props = scene.humananim_cloth
+    props.collider, props.frame_start, props.frame_end = "CAPSULES", 241, 281
+    props.cache_dir = str(tmp_path)
+    job = cloth.ClothJob(scene)
+    for _ in job.steps():
+        pass
+    scene.frame_set(241)
+    hips = np.array(arm.matrix_world @ arm.pose.bones[0].head)
+    assert np.linalg.norm((job.fine[0].mean(axis=0) - hips)[:2]) < 0.15
+    assert job.depth_max < 0.002 and np.max(np.abs(job.stretch)) < 0.02
+    assert skirt[cloth.FITTED_AT] == 1  # (the garment itself is left as it was)
