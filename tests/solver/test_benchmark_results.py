@@ -23,7 +23,7 @@ machine = load_module("machine")
 SCRIPTS = results.benchmark_names()
 # benchmarks/cloth.py is given its results/cloth.json on the cloth branch (issue 29) at the same time:
 # drop this mark once both are merged
-PENDING = {"cloth": pytest.mark.xfail(reason="cloth.py writes results/cloth.json on the cloth branch", strict=False)}
+PENDING = {}  # {script: pytest.mark.xfail(reason=...)} for a benchmark that has not yet written its result
 
 
 def option_strings(source):
