@@ -124,9 +124,9 @@ def store(obj, report):
     obj[PROPERTY] = json.dumps(report)
 
 
-def stored(obj):
-    """The last QA report stored on `obj`, or None."""
-    text = obj.get(PROPERTY) if obj is not None else None
+def stored(obj, prop=PROPERTY):
+    """The last QA report stored on `obj` (or another JSON report under `prop`), or None."""
+    text = obj.get(prop) if obj is not None else None
     try:
         return json.loads(text) if text else None
     except (TypeError, ValueError):

@@ -57,11 +57,8 @@ def _marker(action, frame, name):
 
 def stored(obj):
     """The last clean-up report on `obj`, or None."""
-    text = obj.get(PROPERTY) if obj is not None else None
-    try:
-        return json.loads(text) if text else None
-    except (TypeError, ValueError):
-        return None
+    from .. import qa
+    return qa.stored(obj, PROPERTY)
 
 
 def lines(report):
