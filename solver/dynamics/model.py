@@ -154,20 +154,35 @@ class Model:
         q_index = 3 + 4 * self.universal_body
         self.universal_q = (q_index[:, None] + np.arange(4)).reshape(-1)  # their quaternions' entries of q
 
-    def universal_angles(self, quats):
-        """(a, b) (..., n_u) of universal joints' quaternions (..., n_u, 4): R = R_i(a) R_k(b).
-        a is where R_i turned the bone-side axis (R e_k = cos a e_k + sigma sin a e_j), b how far
-        the bone turned from it about e_k (R e_i = cos b e_i - sigma sin b R_i(a) e_j); exact on
-        the allowed set, and off it the nearest such joint in that sense (the part of the
-        rotation the joint cannot make is dropped)."""
+    def universal_angles(self, quats, drop_twist=False):
+        """(a, b) (..., n_u) of universal joints' quaternions (..., n_u, 4): R = R_i(a) R_k(b),
+        exact on the allowed set. Off it:
+
+        - by default (a configuration a small step off the set, e.g. a Runge-Kutta stage), a is
+          where R turns the bone-side axis about e_i (R e_k = cos a e_k + sigma sin a e_j on the
+          set) and b how R turns e_i from there about e_k (R e_i = cos b e_i - sigma sin b
+          R_i(a) e_j): smooth everywhere near the set;
+        - with drop_twist (a retargeted rotation), the intrinsic Euler decomposition
+          R_i(a) R_k(b) R_j(c) with the twist |c| <= pi / 2 about the locked axis dropped:
+          R e_j = sigma sin b e_i + cos b (cos a e_j - sigma sin a e_k) gives (a, b) up to the
+          other solution (a + pi, pi - b), and the one kept turns e_k the way R does
+          (cos c >= 0). At |b| = pi / 2 a twist about j is a turn about i, and a takes it.
+        """
         rot = spatial.quat_to_matrix(np.asarray(quats, float))
         e = np.eye(3)[self.universal_axes]  # (n_u, 3 [i k j], 3)
-        # axes [i, k, j] of R e_k and R e_i: entry [..., n, row, column]
+        # entries [..., n, row, column] of R on the axes [i, k, j]
         r = np.einsum("nax,...nxy,nby->...nab", e, rot, e)
         sigma = self.universal_sigma
-        a = np.arctan2(sigma * r[..., 2, 1], r[..., 1, 1])
-        turned_j = np.cos(a) * r[..., 2, 0] - sigma * np.sin(a) * r[..., 1, 0]  # R e_i . R_i(a) e_j
-        b = np.arctan2(-sigma * turned_j, r[..., 0, 0])
+        if not drop_twist:
+            a = np.arctan2(sigma * r[..., 2, 1], r[..., 1, 1])
+            turned_j = np.cos(a) * r[..., 2, 0] - sigma * np.sin(a) * r[..., 1, 0]  # R e_i . R_i(a) e_j
+            return a, np.arctan2(-sigma * turned_j, r[..., 0, 0])
+        ui, uk, uj = r[..., 0, 2], r[..., 1, 2], r[..., 2, 2]  # R e_j
+        a = np.arctan2(-sigma * uk, uj)
+        b = np.arctan2(sigma * ui, np.hypot(uj, uk))
+        other = np.cos(a) * r[..., 1, 1] + sigma * np.sin(a) * r[..., 2, 1] < 0.0
+        a = np.where(other, a - np.copysign(np.pi, a), a)  # a + pi, within (-pi, pi]
+        b = np.where(other, np.copysign(np.pi, b) - b, b)  # pi - b, within (-pi, pi]
         return a, b
 
     def universal_quaternions(self, a, b):
@@ -183,13 +198,14 @@ class Model:
         out[..., n, 1 + j] = self.universal_sigma * sa * sb  # e_i e_k = sigma e_j
         return out
 
-    def project(self, q):
+    def project(self, q, drop_twist=False):
         """q (..., nq) with every universal joint's orientation on its allowed set (the others
-        untouched); a configuration already on it is returned unchanged to rounding."""
+        untouched; drop_twist as in universal_angles); a configuration already on it is returned
+        unchanged to rounding."""
         q = np.array(q, dtype=float)
         if len(self.universal_body):
             quats = q[..., self.universal_q].reshape(q.shape[:-1] + (-1, 4))
-            out = self.universal_quaternions(*self.universal_angles(quats))
+            out = self.universal_quaternions(*self.universal_angles(quats, drop_twist))
             # the sign of the given quaternion (a wrapping past pi flips the computed one), so that
             # sums of rates taken at projected stages (forward_dynamics.rk4_step) stay consistent
             out *= np.where(np.einsum("...i,...i->...", out, quats) < 0.0, -1.0, 1.0)[..., None]
@@ -243,14 +259,14 @@ class Model:
 
     def configuration(self, root_position, root_orientation, joint_rotations):
         """q from the root bone's world pose and every bone's local rotation (J, 4); the rotations
-        of universal joints are projected on their allowed set (Model.project)."""
+        of universal joints lose their twist about the locked axis (Model.project)."""
         joint_rotations = np.asarray(joint_rotations, dtype=float)
         q = np.empty(self.nq)
         q[:3] = root_position
         body_q = rotations.normalize(joint_rotations[self.body_joint])
         body_q[0] = rotations.normalize(root_orientation)
         q[3:] = body_q.ravel()
-        return self.project(q)
+        return self.project(q, drop_twist=True)
 
     def configurations(self, root_positions, root_orientations, joint_rotations):
         """configuration() for every frame (F, nq) of a motion at once."""
@@ -261,7 +277,7 @@ class Model:
         body_q = rotations.normalize(joint_rotations[:, self.body_joint])
         body_q[:, 0] = rotations.normalize(root_orientations)
         q[:, 3:] = body_q.reshape(nf, -1)
-        return self.project(q)
+        return self.project(q, drop_twist=True)
 
     def joint_rotations(self, q, reference=None):
         """Every bone's local rotation (J, 4): body joints from q, the others from `reference`
