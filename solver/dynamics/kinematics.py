@@ -39,7 +39,8 @@ def update_frames(model: Model, data: Data, q):
     # parts[:, motion_gather], laid out column by column (the products on it keep their
     # arithmetic only on that layout)
     data.motion = parts.T[model.motion_gather].T.reshape(nb, 6, 6)
-    data.joint_motion = _joint_motion(model, data.motion, quats)
+    data.joint_motion = _joint_motion(model, data.motion, outer)
+    data.universal_cross = None
     data.set_force_transforms(parts)  # gathered when the world inertias are first asked for
     data.subspace = None
     data.velocity = None
@@ -47,16 +48,17 @@ def update_frames(model: Model, data: Data, q):
     return data
 
 
-def _joint_motion(model, motion, quats):
+def _joint_motion(model, motion, outer):
     """Xm (nb, 6, 6) with each universal joint's parent-side column i replaced by the world
-    motion of that axis, Xm's angular block times R^T e_i (row i of the joint's rotation R)."""
+    motion of that axis, Xm's angular block times R^T e_i (row i of the joint's rotation R, from
+    the quaternions' outer products `outer` (nb, 1, 16))."""
     ub = model.universal_body
     if not len(ub):
         return motion
     out = motion.copy()
     i = model.universal_axes[:, 0]
-    rows = spatial.quat_to_matrix(quats[ub])[np.arange(len(ub)), i]  # (n_u, 3): R^T e_i
-    out[ub, :, i] = (motion[ub, :, :3] @ rows[:, :, None])[:, :, 0]
+    rows = outer[ub] @ model.universal_row  # (n_u, 1, 3): R^T e_i
+    out[ub, :, i] = (motion[ub, :, :3] @ rows.swapaxes(1, 2))[:, :, 0]
     return out
 
 
@@ -72,12 +74,16 @@ def joint_velocity_products(model, data, v):
     ub = model.universal_body
     if not len(ub):
         return 0.0
-    full = model.expand(v)
-    i, k = model.universal_axes[:, 0], model.universal_axes[:, 1]
-    s_i = data.joint_motion[ub, :, i]
-    s_k = data.joint_motion[ub, :, k]
+    if data.universal_cross is None:  # s_i x s_k depends on q alone: once per configuration
+        s_i = data.joint_motion[ub, :, model.universal_axes[:, 0]]  # (n_u, 6) world (omega, v)
+        s_k = data.joint_motion[ub, :, model.universal_axes[:, 1]]
+        # (w_i, v_i) x (w_k, v_k) = (w_i x w_k, w_i x v_k + v_i x w_k)
+        w_i, w_k = s_i[:, :3], s_k[:, :3]
+        data.universal_cross = np.concatenate(
+            (spatial.cross(w_i, w_k), spatial.cross(w_i, s_k[:, 3:]) + spatial.cross(s_i[:, 3:], w_k)), axis=1)
+    v = np.asarray(v, float)
     out = np.zeros((model.nb, 6))
-    out[ub] = (full[ub, i] * full[ub, k])[:, None] * (spatial.crm(s_i) @ s_k[:, :, None])[:, :, 0]
+    out[ub] = (v[model.universal_v[0]] * v[model.universal_v[1]])[:, None] * data.universal_cross
     return out
 
 
@@ -249,15 +255,17 @@ def integrate(model, q, v, dt=1.0):
     quats = q[3:].reshape(nb, 4)
     turned = (quats[:, :, None] * exp[:, None, :]).reshape(nb, 16).dot(spatial._QMUL_OUTER)
     ub = model.universal_body
-    if len(ub):
-        axes = model.universal_axes
-        turn_i = np.zeros((len(ub), 3))
-        turn_k = np.zeros((len(ub), 3))
-        n = np.arange(len(ub))
-        turn_i[n, axes[:, 0]] = full[ub, axes[:, 0]]
-        turn_k[n, axes[:, 1]] = full[ub, axes[:, 1]]
-        turned[ub] = spatial.quat_multiply(spatial.quat_exp(turn_i),
-                                           spatial.quat_multiply(quats[ub], spatial.quat_exp(turn_k)))
+    if len(ub):  # R_i(da) q R_k(db), the products on outer products as above
+        step = v if dt == 1.0 else v * dt
+        half_a, half_b = 0.5 * step[model.universal_v[0]], 0.5 * step[model.universal_v[1]]
+        n = len(ub)
+        left = np.zeros((n, 4))
+        right = np.zeros((n, 4))
+        left[:, 0], right[:, 0] = np.cos(half_a), np.cos(half_b)
+        left.flat[model.universal_qi] = np.sin(half_a)
+        right.flat[model.universal_qk] = np.sin(half_b)
+        mid = (left[:, :, None] * quats[ub][:, None, :]).reshape(n, 16).dot(spatial._QMUL_OUTER)
+        turned[ub] = (mid[:, :, None] * right[:, None, :]).reshape(n, 16).dot(spatial._QMUL_OUTER)
     out[3:] = (turned / np.sqrt((turned * turned).dot(ONES4))[:, None]).ravel()
     return out
 

@@ -153,6 +153,14 @@ class Model:
         self.universal_sigma = np.array([spatial._EPS[i, k, j] for i, k, j in axes]).reshape(-1)
         q_index = 3 + 4 * self.universal_body
         self.universal_q = (q_index[:, None] + np.arange(4)).reshape(-1)  # their quaternions' entries of q
+        n = len(two)
+        # entries of v holding da/dt and db/dt (v_index[body, axis])
+        self.universal_v = (self.v_index[self.universal_body, axes[:, 0]], self.v_index[self.universal_body, axes[:, 1]])
+        # (n_u, 16, 3): a quaternion's outer product to row i of its rotation matrix (R^T e_i)
+        self.universal_row = spatial._Q2R.reshape(16, 3, 3)[:, axes[:, 0], :].transpose(1, 0, 2).copy()
+        # flat entries of (n_u, 4) arrays: the i and k components of a quaternion
+        self.universal_qi = 4 * np.arange(n) + 1 + axes[:, 0]
+        self.universal_qk = 4 * np.arange(n) + 1 + axes[:, 1]
 
     def universal_angles(self, quats, drop_twist=False):
         """(a, b) (..., n_u) of universal joints' quaternions (..., n_u, 4): R = R_i(a) R_k(b),
@@ -326,6 +334,7 @@ class Data:
         # Xm with each universal joint's parent-side column turned (R^T e_i for e_i): the joint
         # motion subspace's columns on the free slots (the same array as motion without them)
         self.joint_motion = self.motion
+        self.universal_cross = None  # (n_u, 6) s_i x s_k, kinematics.joint_velocity_products
         self.zero_column = np.zeros((nb, 1))
         self._force = None
         self._inertia = np.zeros((nb, 6, 6))
