@@ -41,7 +41,9 @@ def cylinder_inertia(mass, length, radius):
 
 
 # name, parent, head, tail, free axes (local x y z), mass fraction, radius (m), role,
-# limits (degrees, per local axis; with Y down the limbs, +X swings a limb backwards)
+# limits (degrees, per local axis; with Y down the limbs, +X swings a limb backwards). Two free axes
+# make a universal joint R = R_first(a) R_second(b) in x, y, z order (model.py): the clavicles and
+# hands turn about x then z, the forearms and feet about x then about the bone's own y.
 # Facing -Y (Blender's front view), left side at +X. de Leva (1996) male fractions: head 6.94,
 # trunk 43.46 (upper 15.96 minus 2 x 1.0 for the clavicles, middle 16.33, lower 11.17), upper arm
 # 2.71, forearm 1.62, hand 0.61, thigh 14.16, shank 4.33, foot 1.37 (per cent).

@@ -13,7 +13,7 @@ from scipy.linalg import cho_factor, cho_solve
 
 from . import spatial
 from .inertia_matrix import bias_forces, crba
-from .kinematics import joint_contributions, update_frames
+from .kinematics import joint_contributions, joint_velocity_products, update_frames
 
 
 def aba(model, data, q, v, tau, f_ext=None, gravity=None):
@@ -21,11 +21,12 @@ def aba(model, data, q, v, tau, f_ext=None, gravity=None):
     usually zero); f_ext (nb, 6) world wrenches."""
     update_frames(model, data, q)
     g = model.gravity if gravity is None else np.asarray(gravity, dtype=float)
-    xm = data.motion
+    xm = data.joint_motion
     u = joint_contributions(model, data, v)
     vel = model.ancestors @ u
     cr = spatial.crm(vel)
     c = (cr @ u[:, :, None])  # velocity-product acceleration of each joint, (nb, 6, 1)
+    c[:, :, 0] += joint_velocity_products(model, data, v)
     inertia = data.inertia
     momentum = inertia @ vel[:, :, None]
     bias = -(np.swapaxes(cr, 1, 2) @ momentum) - inertia[:, :, 3:] @ g[:, None]  # (nb, 6, 1)
@@ -81,11 +82,11 @@ def rk4_step(model, data, q, v, tau, dt, f_ext=None, gravity=None, forward=aba):
     the closed-loop simulation uses a semi-implicit step)."""
     from .kinematics import configuration_rate
 
-    def unit(x):
+    def unit(x):  # back on the configuration manifold: unit quaternions, universal joints on their set
         x = x.copy()
         quats = x[3:].reshape(model.nb, 4)
         quats /= np.linalg.norm(quats, axis=1, keepdims=True)
-        return x
+        return model.project(x)
 
     def deriv(qs, vs):
         acc = forward(model, data, qs, vs, tau, f_ext=f_ext, gravity=gravity)

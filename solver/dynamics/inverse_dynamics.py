@@ -9,7 +9,7 @@ product with the model's ancestor matrix, so no Python loop runs over bodies.
 import numpy as np
 
 from . import spatial
-from .kinematics import update_frames
+from .kinematics import joint_velocity_products, update_frames
 
 
 
@@ -46,7 +46,7 @@ def rnea(model, data, q, v, a, f_ext=None, gravity=None, return_wrenches=False):
     wrench (nb, 6) each body receives from its parent (index 0: from the outside world).
     """
     total = subtree_wrenches(model, data, q, v, a, f_ext, gravity)
-    tau6 = (data.motion.swapaxes(1, 2) @ total[:, :, None])[:, :, 0]
+    tau6 = (data.joint_motion.swapaxes(1, 2) @ total[:, :, None])[:, :, 0]
     tau = tau6.ravel()[model.flat_dof] + model.armature_v * a
     return (tau, total) if return_wrenches else tau
 
@@ -61,12 +61,12 @@ def velocity_terms(model, data, q, v):
     cached = data.velocity
     if cached is not None and cached[0] == key:
         return cached[1]
-    u = (data.motion @ model.expand(v)[:, :, None])[:, :, 0]
+    u = (data.joint_motion @ model.expand(v)[:, :, None])[:, :, 0]
     # ndarray.dot for ancestors @ u (here and in subtree_wrenches): numpy 1's @ dispatch made
     # benchmarks/dynamics.py's control step over 5 % slower
     vel = model.ancestors.dot(u)
     cr = spatial.crm(vel)
-    out = (vel, cr, (cr @ u[:, :, None])[:, :, 0])
+    out = (vel, cr, (cr @ u[:, :, None])[:, :, 0] + joint_velocity_products(model, data, v))
     data.velocity = (key, out)
     return out
 
@@ -76,7 +76,7 @@ def subtree_wrenches(model, data, q, v, a, f_ext=None, gravity=None):
     tau is each DOF's motion subspace against its body's entry (plus the armature's a)."""
     vel, cr, product = velocity_terms(model, data, q, v)
     g = model.gravity if gravity is None else np.asarray(gravity, dtype=float)
-    own = (data.motion @ model.expand(np.asarray(a, float))[:, :, None])[:, :, 0] + product
+    own = (data.joint_motion @ model.expand(np.asarray(a, float))[:, :, None])[:, :, 0] + product
     av = np.empty((model.nb, 6, 2))
     av[:, :, 0] = model.ancestors.dot(own)
     av[:, 3:, 0] -= g  # gravity as an upward acceleration of the whole body (Luh et al.)

@@ -39,6 +39,8 @@ def update_frames(model: Model, data: Data, q):
     # parts[:, motion_gather], laid out column by column (the products on it keep their
     # arithmetic only on that layout)
     data.motion = parts.T[model.motion_gather].T.reshape(nb, 6, 6)
+    data.joint_motion = _joint_motion(model, data.motion, outer)
+    data.universal_cross = None
     data.set_force_transforms(parts)  # gathered when the world inertias are first asked for
     data.subspace = None
     data.velocity = None
@@ -46,9 +48,43 @@ def update_frames(model: Model, data: Data, q):
     return data
 
 
+def _joint_motion(model, motion, outer):
+    """Xm (nb, 6, 6) with each universal joint's parent-side column i replaced by the world
+    motion of that axis, Xm's angular block times R^T e_i (row i of the joint's rotation R, from
+    the quaternions' outer products `outer` (nb, 1, 16))."""
+    ub = model.universal_body
+    if not len(ub):
+        return motion
+    out = motion.copy()
+    i = model.universal_axes[:, 0]
+    rows = outer[ub] @ model.universal_row  # (n_u, 1, 3): R^T e_i
+    out[ub, :, i] = (motion[ub, :, :3] @ rows.swapaxes(1, 2))[:, :, 0]
+    return out
+
+
 def joint_contributions(model, data, v):
     """Per-body spatial velocity added by its own joint, world (nb, 6)."""
-    return (data.motion @ model.expand(v)[:, :, None])[:, :, 0]
+    return (data.joint_motion @ model.expand(v)[:, :, None])[:, :, 0]
+
+
+def joint_velocity_products(model, data, v):
+    """What a universal joint adds to the velocity-product acceleration (nb, 6), world, or 0.0
+    without them: its parent-side column s_i turns with the parent, not with the bone, so
+    d/dt (S qdot) has da/dt db/dt (s_i x s_k) besides the bone's own v x (S qdot)."""
+    ub = model.universal_body
+    if not len(ub):
+        return 0.0
+    if data.universal_cross is None:  # s_i x s_k depends on q alone: once per configuration
+        s_i = data.joint_motion[ub, :, model.universal_axes[:, 0]]  # (n_u, 6) world (omega, v)
+        s_k = data.joint_motion[ub, :, model.universal_axes[:, 1]]
+        # (w_i, v_i) x (w_k, v_k) = (w_i x w_k, w_i x v_k + v_i x w_k)
+        w_i, w_k = s_i[:, :3], s_k[:, :3]
+        data.universal_cross = np.concatenate(
+            (spatial.cross(w_i, w_k), spatial.cross(w_i, s_k[:, 3:]) + spatial.cross(s_i[:, 3:], w_k)), axis=1)
+    v = np.asarray(v, float)
+    out = np.zeros((model.nb, 6))
+    out[ub] = (v[model.universal_v[0]] * v[model.universal_v[1]])[:, None] * data.universal_cross
+    return out
 
 
 def body_velocities(model, data, q, v):
@@ -62,8 +98,8 @@ def body_accelerations(model, data, q, v, a):
     update_frames(model, data, q)
     u = joint_contributions(model, data, v)
     vel = model.ancestors @ u
-    own = np.einsum("bij,bj->bi", data.motion, model.expand(a)) \
-        + np.einsum("bij,bj->bi", spatial.crm(vel), u)
+    own = np.einsum("bij,bj->bi", data.joint_motion, model.expand(a)) \
+        + np.einsum("bij,bj->bi", spatial.crm(vel), u) + joint_velocity_products(model, data, v)
     return vel, model.ancestors @ own
 
 
@@ -122,7 +158,7 @@ def motion_subspace(model, data, q):
     """World motion subspace columns (nv, 6): the spatial velocity each DOF gives its body."""
     update_frames(model, data, q)
     if data.subspace is None:  # cached with the frames (read-only: shared by every caller)
-        data.subspace = data.motion.swapaxes(1, 2).reshape(-1, 6).take(model.flat_dof, axis=0)
+        data.subspace = data.joint_motion.swapaxes(1, 2).reshape(-1, 6).take(model.flat_dof, axis=0)
         data.subspace.flags.writeable = False
     return data.subspace
 
@@ -196,7 +232,8 @@ def potential_energy(model, data, q, gravity=None):
 
 def integrate(model, q, v, dt=1.0):
     """q (+) v dt on the configuration manifold: the root moves along its own axes, every
-    quaternion turns by exp of its local angular velocity (locked axes stay at zero)."""
+    quaternion turns by exp of its local angular velocity (locked axes stay at zero), and a
+    universal joint's angles (a, b) become (a + da, b + db): R_i(da) R R_k(db), still on its set."""
     q = np.asarray(q, dtype=float)
     v = np.asarray(v, float)
     nb = model.nb
@@ -217,14 +254,27 @@ def integrate(model, q, v, dt=1.0):
     exp[:, 1:] = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / np.maximum(angle, 1e-6))[:, None] * turn
     quats = q[3:].reshape(nb, 4)
     turned = (quats[:, :, None] * exp[:, None, :]).reshape(nb, 16).dot(spatial._QMUL_OUTER)
+    ub = model.universal_body
+    if len(ub):  # R_i(da) q R_k(db), the products on outer products as above
+        step = v if dt == 1.0 else v * dt
+        half_a, half_b = 0.5 * step[model.universal_v[0]], 0.5 * step[model.universal_v[1]]
+        n = len(ub)
+        left = np.zeros((n, 4))
+        right = np.zeros((n, 4))
+        left[:, 0], right[:, 0] = np.cos(half_a), np.cos(half_b)
+        left.flat[model.universal_qi] = np.sin(half_a)
+        right.flat[model.universal_qk] = np.sin(half_b)
+        mid = (left[:, :, None] * quats[ub][:, None, :]).reshape(n, 16).dot(spatial._QMUL_OUTER)
+        turned[ub] = (mid[:, :, None] * right[:, None, :]).reshape(n, 16).dot(spatial._QMUL_OUTER)
     out[3:] = (turned / np.sqrt((turned * turned).dot(ONES4))[:, None]).ravel()
     return out
 
 
 def difference(model, q0, q1):
     """The velocity-space step v with integrate(q0, v) ~ q1 (exact for the rotations on free
-    axes; the root translation is expressed in the root axes of q0). q0, q1 may be stacks
-    (..., nq) (one batched pass over a motion's frames)."""
+    axes; for a universal joint the differences of its angles, wrapped to (-pi, pi]; the root
+    translation is expressed in the root axes of q0). q0, q1 may be stacks (..., nq) (one
+    batched pass over a motion's frames)."""
     q0 = np.asarray(q0, float)
     q1 = np.asarray(q1, float)
     lead = q0.shape[:-1]
@@ -232,12 +282,27 @@ def difference(model, q0, q1):
     b = q1[..., 3:].reshape(lead + (model.nb, 4))
     full = np.zeros(lead + (model.nb, 6))
     full[..., :3] = spatial.quat_log(spatial.quat_multiply(spatial.quat_conjugate(a), b))
+    ub = model.universal_body
+    if len(ub):
+        a0, b0 = model.universal_angles(a[..., ub, :])
+        a1, b1 = model.universal_angles(b[..., ub, :])
+        axes = model.universal_axes
+        turns = np.zeros(lead + (len(ub), 3))
+        n = np.arange(len(ub))
+        turns[..., n, axes[:, 0]] = _wrap(a1 - a0)
+        turns[..., n, axes[:, 1]] = _wrap(b1 - b0)
+        full[..., ub, :3] = turns
     if lead:
         rot = spatial.quat_to_matrix(a[..., 0, :])
         full[..., 0, 3:] = (np.swapaxes(rot, -1, -2) @ (q1[..., :3] - q0[..., :3])[..., None])[..., 0]
     else:
         full[0, 3:] = spatial.quat_to_matrix(a[0]).T @ (q1[:3] - q0[:3])
     return full.reshape(lead + (-1,))[..., model.flat_dof].copy()
+
+
+def _wrap(angle):
+    """Angles in (-pi, pi]."""
+    return np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
 
 
 def batch_frames(model, qs):
@@ -273,5 +338,15 @@ def configuration_rate(model, q, v):
     out = np.empty(model.nq)
     out[:3] = spatial.quat_to_matrix(quats[0]) @ full[0, 3:]
     pure = np.concatenate((np.zeros((model.nb, 1)), full[:, :3]), axis=1)
-    out[3:] = 0.5 * spatial.quat_multiply(quats, pure).ravel()
+    rate = 0.5 * spatial.quat_multiply(quats, pure)
+    ub = model.universal_body
+    if len(ub):  # d/dt R_i(a) R_k(b) = (da/dt e_i q + q db/dt e_k) / 2
+        i, k = model.universal_axes[:, 0], model.universal_axes[:, 1]
+        n = np.arange(len(ub))
+        left = np.zeros((len(ub), 4))
+        right = np.zeros((len(ub), 4))
+        left[n, 1 + i] = full[ub, i]
+        right[n, 1 + k] = full[ub, k]
+        rate[ub] = 0.5 * (spatial.quat_multiply(left, quats[ub]) + spatial.quat_multiply(quats[ub], right))
+    out[3:] = rate.ravel()
     return out

@@ -13,10 +13,20 @@ q (nq,) = [root position (3, world), root orientation (4, world, w x y z),
            one local rotation quaternion (4) per joint body, body order].
 v (nv,) = [root angular velocity (3, root axes), root linear velocity (3, root axes),
            each joint body's local angular velocity on its free axes (x, y, z order)].
+A joint with two free axes (clavicles, forearms, hands, feet) is a universal joint: its
+orientation is R = R_i(a) R_k(b), the first free axis i (x, y, z order) fixed in the parent and
+the second k fixed in the bone, so the locked axis never turns however the joint moves. Its
+entries of v are the angle rates (da/dt, db/dt), stored on the slots of axes i and k; its angular
+velocity in the bone's frame is da/dt R^T e_i + db/dt e_k, so the motion subspace column of axis i
+turns with b (Data.joint_motion) and the joint adds the velocity product da/dt db/dt (s_i x s_k)
+(kinematics.joint_velocity_products). The dynamics stay exact, for the coordinates are the two
+angles themselves and integration adds to them (kinematics.integrate); restricting only the
+angular velocity instead would let a sequence of turns reach the locked axis (the constraint
+"no angular velocity about the bone's own locked axis" is not integrable).
 Bodies are numbered breadth first (parents before children, each tree depth contiguous) so that
 the algorithms can vectorise over a whole depth at once; `dof_joint`/`dof_axis` name each entry
 of v. Joint velocities are angular velocities in the bone's own posed frame, so the motion
-subspace of a joint is the set of identity columns of its free axes.
+subspace of a one- or three-axis joint is the set of identity columns of its free axes.
 """
 
 from dataclasses import dataclass, field
@@ -102,6 +112,7 @@ class Model:
         # (nb, 16, 9): a quaternion's outer product (16) to the entries of tree_rotation @ R(q)
         q2r = spatial._Q2R.reshape(16, 3, 3)
         self.tree_q2r = np.einsum("bij,kjl->bkil", self.tree_rotation, q2r).reshape(nb, 16, 9)
+        self._build_universal()
         self._build_levels(depth)
         self._build_doubling()
         self.free_mask = np.zeros((nb, 6, 3))
@@ -130,6 +141,84 @@ class Model:
         pad = self.axis_pad
         body, slot = self.dof_body[6:], self.dof_slot[6:]
         pad[body, slot] = arm[6:]
+
+    def _build_universal(self):
+        """Universal (two-axis) joints: their bodies, axes (parent-side i, bone-side k, locked j)
+        and sigma = e_i x e_k . e_j (+1 or -1)."""
+        two = [b for b in range(1, self.nb) if self.free[b].sum() == 2]
+        self.universal_body = np.array(two, int)
+        axes = np.array([list(np.flatnonzero(self.free[b])) + list(np.flatnonzero(~self.free[b])) for b in two],
+                        int).reshape(-1, 3)
+        self.universal_axes = axes
+        self.universal_sigma = np.array([spatial._EPS[i, k, j] for i, k, j in axes]).reshape(-1)
+        q_index = 3 + 4 * self.universal_body
+        self.universal_q = (q_index[:, None] + np.arange(4)).reshape(-1)  # their quaternions' entries of q
+        n = len(two)
+        # entries of v holding da/dt and db/dt (v_index[body, axis])
+        self.universal_v = (self.v_index[self.universal_body, axes[:, 0]], self.v_index[self.universal_body, axes[:, 1]])
+        # (n_u, 16, 3): a quaternion's outer product to row i of its rotation matrix (R^T e_i)
+        self.universal_row = spatial._Q2R.reshape(16, 3, 3)[:, axes[:, 0], :].transpose(1, 0, 2).copy()
+        # flat entries of (n_u, 4) arrays: the i and k components of a quaternion
+        self.universal_qi = 4 * np.arange(n) + 1 + axes[:, 0]
+        self.universal_qk = 4 * np.arange(n) + 1 + axes[:, 1]
+
+    def universal_angles(self, quats, drop_twist=False):
+        """(a, b) (..., n_u) of universal joints' quaternions (..., n_u, 4): R = R_i(a) R_k(b),
+        exact on the allowed set. Off it:
+
+        - by default (a configuration a small step off the set, e.g. a Runge-Kutta stage), a is
+          where R turns the bone-side axis about e_i (R e_k = cos a e_k + sigma sin a e_j on the
+          set) and b how R turns e_i from there about e_k (R e_i = cos b e_i - sigma sin b
+          R_i(a) e_j): smooth everywhere near the set;
+        - with drop_twist (a retargeted rotation), the intrinsic Euler decomposition
+          R_i(a) R_k(b) R_j(c) with the twist |c| <= pi / 2 about the locked axis dropped:
+          R e_j = sigma sin b e_i + cos b (cos a e_j - sigma sin a e_k) gives (a, b) up to the
+          other solution (a + pi, pi - b), and the one kept turns e_k the way R does
+          (cos c >= 0). At |b| = pi / 2 a twist about j is a turn about i, and a takes it.
+        """
+        rot = spatial.quat_to_matrix(np.asarray(quats, float))
+        e = np.eye(3)[self.universal_axes]  # (n_u, 3 [i k j], 3)
+        # entries [..., n, row, column] of R on the axes [i, k, j]
+        r = np.einsum("nax,...nxy,nby->...nab", e, rot, e)
+        sigma = self.universal_sigma
+        if not drop_twist:
+            a = np.arctan2(sigma * r[..., 2, 1], r[..., 1, 1])
+            turned_j = np.cos(a) * r[..., 2, 0] - sigma * np.sin(a) * r[..., 1, 0]  # R e_i . R_i(a) e_j
+            return a, np.arctan2(-sigma * turned_j, r[..., 0, 0])
+        ui, uk, uj = r[..., 0, 2], r[..., 1, 2], r[..., 2, 2]  # R e_j
+        a = np.arctan2(-sigma * uk, uj)
+        b = np.arctan2(sigma * ui, np.hypot(uj, uk))
+        other = np.cos(a) * r[..., 1, 1] + sigma * np.sin(a) * r[..., 2, 1] < 0.0
+        a = np.where(other, a - np.copysign(np.pi, a), a)  # a + pi, within (-pi, pi]
+        b = np.where(other, np.copysign(np.pi, b) - b, b)  # pi - b, within (-pi, pi]
+        return a, b
+
+    def universal_quaternions(self, a, b):
+        """Quaternions (..., n_u, 4) of R_i(a) R_k(b) (universal_angles' inverse)."""
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        ca, sa, cb, sb = np.cos(0.5 * a), np.sin(0.5 * a), np.cos(0.5 * b), np.sin(0.5 * b)
+        i, k, j = self.universal_axes.T
+        out = np.zeros(a.shape + (4,))
+        n = np.arange(len(i))
+        out[..., 0] = ca * cb
+        out[..., n, 1 + i] = sa * cb
+        out[..., n, 1 + k] = ca * sb
+        out[..., n, 1 + j] = self.universal_sigma * sa * sb  # e_i e_k = sigma e_j
+        return out
+
+    def project(self, q, drop_twist=False):
+        """q (..., nq) with every universal joint's orientation on its allowed set (the others
+        untouched; drop_twist as in universal_angles); a configuration already on it is returned
+        unchanged to rounding."""
+        q = np.array(q, dtype=float)
+        if len(self.universal_body):
+            quats = q[..., self.universal_q].reshape(q.shape[:-1] + (-1, 4))
+            out = self.universal_quaternions(*self.universal_angles(quats, drop_twist))
+            # the sign of the given quaternion (a wrapping past pi flips the computed one), so that
+            # sums of rates taken at projected stages (forward_dynamics.rk4_step) stay consistent
+            out *= np.where(np.einsum("...i,...i->...", out, quats) < 0.0, -1.0, 1.0)[..., None]
+            q[..., self.universal_q] = out.reshape(q.shape[:-1] + (-1,))
+        return q
 
     def _build_levels(self, depth):
         """Contiguous slices per depth and 0/1 maps summing children into their parents' slice."""
@@ -177,14 +266,15 @@ class Model:
         return base @ sk.rest_local[self.root]
 
     def configuration(self, root_position, root_orientation, joint_rotations):
-        """q from the root bone's world pose and every bone's local rotation (J, 4)."""
+        """q from the root bone's world pose and every bone's local rotation (J, 4); the rotations
+        of universal joints lose their twist about the locked axis (Model.project)."""
         joint_rotations = np.asarray(joint_rotations, dtype=float)
         q = np.empty(self.nq)
         q[:3] = root_position
         body_q = rotations.normalize(joint_rotations[self.body_joint])
         body_q[0] = rotations.normalize(root_orientation)
         q[3:] = body_q.ravel()
-        return q
+        return self.project(q, drop_twist=True)
 
     def configurations(self, root_positions, root_orientations, joint_rotations):
         """configuration() for every frame (F, nq) of a motion at once."""
@@ -195,7 +285,7 @@ class Model:
         body_q = rotations.normalize(joint_rotations[:, self.body_joint])
         body_q[:, 0] = rotations.normalize(root_orientations)
         q[:, 3:] = body_q.reshape(nf, -1)
-        return q
+        return self.project(q, drop_twist=True)
 
     def joint_rotations(self, q, reference=None):
         """Every bone's local rotation (J, 4): body joints from q, the others from `reference`
@@ -208,7 +298,8 @@ class Model:
 
     def velocity(self, root_angular, root_linear, joint_angular):
         """v from the root's angular and linear velocity (root axes) and each bone's local
-        angular velocity (J, 3); components on locked axes are dropped."""
+        angular velocity (J, 3); components on locked axes are dropped (for a universal joint
+        the free components are taken as its angle rates: exact at b = 0)."""
         full = np.zeros((self.nb, 6))
         full[:, :3] = np.asarray(joint_angular, float)[self.body_joint]
         full[0, :3] = root_angular
@@ -240,6 +331,10 @@ class Data:
         self.local[nb] = np.eye(4)
         self.frames = np.zeros((nb, 4, 4))
         self.motion = np.zeros((nb, 6, 6))  # Xm: body (omega, v) at its origin -> world at origin
+        # Xm with each universal joint's parent-side column turned (R^T e_i for e_i): the joint
+        # motion subspace's columns on the free slots (the same array as motion without them)
+        self.joint_motion = self.motion
+        self.universal_cross = None  # (n_u, 6) s_i x s_k, kinematics.joint_velocity_products
         self.zero_column = np.zeros((nb, 1))
         self._force = None
         self._inertia = np.zeros((nb, 6, 6))

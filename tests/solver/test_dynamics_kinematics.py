@@ -29,11 +29,16 @@ def test_neutral_pose_matches_skeleton_rest(fig):
 
 
 def test_frames_match_skeleton_world_frames(fig):
-    """The model's frames equal the lead's Skeleton.world_frames for the same local rotations."""
+    """The model's frames equal the lead's Skeleton.world_frames for the same local rotations
+    (two-axis joints at rotations they can reach, R_i(a) R_k(b) with i, k their free axes)."""
     m, d = fig
     sk = m.skeleton
     rng = np.random.default_rng(1)
     local = rotations.normalize(rng.normal(size=(sk.joint_count, 4)))
+    for j in np.flatnonzero(sk.dof.sum(axis=1) == 2):
+        i, k = np.flatnonzero(sk.dof[j])
+        local[j] = rotations.multiply(rotations.axis_rotation(i, rng.uniform(-1.5, 1.5)),
+                                      rotations.axis_rotation(k, rng.uniform(-1.5, 1.5)))
     basis = np.broadcast_to(np.eye(4), (sk.joint_count, 4, 4)).copy()
     basis[:, :3, :3] = rotations.to_matrix(local)
     basis[sk.root, :3, 3] = (0.3, -0.2, 0.1)
