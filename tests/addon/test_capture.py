@@ -11,6 +11,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 pytest.importorskip("serial")
 
+from conftest import CMU_CLIPS  # noqa: E402  (at import: later folders' conftest modules take the name)
 from humananim.humananim_addon import capture  # noqa: E402
 from humananim.humananim_addon.action_api import fcurves_of  # noqa: E402
 from humananim.operators.capture import HUMANANIM_OT_capture_live  # noqa: E402
@@ -358,7 +359,6 @@ def test_glove_gestures_record_a_take_that_becomes_an_action(metarig, live_clean
 
 
 def test_a_replayed_bvh_puts_the_joints_where_the_file_says(cmu_rig, live_cleanup):
-    from conftest import CMU_CLIPS
     from humananim.solver import bvh
     from humananim.solver.units import bvh_rest_extent, guess_length_scale
     obj, scene = cmu_rig, bpy.context.scene
