@@ -37,6 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests" / "solve
 from humananim.solver.dynamics import oshita_figure  # noqa: E402
 from humananim.solver.motion_control import controller as ctl  # noqa: E402
 from humananim.solver.trajectories import Trajectories  # noqa: E402
+from machine import numpy_add_us  # noqa: E402  (the contract's machine-speed indicator)
 
 
 def standing(sk, seconds=2.0, fps=30.0):
@@ -100,15 +101,6 @@ def measure(repeats=3):
         out[f"{name}_bake_cpu_s"] = float(min(r[1] for r in runs))
         out[f"{name}_bake_realtime_factor"] = duration / out[f"{name}_bake_cpu_s"]
     return out
-
-
-def numpy_add_us(count=20000):
-    """CPU microseconds of a + b on two 1000-float arrays: how fast this host is right now."""
-    a, b = np.random.rand(1000), np.random.rand(1000)
-    t0 = time.process_time()
-    for _ in range(count):
-        a + b
-    return (time.process_time() - t0) / count * 1e6
 
 
 def contract(out):

@@ -32,7 +32,7 @@ from operator import mul
 from pathlib import Path
 
 import numpy as np
-from machine import numpy_op_us
+from machine import numpy_add_us, numpy_op_us
 
 from humananim.solver.flexible import Ground, ModeGains, Settings, Simulator
 from humananim.solver.flexible.control import AnnealSettings, CostSpec, anneal
@@ -199,15 +199,6 @@ def annealing(trials=60, step=0.02):
     return {f"annealing_{trials}_trials_s": seconds, "annealing_trial_step_s": step,
             "annealing_us_per_step": seconds / steps * 1e6, "annealing_accepted": result.accepted,
             "annealing_best_distance_m": result.measures["distance_m"]}
-
-
-def numpy_add_us(count=20000):
-    """CPU microseconds of a + b on two 1,000-float arrays: the machine-speed indicator."""
-    a, b = np.random.rand(1000), np.random.rand(1000)
-    t = time.process_time()
-    for _ in range(count):
-        a + b
-    return (time.process_time() - t) / count * 1e6
 
 
 def kernel_against_reference(repeat=3):
