@@ -25,7 +25,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..vectors import cross
-from .fast import Product, _c_einsum, clip as _clip, dot, rowdot
+from .fast import Product, dot, rowdot
 
 
 def closest_on_segments(p, a, b):
@@ -121,7 +121,7 @@ class CapsuleBody:
         prod += bias  # [2 s | |p - a|^2 - |p|^2]
         two_s = prod[:, :c]
         t = two_s * rows[0]
-        _clip(t, 0.0, 1.0, out=t)
+        np.clip(t, 0.0, 1.0, out=t)
         w = t * rows[1]
         w -= two_s
         w *= t
@@ -510,7 +510,7 @@ def resolve_faces(x, v, faces, bodies, s, thickness, movable, corner_phi, fricti
     is moved out whole by its deepest point. (The number of faces moved, the particles moved.)"""
     tri = x.take(faces, axis=0)  # (F, 3, 3)
     side = tri - tri.take(_PREVIOUS, axis=1)
-    edge = np.sqrt(_c_einsum("fkj,fkj->fk", side, side).max(axis=1))
+    edge = np.sqrt(np.einsum("fkj,fkj->fk", side, side).max(axis=1))
     # phi is 1-Lipschitz: the sample w.c is within (1 - w_k) times the longest edge of corner k,
     # so a sample whose bound max_k(phi_k - (1 - w_k) edge) is beyond the thickness can't be inside
     # (nor any sample of a face whose farthest-out corner is beyond its longest edge)

@@ -5,7 +5,7 @@ substeps; Provot-style correction of elongated edges (§4.4.3); particles pinned
 import numpy as np
 from scipy import sparse
 
-from .fast import CornerSum, Product, clip as _clip, difference_matrix, rowdot
+from .fast import CornerSum, Product, difference_matrix, rowdot
 from .materials import AIR_DENSITY, as_vector
 from .mesh import face_cross
 
@@ -302,10 +302,10 @@ class ClothDynamics:
         for k in range(max(1, iterations or p.constraint_iterations)):
             d = diff(x)
             length = np.sqrt(rowdot(d, d))
-            over = length - _clip(length, floor, limit)
+            over = length - np.clip(length, floor, limit)
             # off: beyond a limit by more than SLACK of it (|over| > SLACK clip(length)), i.e.
             # outside [floor (1 - SLACK), limit (1 + SLACK)]; 1.0 / 0.0 in the sweep's 4th column
-            np.not_equal(_clip(length, low_off, high_off), length, out=rows_off)
+            np.not_equal(np.clip(length, low_off, high_off), length, out=rows_off)
             # (tested every 4th sweep only: a sweep with no edge off moves nothing)
             if not k & 3 and not rows_off.any():
                 if k == 0:
@@ -345,7 +345,7 @@ class ClothDynamics:
         np.maximum(reach, 1.0, out=reach)
         spread = self._spread
         for _ in range(VELOCITY_SWEEPS_END if frame_end else VELOCITY_SWEEPS):
-            rate = _clip(rowdot(diff(v), u), low, high)  # (low <= high everywhere)
+            rate = np.clip(rowdot(diff(v), u), low, high)  # (low <= high everywhere)
             v += spread(rate[:, None] * u) / reach
         return x, v, int(np.count_nonzero(corrected))
 

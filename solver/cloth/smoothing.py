@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fast import CornerSum, _c_einsum, dot
+from .fast import CornerSum, dot
 from .mesh import face_normals
 
 # Gauss-Legendre nodes and weights on [0, 1] for the length of a cubic curve
@@ -52,9 +52,9 @@ def elastic_face_forces(mesh, x, k_elastic):
     f, nxt, prv, la, lc, _ = _corner_tables(mesh)
     pa = x[f]
     db, dc = x[nxt] - pa, x[prv] - pa
-    lb, lcc = np.sqrt(_c_einsum("fcj,fcj->fc", db, db)), np.sqrt(_c_einsum("fcj,fcj->fc", dc, dc))
+    lb, lcc = np.sqrt(np.einsum("fcj,fcj->fc", db, db)), np.sqrt(np.einsum("fcj,fcj->fc", dc, dc))
     force = ((lb - la) / la)[..., None] * db + ((lcc - lc) / lc)[..., None] * dc
-    return k_elastic * np.sqrt(_c_einsum("fcj,fcj->fc", force, force))
+    return k_elastic * np.sqrt(np.einsum("fcj,fcj->fc", force, force))
 
 
 def controlled_normals(mesh, x, k_elastic=1.0, control=True):
@@ -127,13 +127,13 @@ def cubic_length(p0, c1, c2, p1):
     shape = p0.shape
     if c1.shape == shape and c2.shape == shape and p1.shape == shape:  # B' as one 2-D product
         speed = (DERIV @ np.array((p0, c1, c2, p1)).reshape(4, -1)).reshape(len(DERIV), -1, 3)
-        return (np.sqrt(_c_einsum("tnj,tnj->nt", speed, speed)) @ GL_W).reshape(shape[:-1])
+        return (np.sqrt(np.einsum("tnj,tnj->nt", speed, speed)) @ GL_W).reshape(shape[:-1])
     ctrl = np.stack([p0, c1, c2, p1], axis=-2)  # (..., 4, 3)
     return _speed_length(DERIV @ ctrl)
 
 
 def _speed_length(velocity):
-    return np.sqrt(_c_einsum("...tj,...tj->...t", velocity, velocity)) @ GL_W
+    return np.sqrt(np.einsum("...tj,...tj->...t", velocity, velocity)) @ GL_W
 
 
 def pn_curve_length(p0, n0, p1, n1):
@@ -197,10 +197,10 @@ def edge_midpoints(p0, n0, p1, n1, rest, k_guess=1.0, iterations=8):
     # Laid out (nodes of both halves, edges): a pass over K trial h per edge works on (K, nodes,
     # edges) arrays whose rows are long and contiguous (numpy's inner loops run over the edges)
     count = len(i)
-    qa = _c_einsum("htaj,htaj->hta", v0, v0).reshape(-1, count)
-    qb = _c_einsum("htaj,htaj->hta", v0, v1).reshape(-1, count)
+    qa = np.einsum("htaj,htaj->hta", v0, v0).reshape(-1, count)
+    qb = np.einsum("htaj,htaj->hta", v0, v1).reshape(-1, count)
     qb *= 2.0
-    qc = _c_einsum("htaj,htaj->hta", v1, v1).reshape(-1, count)
+    qc = np.einsum("htaj,htaj->hta", v1, v1).reshape(-1, count)
 
     def lengths(hh):  # hh (K, M) -> the split curves' lengths (K, M)
         hh = hh[:, None, :]
@@ -403,7 +403,7 @@ class Smoother:
         ni = nrm.take(self._pi, axis=0)  # (F, Q, 3)
         d = pts.take(self._pj, axis=0)
         d -= pts.take(self._pi, axis=0)
-        ni *= _c_einsum("fqj,fqj->fq", d, ni)[..., None]  # w_ij n_i
+        ni *= np.einsum("fqj,fqj->fq", d, ni)[..., None]  # w_ij n_i
         terms = np.concatenate((pts.take(self._six, axis=0), ni), axis=1)  # (F, 6 + Q, 3)
         fine = self._op @ terms.transpose(1, 0, 2).reshape(terms.shape[1], -1)  # (G, 3F): one product
         return np.concatenate((x, fine.reshape(-1, 3).take(self._src, axis=0)))  # exactly through the particles
