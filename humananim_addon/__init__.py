@@ -9,8 +9,16 @@ _cli_handle = None
 def register():
     global _cli_handle
     import bpy
-    from . import (capture, cli, cloth, flexible, hands, motion_control, overlay, preferences, properties,
-                   sequence, simulation, synthesis, walking)
+    from . import cli, preferences, properties, sequence
+    from .capture import job as capture
+    from .cloth import job as cloth
+    from .flexible import job as flexible
+    from .hands import job as hands
+    from .motion_control import job as motion_control
+    from .motion_control import overlay
+    from .simulation import job as simulation
+    from .synthesis import job as synthesis
+    from .walking import job as walking
     from .. import operators, panels  # they import the bridge: import them after it
     bpy.utils.register_class(preferences.HumanAnimPreferences)
     properties.register()
@@ -36,8 +44,16 @@ def register():
 def unregister():
     global _cli_handle
     import bpy
-    from . import (capture, cloth, flexible, hands, motion_control, overlay, preferences, properties, sequence,
-                   simulation, synthesis, walking)
+    from . import preferences, properties, sequence
+    from .capture import job as capture
+    from .cloth import job as cloth
+    from .flexible import job as flexible
+    from .hands import job as hands
+    from .motion_control import job as motion_control
+    from .motion_control import overlay
+    from .simulation import job as simulation
+    from .synthesis import job as synthesis
+    from .walking import job as walking
     from .. import operators, panels
     if _cli_handle is not None:
         bpy.utils.unregister_cli_command(_cli_handle)

@@ -195,7 +195,7 @@ def qa_of_result(summary, obj=None, ground=None):
     """The motion QA of a command's result (its `armature` and new `action`), stored on the
     armature; a result that is not an armature's motion says so."""
     import bpy
-    from . import qa
+    from .qa import job as qa
     obj = obj or bpy.data.objects.get(summary.get("armature") or "")
     if obj is None or obj.type != "ARMATURE" or not summary.get("action"):
         return qa.not_measured("this command's result is not a new action on an armature")
@@ -269,7 +269,7 @@ def cmd_info(args):
 def source_qa(obj, scene):
     """The motion QA of the armature's own action (no input to compare with): its height, floor,
     NaN, pops against the absolute caps."""
-    from . import qa
+    from .qa import job as qa
     action = obj.animation_data.action if obj.animation_data else None
     if action is None:
         return qa.not_measured("the armature has no action")
@@ -299,7 +299,7 @@ def cmd_demo(args):
     result.update(command="demo", input=os.path.abspath(args.bvh), bvh_unit=unit,
                   wrote=[out] + [path for s in skirts for path in s["wrote"]], picture=picture,
                   control=control, cloth=skirts, qa=control["qa"], seconds=round(time.perf_counter() - t0, 3))
-    from .control_cli import text_summary
+    from .motion_control.cli import text_summary
     result["summary"] = "\n".join(
         [_text_summary(result)] + ["  " + line for line in text_summary(control).splitlines()[:-1]]
         + [f"  cloth: '{s['object']}' on '{s['armature']}', {s['particles']} particles to {s['fine_faces']} "
@@ -321,7 +321,7 @@ def demo_cloth(walker, scene, out, scale=None):
     on a skinned capsule body, simulated over the demo frames; point caches beside the .blend."""
     import bpy
     from ..solver.progress import run_to_end
-    from . import cloth
+    from .cloth import job as cloth
     from .bvh_import import import_bvh
     save_blend(out)  # the caches' relative paths need the .blend's folder
     hopper, _, _ = import_bvh(DEMO_HOP, scale)
@@ -345,7 +345,7 @@ def demo_control(obj, scene, skeleton, out):
     """Dynamic control of the demo clip with a load in both hands and a push on the chest; saves
     the .blend at `out` and a picture beside it."""
     from mathutils import Vector
-    from .control_cli import add_impulse_from_vector, control_and_save
+    from .motion_control.cli import add_impulse_from_vector, control_and_save
     props = scene.humananim_control
     props.frame_start, props.frame_end = DEMO_FRAMES
     props.load_left = props.load_right = DEMO_LOAD_KG
@@ -358,8 +358,8 @@ def demo_control(obj, scene, skeleton, out):
 def demo_picture(obj, scene, control, skirts, out):
     """The controlled walk over its input with its loads, push and skirt, beside the .blend."""
     import bpy
-    from . import overlay
-    from .control_cli import _title
+    from .motion_control import overlay
+    from .motion_control.cli import _title
     garments = [bpy.data.objects[s["object"]] for s in skirts if s["armature"] == obj.name]
 
     def render(path):
@@ -373,7 +373,8 @@ def demo_picture(obj, scene, control, skirts, out):
 def cmd_simulate(args):
     import bpy
     from ..solver.progress import run_to_end
-    from . import simulation, validation
+    from . import validation
+    from .simulation import job as simulation
     t0 = time.perf_counter()
     obj, scene, unit = load_job(args, "humananim_simulation")
     props = scene.humananim_simulation
@@ -493,7 +494,7 @@ def _load(path, armature_name, scale):
 
 
 def _remember_sources():
-    from .qa import digest_actions
+    from .qa.job import digest_actions
     _SOURCE_DIGESTS.clear()
     _SOURCE_DIGESTS.update(digest_actions())
 
@@ -558,5 +559,5 @@ def _text_summary(r):
 COMMANDS = {"info": cmd_info, "demo": cmd_demo, "simulate": cmd_simulate}
 # Modules of this package with `add_commands(subparsers, add_common_options) -> {name: run(args)}`;
 # `run` returns the summary dict (with "command" and "wrote") and raises HumanAnimError/UsageError.
-COMMAND_MODULES = ("sequence_cli", "control_cli", "cloth_cli", "flexible_cli", "walking_cli", "capture_cli",
-                   "hands_cli", "synthesis_cli", "cleanup.cli", "batch")
+COMMAND_MODULES = ("sequence.cli", "motion_control.cli", "cloth.cli", "flexible.cli", "walking.cli", "capture.cli",
+                   "hands.cli", "synthesis.cli", "cleanup.cli", "batch")

@@ -28,7 +28,7 @@ def remember_sources(operator):
     """Digests of every action before an operator that makes a motion runs (`measures_motion`),
     so its QA can show the source untouched."""
     if getattr(operator, "measures_motion", False):
-        from ..humananim_addon.qa import digest_actions
+        from ..humananim_addon.qa.job import digest_actions
         operator._qa_digests = digest_actions()
 
 
@@ -36,7 +36,7 @@ def with_qa(operator, context, obj, summary, text, ground=None):
     """The operator's message with the motion QA of its result (`summary`'s action on `obj`),
     which is stored on the armature for the QA panel: a WARNING naming the worst bone and frames
     when it fails a threshold."""
-    from ..humananim_addon import qa
+    from ..humananim_addon.qa import job as qa
     from ..solver.qa import summary_line
     report = qa.measure_summary(obj, context.scene, summary, getattr(operator, "_qa_digests", None), ground)
     if not report.get("measures"):

@@ -3,7 +3,7 @@ self-collisions. Each writes a new action; the animator's keys are only read."""
 
 import bpy
 
-from ..humananim_addon import hands
+from ..humananim_addon.hands import job as hands
 from .common import JobOperator, active_armature, with_qa
 
 

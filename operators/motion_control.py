@@ -2,7 +2,9 @@
 
 import bpy
 
-from ..humananim_addon import motion_control, overlay, validation
+from ..humananim_addon import validation
+from ..humananim_addon.motion_control import job as motion_control
+from ..humananim_addon.motion_control import overlay
 from .common import AddOnActiveBone, JobOperator, RemoveActiveItem, active_armature, with_qa
 
 

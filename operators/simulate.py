@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..humananim_addon import simulation
+from ..humananim_addon.simulation import job as simulation
 from .common import AddOnActiveBone, JobOperator, RemoveActiveItem, active_armature, with_qa
 
 

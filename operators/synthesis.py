@@ -4,7 +4,7 @@ limb's constraint) and the bake into a new action."""
 import bpy
 from bpy.props import IntProperty
 
-from ..humananim_addon import synthesis
+from ..humananim_addon.synthesis import job as synthesis
 from ..solver.errors import MotionError
 from .common import JobOperator, RemoveActiveItem, active_armature, run_reporting, with_qa
 

@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..humananim_addon import overlay
+from ..humananim_addon.motion_control import overlay
 from .common import draw_force_list
 from .rig import HumanAnimPanel
 

@@ -16,18 +16,18 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
                        IntProperty, PointerProperty, StringProperty)
 from mathutils import Matrix, Quaternion, Vector
 
-from ..solver import rotations
-from ..solver.flexible import FlexibleBody, FlexibleError, Ground, ModeGains, Settings, Simulator, Spring
-from ..solver.flexible.control import COSTS, AnnealSettings, CostSpec, anneal, motion_measures
-from ..solver.flexible.demo import TABLE_MODES, table_lattice
-from ..solver.flexible.body import quat_matrix
-from ..solver.flexible.ffd import lattice_params
-from ..solver.flexible.forces import Plane
-from ..solver.flexible.keyframe import animate
-from ..solver.flexible.simulate import Controller, State
-from . import action_api
-from .actions import rotation_channels, scene_fps
-from .properties import settings_registration
+from ...solver import rotations
+from ...solver.flexible import FlexibleBody, FlexibleError, Ground, ModeGains, Settings, Simulator, Spring
+from ...solver.flexible.control import COSTS, AnnealSettings, CostSpec, anneal, motion_measures
+from ...solver.flexible.demo import TABLE_MODES, table_lattice
+from ...solver.flexible.body import quat_matrix
+from ...solver.flexible.ffd import lattice_params
+from ...solver.flexible.forces import Plane
+from ...solver.flexible.keyframe import animate
+from ...solver.flexible.simulate import Controller, State
+from .. import action_api
+from ..actions import rotation_channels, scene_fps
+from ..properties import settings_registration
 
 log = logging.getLogger(__name__)
 

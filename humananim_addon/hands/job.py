@@ -8,19 +8,19 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..solver import rotations
-from ..solver.body_roles import sided
-from ..solver.errors import HumanAnimError, MotionError
-from ..solver.hands import grasp as grasp_solver
-from ..solver.hands import manipulation, self_collision
-from ..solver.hands.checks import grasp_measures
-from ..solver.hands.primitives import fit_primitive, kind
-from ..solver.trajectories import Trajectories
-from . import actions
-from .armature import armature_to_world, skeleton_from_armature
-from .properties import settings_registration
-from .rig.controls import control_rig_for
-from .rig.posing import key_through_controls
+from ...solver import rotations
+from ...solver.body_roles import sided
+from ...solver.errors import HumanAnimError, MotionError
+from ...solver.hands import grasp as grasp_solver
+from ...solver.hands import manipulation, self_collision
+from ...solver.hands.checks import grasp_measures
+from ...solver.hands.primitives import fit_primitive, kind
+from ...solver.trajectories import Trajectories
+from .. import actions
+from ..armature import armature_to_world, skeleton_from_armature
+from ..properties import settings_registration
+from ..rig.controls import control_rig_for
+from ..rig.posing import key_through_controls
 
 CONSTRAINT = "HumanAnim Grasp"
 TYPE_ITEMS = (("AUTO", "Automatic", "From the object's primitive and the hand's size (the thesis's table)"),
@@ -75,7 +75,7 @@ def rig_pose(obj, scene, skeleton, crig, frames):
 def hand_skeleton(obj, scene):
     """The armature's Skeleton. Grasping needs no masses: a skin the mass model cannot use (open,
     hands only) falls back to the body tables for this run instead of failing."""
-    from ..solver.errors import RigError
+    from ...solver.errors import RigError
     try:
         return skeleton_from_armature(obj, scene)
     except RigError as error:
@@ -166,7 +166,7 @@ def hand_sensors_from_skin(obj, scene, skeleton, world):
             g = max(v.groups, key=lambda e: e.weight)
             j = index.get(g.group)
             owner[v.index] = -1 if j is None else j
-    from ..solver.hands.sensors import default_hand_sensors, sensors_from_mesh
+    from ...solver.hands.sensors import default_hand_sensors, sensors_from_mesh
     return {s: sensors_from_mesh(skeleton, default_hand_sensors(skeleton, s), world, verts, owner)
             for s in ("L", "R") if skeleton.role_index(sided("hand", s)) is not None}
 
@@ -409,8 +409,8 @@ _CONTROL_ADVICE = "grasp with the metarig, or map the hand roles to the FK contr
 def control_rig(obj, skeleton, sides=("L", "R"), with_spine=False):
     """None for a plain FK rig (no arm, spine or finger bone the solver moves follows a constraint);
     else the ControlRig whose joints still need their controls (rig.controls.map_controls)."""
-    from ..solver.body_roles import FINGERS
-    from ..solver.hands.ik import chain_joints
+    from ...solver.body_roles import FINGERS
+    from ...solver.hands.ik import chain_joints
     joints = []
     for s in sides:
         if skeleton.role_index(sided("hand", s)) is None:

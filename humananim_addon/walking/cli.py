@@ -8,7 +8,7 @@ summary (--json: one object)."""
 import os
 import time
 
-from .cli import DEFAULT_CLIP, FINITE, NON_NEGATIVE, POSITIVE, UsageError, number
+from ..cli import DEFAULT_CLIP, FINITE, NON_NEGATIVE, POSITIVE, UsageError, number
 
 
 def add_commands(sub, add_common_options):
@@ -45,9 +45,9 @@ def add_commands(sub, add_common_options):
 
 def cmd_walk(args):
     import bpy
-    from ..solver.walking import PRESETS
-    from . import walking
-    from .cli import load_rig
+    from ...solver.walking import PRESETS
+    from . import job as walking
+    from ..cli import load_rig
     t0 = time.perf_counter()
     obj, scene, unit = load_rig(args)
     props = scene.humananim_walk
@@ -71,12 +71,12 @@ def cmd_walk(args):
     elif args.bumps:
         props.ground = bumpy_ground(scene, args.bumps)
     props.frame_start = args.frame_start
-    from ..solver.progress import run_to_end
+    from ...solver.progress import run_to_end
     summary = run_to_end(walking.run(obj, scene))
     for text in args.generator:
         _add_generator(text, bpy, obj, scene, walking)
     summary["stack"] = walking.stack_summary(obj)
-    from .cli import save_blend
+    from ..cli import save_blend
     out = save_blend(args.out, summary, obj)
     summary.update(command="walk", file=os.path.abspath(args.file), wrote=[out],
                    seconds=round(time.perf_counter() - t0, 3))

@@ -11,14 +11,14 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..solver.errors import HumanAnimError, MotionError
-from ..solver.walking import PRESETS, SCOPES, Style, metrics
-from ..solver.walking.generators import Generator, schedule, scope_bones
-from ..solver.walking.walk import STAND
-from . import action_api, actions
-from .actions import bone_path, scene_fps
-from .armature import armature_to_world, skeleton_from_armature
-from .properties import settings_registration
+from ...solver.errors import HumanAnimError, MotionError
+from ...solver.walking import PRESETS, SCOPES, Style, metrics
+from ...solver.walking.generators import Generator, schedule, scope_bones
+from ...solver.walking.walk import STAND
+from .. import action_api, actions
+from ..actions import bone_path, scene_fps
+from ..armature import armature_to_world, skeleton_from_armature
+from ..properties import settings_registration
 
 GENERATOR_KEY = "humananim_generator"  # on a generator's action: its scope, priority, weight, start
 SUPPORT_KEY = "humananim_support"  # on a walk's action: the support intervals (JSON)
@@ -152,7 +152,7 @@ def _chain(mesh_verts, edges):
 def curve_path(obj, scene):
     """The path (metres, world) of a curve object as Blender evaluates it, and the arc lengths of
     its control points (the segments of per-segment speeds)."""
-    from ..solver.walking import Path
+    from ...solver.walking import Path
     if obj is None or obj.type != "CURVE":
         raise HumanAnimError("choose a curve object as the path")
     depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -188,7 +188,7 @@ def curve_path(obj, scene):
 def keyed_path(obj, scene):
     """Global_motion: the keyed location of `obj` sampled on every frame of its keys; returns
     (path, progress, first frame)."""
-    from ..solver.walking import from_keys
+    from ...solver.walking import from_keys
     ad = obj.animation_data if obj is not None else None
     if ad is None or ad.action is None:
         raise MotionError("the path object has no keyed location: key it, or use a curve")
@@ -257,7 +257,7 @@ def walk_armature(props, context_object):
 def run(obj, scene):
     """The walk job: read the settings, generate, write a new action (and its NLA strip).
     Yields progress; returns a summary dict."""
-    from ..solver.walking import iter_walk
+    from ...solver.walking import iter_walk
     props = scene.humananim_walk
     skeleton = skeleton_from_armature(obj, scene)
     fps = scene_fps(scene)
@@ -412,7 +412,7 @@ def _generator_of(action, obj, bones_of_scope):
     motion_len = float(f1 - f0)
     keyed = {_bone_of(fc.data_path) for fc in action_api.fcurves_of(action, obj)} - {None}
     scope = bones_of_scope(meta["scope"]) & keyed if meta["scope"] != "all" else keyed
-    from ..solver.trajectories import Trajectories
+    from ...solver.trajectories import Trajectories
     dummy = Trajectories(np.array([f0, f1], float), 24.0, np.tile([1.0, 0, 0, 0], (2, 1, 1)),
                          np.zeros((2, 1, 3)), np.eye(4))
     g = Generator(meta["name"], scope, dummy, meta["start"], meta["start"] + motion_len, meta["priority"],

@@ -12,13 +12,13 @@ import numpy as np
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, \
     StringProperty
 
-from ..solver.body_roles import SIDES, sided
-from ..solver.errors import MotionError, RigError
-from . import actions
-from .actions import bone_path
-from .armature import skeleton_from_armature
-from .arrows import arrow_forces, place_arrow
-from .properties import settings_registration
+from ...solver.body_roles import SIDES, sided
+from ...solver.errors import MotionError, RigError
+from .. import actions
+from ..actions import bone_path
+from ..armature import skeleton_from_armature
+from ..arrows import arrow_forces, place_arrow
+from ..properties import settings_registration
 
 STRESS = "humananim_stress"  # N m: torque beyond the muscles' strength, magnitude over the axes
 BALANCE_ERROR = "humananim_balance_error"  # m: ZMP outside the support polygon
@@ -133,7 +133,7 @@ def _time(traj, frame):
 
 
 def loads(props, skeleton, traj):
-    from ..solver.motion_control.controller import Load
+    from ...solver.motion_control.controller import Load
     out = []
     start = _time(traj, props.load_frame) if props.load_frame else 0.0
     for side, kg in zip(SIDES, (props.load_left, props.load_right)):
@@ -149,7 +149,7 @@ def loads(props, skeleton, traj):
 
 def impulses(props, skeleton, traj, scene):
     """Each arrow becomes an impulse (or a force over its duration) on its bone (see arrows)."""
-    from ..solver.motion_control.controller import Impulse
+    from ...solver.motion_control.controller import Impulse
     return [Impulse(time=seconds, bone=item.bone, point=point, direction=direction, magnitude=item.magnitude,
                     duration=item.duration)
             for item, seconds, point, direction in arrow_forces(props.impulses, skeleton, traj, scene)]
@@ -164,7 +164,7 @@ def colliders(props, obj, traj, scene):
         raise RigError(f"'{obj.name}' can't collide with itself: choose another object")
     if other.type not in {"ARMATURE", "MESH"}:
         raise RigError(f"'{other.name}' is a {other.type.lower()}: collide with an armature or a mesh")
-    from ..solver.motion_control.controller import Collider
+    from ...solver.motion_control.controller import Collider
     scale = scene.unit_settings.scale_length
     saved = scene.frame_current, scene.frame_subframe
     try:
@@ -247,7 +247,7 @@ def _split_groups(co, count):
 
 
 def solver_settings(scene, props, obj, skeleton, traj):
-    from ..solver.motion_control.controller import ControlSettings
+    from ...solver.motion_control.controller import ControlSettings
     gravity = tuple(scene.gravity) if scene.use_gravity else (0.0, 0.0, 0.0)
     height = None if props.ground == "MOTION" else props.ground_height * scene.unit_settings.scale_length
     return ControlSettings(gravity=gravity, ground_height=height, loads=tuple(loads(props, skeleton, traj)),
@@ -262,8 +262,8 @@ def contact_overrides(action, frames):
     (synthesis.marker_overrides): `foot.L=supporting` plants the foot from that frame to the
     limb's next marker (or the range's end), another constraint lifts it; hand and root markers
     are the Motion Queue's alone."""
-    from ..solver.motion_control.contacts import Contact
-    from .synthesis import marker_overrides
+    from ...solver.motion_control.contacts import Contact
+    from ..synthesis.job import marker_overrides
     return tuple(Contact(limb[-1], start, end, cons == "supporting")
                  for limb, start, end, cons in marker_overrides(action, frames) if limb.startswith("foot."))
 
@@ -311,14 +311,14 @@ def facing(skeleton, traj):
 def ground_of(settings, skeleton, traj):
     if settings.ground_height is not None:
         return float(settings.ground_height)
-    from ..solver.motion_control.contacts import contact_floor
+    from ...solver.motion_control.contacts import contact_floor
     return contact_floor(skeleton, traj)
 
 
 def run(obj, scene):
     """The dynamic control job: read the source motion, control it, write a new action with
     stress curves and keep the overlay's data. Yields progress; returns a summary dict."""
-    from ..solver.motion_control.controller import iter_control
+    from ...solver.motion_control.controller import iter_control
     if obj is None or obj.type != "ARMATURE":
         raise RigError("select an armature object")
     props = scene.humananim_control

@@ -7,7 +7,7 @@ the display rate, then the take as a new action in the saved .blend."""
 import os
 import time
 
-from .cli import UsageError
+from ..cli import UsageError
 
 
 def add_commands(sub, add_common_options):
@@ -38,8 +38,8 @@ def add_commands(sub, add_common_options):
 def cmd_capture(args):
     import bpy
     import numpy as np
-    from . import capture
-    from .cli import _load
+    from . import job as capture
+    from ..cli import _load
     t0 = time.perf_counter()
     if not (args.flock or args.glove or args.vmc is not None or args.mvn or args.replay):
         raise UsageError("give at least one device: --flock, --glove, --mvn, --vmc or --replay")
@@ -122,7 +122,7 @@ def _free_udp_port():
 def _calibrate_when_every_sensor_reads(live, deadline):
     """Calibrate once every sensor has sent a reading (the birds of one Flock in group mode come in
     one by one at start-up); after the deadline the calibration's own error says which is silent."""
-    from ..solver.anatomical_converter import CalibrationError
+    from ...solver.anatomical_converter import CalibrationError
     while True:
         try:
             return live.calibrate()

@@ -7,7 +7,7 @@ import os
 import re
 import time
 
-from .cli import NON_NEGATIVE, POSITIVE, UsageError
+from ..cli import NON_NEGATIVE, POSITIVE, UsageError
 
 _QUEUE = re.compile(r"^(?P<action>.+?)(?:@(?P<start>-?\d+)-(?P<end>-?\d+))?(?::(?P<mode>blend|connect|inertialize))?"
                     r"(?::now=(?P<now>\d+))?$", re.IGNORECASE)
@@ -61,10 +61,10 @@ def _check_range(text, action, rng):
 
 def cmd_synthesize(args):
     import bpy
-    from ..solver.progress import run_to_end
-    from . import synthesis
-    from .cli import load_rig, parse_arrow
-    from .control_cli import add_impulse_from_vector
+    from ...solver.progress import run_to_end
+    from . import job as synthesis
+    from ..cli import load_rig, parse_arrow
+    from ..motion_control.cli import add_impulse_from_vector
     t0 = time.perf_counter()
     obj, scene, unit = load_rig(args)
     props = scene.humananim_synthesis
@@ -102,7 +102,7 @@ def cmd_synthesize(args):
         control.collider, control.collider_radius = other, args.collide_radius
         control.collider_mass = max(0.0, args.collide_mass)
     summary = run_to_end(synthesis.run(obj, scene))
-    from .cli import save_blend
+    from ..cli import save_blend
     out = save_blend(args.out, summary, obj)
     summary.update(command="synthesize", file=os.path.abspath(args.file), armature=obj.name, wrote=[out],
                    seconds=round(time.perf_counter() - t0, 3))

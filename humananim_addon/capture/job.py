@@ -15,21 +15,21 @@ import numpy as np
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, \
     StringProperty
 
-from ..solver import rotations
-from ..solver.body_roles import FINGERS, sided
-from .devices import cyberglove, fob, hidglove, mvn, sim_fob, sim_glove, sim_mvn, vmc
-from ..solver.anatomical_converter import AnatomicalConverter, CalibrationError
-from .devices.glove_calibration import GloveCalibration, joint_rotations
-from ..solver.hands.grasp_automaton import SENSOR_COLOURS, GraspAutomaton
-from ..solver.hands.sensors import Box, Sphere, default_hand_sensors, sensor_centres
-from .devices.replay import ReplayDevice
-from .devices.samples import tracker_reading
-from .devices.session import Session, Take
-from ..solver.errors import HumanAnimError, MotionError
-from ..solver.trajectories import Trajectories
-from . import actions
-from .armature import armature_to_world, skeleton_from_armature
-from .properties import settings_registration
+from ...solver import rotations
+from ...solver.body_roles import FINGERS, sided
+from ..devices import cyberglove, fob, hidglove, mvn, sim_fob, sim_glove, sim_mvn, vmc
+from ...solver.anatomical_converter import AnatomicalConverter, CalibrationError
+from ..devices.glove_calibration import GloveCalibration, joint_rotations
+from ...solver.hands.grasp_automaton import SENSOR_COLOURS, GraspAutomaton
+from ...solver.hands.sensors import Box, Sphere, default_hand_sensors, sensor_centres
+from ..devices.replay import ReplayDevice
+from ..devices.samples import tracker_reading
+from ..devices.session import Session, Take
+from ...solver.errors import HumanAnimError, MotionError
+from ...solver.trajectories import Trajectories
+from .. import actions
+from ..armature import armature_to_world, skeleton_from_armature
+from ..properties import settings_registration
 
 log = logging.getLogger(__name__)
 
@@ -545,7 +545,7 @@ class LiveCapture:
         action = actions.write_action(obj, self.skeleton, traj, take.name, source=source)
         settings = context.scene.humananim_capture
         if settings.reduce_keys:
-            from . import sequence
+            from .. import sequence
             sel = sequence.select_channels(obj, context.scene, action, "ALL")
             self.reduction = sequence.compress(obj, context.scene, action, sel, degrees=settings.reduce_degrees,
                                                centimetres=0.5, replace=True)

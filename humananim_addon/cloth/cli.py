@@ -6,8 +6,8 @@ import os
 import tempfile
 import time
 
-from ..solver.cloth.materials import ClothParams
-from .cli import UsageError
+from ...solver.cloth.materials import ClothParams
+from ..cli import UsageError
 
 COLLIDERS = ("auto", "mesh", "capsules", "both", "none")
 PRESET_NAMES = ("cotton", "denim", "leather")
@@ -57,9 +57,9 @@ def _vector(text, option):
 
 def cmd_cloth(args):
     import bpy
-    from . import cloth
-    from .cli import _load
-    from ..solver.progress import run_to_end
+    from . import job as cloth
+    from ..cli import _load
+    from ...solver.progress import run_to_end
     t0 = time.perf_counter()
     if args.level < 1 or args.substeps < 1 or args.step < 0:
         raise UsageError("--level and --substeps must be at least 1, --step at least 0")

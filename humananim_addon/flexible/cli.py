@@ -9,7 +9,7 @@ import math
 import os
 import time
 
-from .cli import COUNT, FINITE, FRAME, NON_NEGATIVE, POSITIVE, UsageError
+from ..cli import COUNT, FINITE, FRAME, NON_NEGATIVE, POSITIVE, UsageError
 
 COST_NAMES = ("distance", "energy_distance", "energy_speed", "energy_sqrt_distance", "custom")
 
@@ -48,8 +48,8 @@ def add_commands(sub, add_common_options):
 
 def cmd_flexible(args):
     import bpy
-    from ..solver.progress import run_to_end
-    from . import flexible
+    from ...solver.progress import run_to_end
+    from . import job as flexible
     t0 = time.perf_counter()
     obj, scene = _load(args)
     props = obj.humananim_flexible
@@ -75,7 +75,7 @@ def cmd_flexible(args):
             baked = run_to_end(flexible.run(obj, scene))
             summary["baked"] = {k: baked[k] for k in ("lattice_action", "key_action", "frames", "distance_m")
                                 if k in baked}
-    from .cli import save_blend
+    from ..cli import save_blend
     out = save_blend(args.out)
     summary.update(command=f"flexible {args.flexible_command}", wrote=[out],
                    file=os.path.abspath(args.file) if args.file else None,
@@ -108,7 +108,7 @@ def _apply_common(args, props):
 
 def _load(args):
     import bpy
-    from . import flexible
+    from . import job as flexible
     if args.demo:
         if args.file:
             raise UsageError("give a FILE or --demo, not both")

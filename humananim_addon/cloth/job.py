@@ -14,16 +14,16 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, PointerProperty, \
     StringProperty
 
-from ..solver.cloth import (CapsuleBody, ClothParams, ClothSimulation, MeshBody, PRESETS, build_mesh, capsule_ends,
+from ...solver.cloth import (CapsuleBody, ClothParams, ClothSimulation, MeshBody, PRESETS, build_mesh, capsule_ends,
                             capsule_mesh, capsules_from_roles, fit_radii, fit_skirt, write_pc2)
-from ..solver.cloth.body import skin_radii, skinning_weights
-from ..solver.cloth.collision import resolve_particles
-from ..solver.cloth.skinned import SkinnedBody, closed_parts
-from ..solver.cloth.mesh import ClothError
-from ..solver.skeleton import reach_of_made_up_tail
-from .actions import scene_fps
-from .armature import detect
-from .properties import role_overrides, settings_registration
+from ...solver.cloth.body import skin_radii, skinning_weights
+from ...solver.cloth.collision import resolve_particles
+from ...solver.cloth.skinned import SkinnedBody, closed_parts
+from ...solver.cloth.mesh import ClothError
+from ...solver.skeleton import reach_of_made_up_tail
+from ..actions import scene_fps
+from ..armature import detect
+from ..properties import role_overrides, settings_registration
 
 log = logging.getLogger(__name__)
 
@@ -178,7 +178,7 @@ def pin_binding(garment, pins, positions, arm, world):
     heads = world[:, :3, 3]
     tails = np.array([world[j, :3, :3] @ [0.0, b.length, 0.0] + world[j, :3, 3] for j, b in enumerate(arm.data.bones)])
     deform = np.array([b.use_deform for b in arm.data.bones])
-    from ..solver.cloth.collision import closest_on_segments
+    from ...solver.cloth.collision import closest_on_segments
     q, _ = closest_on_segments(positions[pins][:, None], heads[None], tails[None])
     dist = np.linalg.norm(positions[pins][:, None] - q, axis=2)
     dist[:, ~deform] += 1e6

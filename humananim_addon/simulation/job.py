@@ -6,17 +6,17 @@ import bpy
 import numpy as np
 from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..solver import rotations
-from ..solver.body_roles import SIDES, sided
-from ..solver.dynamics.closed_loop import Push, Settings, iter_simulate
-from ..solver.motion_control.contacts import contact_floor
-from ..solver.dynamics.ground_contact import GroundModel
-from ..solver.errors import MotionError
-from . import actions
-from .actions import bone_path
-from .armature import skeleton_from_armature
-from .arrows import arrow_forces, place_arrow
-from .properties import settings_registration
+from ...solver import rotations
+from ...solver.body_roles import SIDES, sided
+from ...solver.dynamics.closed_loop import Push, Settings, iter_simulate
+from ...solver.motion_control.contacts import contact_floor
+from ...solver.dynamics.ground_contact import GroundModel
+from ...solver.errors import MotionError
+from .. import actions
+from ..actions import bone_path
+from ..armature import skeleton_from_armature
+from ..arrows import arrow_forces, place_arrow
+from ..properties import settings_registration
 
 TORQUE = "humananim_torque"  # N m, magnitude over the joint's axes
 USAGE = "humananim_strength_usage"  # required / available torque, worst axis; > 1: too weak
@@ -120,7 +120,7 @@ def stress_channels(obj, skeleton, result):
 def run(obj, scene):
     """The simulation job: read the source motion, simulate, write a new action with stress
     curves. Yields progress; returns a summary dict."""
-    from .validation import check_job
+    from ..validation import check_job
     props = scene.humananim_simulation
     source, start, end = check_job(obj, props, "pushes")
     skeleton = skeleton_from_armature(obj, scene)

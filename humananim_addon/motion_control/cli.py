@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from .cli import COUNT, FINITE, FRAME, NON_NEGATIVE, POSITIVE, UsageError, number
+from ..cli import COUNT, FINITE, FRAME, NON_NEGATIVE, POSITIVE, UsageError, number
 
 
 def add_commands(sub, add_common_options):
@@ -41,7 +41,7 @@ def add_commands(sub, add_common_options):
 
 def cmd_control(args):
     import bpy
-    from .cli import load_job, parse_arrow
+    from ..cli import load_job, parse_arrow
     t0 = time.perf_counter()
     obj, scene, unit = load_job(args, "humananim_control")
     props = scene.humananim_control
@@ -59,7 +59,7 @@ def cmd_control(args):
     for text in args.impulse:
         frame, bone, vector, seconds = parse_arrow(text, obj, "--impulse", 0.0)
         add_impulse_from_vector(obj, scene, bone, frame, vector, seconds)
-    from . import validation
+    from .. import validation
     validation.check_job(obj, props, "impulses")
     summary = control_and_save(obj, scene, args.out, args.picture, ground=args.ground)
     summary.update(command="control", file=os.path.abspath(args.file), armature=obj.name,
@@ -72,7 +72,7 @@ def cmd_control(args):
 
 def add_impulse_from_vector(obj, scene, bone, frame, vector, seconds=0.0):
     """An impulse (N s) along `vector`, or a force (N) over `seconds`: its length is the magnitude."""
-    from . import motion_control
+    from . import job as motion_control
     vector = np.asarray(vector, float)
     return motion_control.add_impulse(obj, scene, bone, frame, vector, float(np.linalg.norm(vector)), seconds)
 
@@ -80,9 +80,10 @@ def add_impulse_from_vector(obj, scene, bone, frame, vector, seconds=0.0):
 def control_and_save(obj, scene, out, picture=None, title=None, ground=None):
     """Run the job, measure it (the motion QA), save the .blend, render the picture; the summary
     with `wrote` and `qa`."""
-    from ..solver.progress import run_to_end
-    from . import motion_control, overlay
-    from .cli import save_blend, write_atomically
+    from ...solver.progress import run_to_end
+    from . import job as motion_control
+    from . import overlay
+    from ..cli import save_blend, write_atomically
     summary = run_to_end(motion_control.run(obj, scene))
     summary["armature"] = obj.name
     out = save_blend(out, summary, obj, ground)

@@ -14,10 +14,10 @@ import numpy as np
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, \
     StringProperty
 
-from ..solver.errors import MotionError, RigError
-from . import actions
-from .armature import skeleton_from_armature
-from .properties import settings_registration
+from ...solver.errors import MotionError, RigError
+from .. import actions
+from ..armature import skeleton_from_armature
+from ..properties import settings_registration
 
 MODES = (("BLEND", "Blend", "Overlap the end of the previous action with the start of this one (constraints "
                             "at the join must agree)"),
@@ -121,7 +121,7 @@ def add_marker(action, frame, limb, constraint):
 
 def marker_overrides(action, frames):
     """(limb, start, end, constraint) edits from the action's pose markers within `frames`."""
-    from ..solver.synthesis.action import CONSTRAINT_CODES, LIMBS
+    from ...solver.synthesis.action import CONSTRAINT_CODES, LIMBS
     by_limb = {}
     for m in action.pose_markers:
         if "=" not in m.name:
@@ -156,7 +156,7 @@ def _entry_range(entry):
 
 def read_entry(obj, scene, skeleton, entry):
     """The queue entry as solver action data (generator: yields read progress)."""
-    from ..solver.synthesis import from_trajectories
+    from ...solver.synthesis import from_trajectories
     if entry.action is None:
         raise MotionError("a Motion Queue entry has no action")
     traj = yield from actions.iter_read_action(obj, scene, skeleton, entry.action, frame_range=_entry_range(entry))
@@ -174,7 +174,7 @@ def environment_set(control):
 
 
 def reaction_settings(props):
-    from ..solver.synthesis.reactions import ReactionSettings
+    from ...solver.synthesis.reactions import ReactionSettings
     return ReactionSettings(step_speed=(props.step_speed_min, props.step_speed_max),
                             step_acceleration=props.step_acceleration, fall_speed=props.step_speed_max,
                             fall_acceleration=props.step_acceleration, k_root=props.k_root, k_foot=props.k_foot,
@@ -183,8 +183,8 @@ def reaction_settings(props):
 
 def synthesize(obj, scene, skeleton, acts, modes, interrupts):
     """The Synthesizer over solver actions: (synthesizer, requests)."""
-    from ..solver.synthesis import Synthesizer
-    from ..solver.synthesis.metrics import planted_slide, spike_ratio
+    from ...solver.synthesis import Synthesizer
+    from ...solver.synthesis.metrics import planted_slide, spike_ratio
     syn = Synthesizer(acts[0])
     for act, mode, at in zip(acts[1:], modes[1:], interrupts[1:]):
         r = syn.queue(act, mode.lower(), "now" if at is not None else "after", at)
@@ -221,8 +221,8 @@ def run(obj, scene):
     support = syn.support()
     reaction = None
     if props.reactions or environment_set(scene.humananim_control):
-        from ..solver.synthesis.reactions import react
-        from . import motion_control
+        from ...solver.synthesis.reactions import react
+        from ..motion_control import job as motion_control
         cs = motion_control.solver_settings(scene, scene.humananim_control, obj, skeleton, traj)
         falls = {}
         for key, act in (("back", props.fall_back), ("forward", props.fall_forward)):

@@ -1,0 +1,1 @@
+"""Motion QA: measuring a result, storing and reading the report (job.py), the command line (cli.py)."""
