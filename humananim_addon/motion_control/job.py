@@ -9,15 +9,14 @@ from dataclasses import dataclass, replace
 
 import bpy
 import numpy as np
-from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, \
-    StringProperty
+from bpy.props import BoolProperty, CollectionProperty, FloatProperty, IntProperty, PointerProperty
 
-from ...solver.body_roles import SIDES, sided
 from ...solver.errors import MotionError, RigError
 from .. import actions
 from ..actions import bone_path
 from ..armature import skeleton_from_armature
-from ..arrows import arrow_forces, place_arrow
+from ..arrows import arrow_forces
+from ..forces import ArrowForce, LoadsAndPushes, add_arrow, gravity_of, hand_loads
 from ..properties import settings_registration
 
 STRESS = "humananim_stress"  # N m: torque beyond the muscles' strength, magnitude over the axes
@@ -28,13 +27,7 @@ FALLING = "humananim_falling"  # 0/1: the figure turns about its edge of support
 CONTROL_KINDS = ("none", "passive", "comfort", "balance")  # ControlResult.control codes 0..3
 
 
-class HumanAnimImpulse(bpy.types.PropertyGroup):
-    # no poll filter to Empties: a PointerProperty poll crashes the bpy 4.2 module at exit
-    empty: PointerProperty(name="Arrow", type=bpy.types.Object,
-                           description="An object (an arrow Empty) whose location is where the force acts "
-                                       "and whose Z axis is its direction")
-    bone: StringProperty(name="Bone", description="The bone that is pushed")
-    frame: IntProperty(name="Frame", default=1, description="When the force starts")
+class HumanAnimImpulse(ArrowForce, bpy.types.PropertyGroup):
     duration: FloatProperty(name="Duration", default=0.0, min=0.0, soft_max=2.0, unit="TIME_ABSOLUTE",
                             description="0: an instantaneous impulse (Magnitude in N s); "
                                         "otherwise a force (Magnitude in N) over this many seconds")
@@ -42,15 +35,10 @@ class HumanAnimImpulse(bpy.types.PropertyGroup):
                              description="N s for an impulse (Duration 0), N for a force over its duration")
 
 
-class HumanAnimControl(bpy.types.PropertyGroup):
-    action: PointerProperty(name="Source Action", type=bpy.types.Action,
-                            description="The motion to keep; empty: the active action")
-    frame_start: IntProperty(name="Start", default=0, description="0: the action's first frame")
-    frame_end: IntProperty(name="End", default=0, description="0: the action's last frame")
-    load_left: FloatProperty(name="Left Hand Load", default=0.0, min=0.0, soft_max=50.0, unit="MASS",
-                             description="kg carried at the left hand")
-    load_right: FloatProperty(name="Right Hand Load", default=0.0, min=0.0, soft_max=50.0, unit="MASS",
-                              description="kg carried at the right hand")
+class HumanAnimControl(LoadsAndPushes, bpy.types.PropertyGroup):
+    """The source, loads and ground (forces.LoadsAndPushes), when the loads are picked up, the
+    impulses, a collider, the control's steps."""
+
     load_frame: IntProperty(name="Load From", default=0,
                             description="Frame the loads are picked up at; 0: from the start")
     impulses: CollectionProperty(type=HumanAnimImpulse)
@@ -65,17 +53,10 @@ class HumanAnimControl(bpy.types.PropertyGroup):
                                               "longest axis")
     collider_mass: FloatProperty(name="Collider Mass", default=0.0, min=0.0, soft_max=200.0, unit="MASS",
                                  description="0: it moves as animated whatever it hits")
-    strength_scale: FloatProperty(name="Strength", default=1.0, min=0.0, soft_max=3.0,
-                                  description="Scale of the muscle strength model")
     substeps: IntProperty(name="Substeps", default=1, min=1, max=16, description="Control steps per frame")
     tracking_only: BoolProperty(name="Tracking Only",
                                 description="Track the motion without comfort and balance control "
                                             "(to compare)")
-    ground: EnumProperty(name="Ground", items=(
-        ("MOTION", "From Motion", "At the lowest point the feet reach in the source motion"),
-        ("HEIGHT", "Height", "A horizontal ground at the height below"),
-    ))
-    ground_height: FloatProperty(name="Ground Height", default=0.0, unit="LENGTH")
 
 
 CLASSES = (HumanAnimImpulse, HumanAnimControl)
@@ -134,17 +115,8 @@ def _time(traj, frame):
 
 def loads(props, skeleton, traj):
     from ...solver.motion_control.controller import Load
-    out = []
     start = _time(traj, props.load_frame) if props.load_frame else 0.0
-    for side, kg in zip(SIDES, (props.load_left, props.load_right)):
-        if kg <= 0.0:
-            continue
-        hand = skeleton.roles.bone(sided("hand", side))
-        if not hand:
-            raise RigError(f"no {'left' if side == 'L' else 'right'} hand found to carry the load: "
-                           "set it in Body Roles")
-        out.append(Load(bone=hand, mass=kg, start_time=start))
-    return out
+    return [Load(bone=hand, mass=kg, start_time=start) for hand, kg in hand_loads(props, skeleton, required=True)]
 
 
 def impulses(props, skeleton, traj, scene):
@@ -248,7 +220,7 @@ def _split_groups(co, count):
 
 def solver_settings(scene, props, obj, skeleton, traj):
     from ...solver.motion_control.controller import ControlSettings
-    gravity = tuple(scene.gravity) if scene.use_gravity else (0.0, 0.0, 0.0)
+    gravity = gravity_of(scene)
     height = None if props.ground == "MOTION" else props.ground_height * scene.unit_settings.scale_length
     return ControlSettings(gravity=gravity, ground_height=height, loads=tuple(loads(props, skeleton, traj)),
                            impulses=tuple(impulses(props, skeleton, traj, scene)),
@@ -371,12 +343,5 @@ def run(obj, scene):
 
 def add_impulse(obj, scene, bone_name, frame, direction=None, magnitude=30.0, duration=0.0):
     """An arrow Empty in front of the bone (see arrows.place_arrow), registered as an impulse."""
-    if bone_name not in obj.data.bones:
-        raise RigError(f"'{obj.name}' has no bone named '{bone_name}'")
-    empty = place_arrow(obj, scene, bone_name, frame, direction, name="Impulse")
-    props = scene.humananim_control
-    item = props.impulses.add()
-    item.empty, item.bone, item.frame = empty, bone_name, frame
-    item.magnitude, item.duration = magnitude, duration
-    props.impulse_index = len(props.impulses) - 1
-    return item
+    return add_arrow(obj, scene, scene.humananim_control, "impulses", "impulse_index", bone_name, frame, direction,
+                     magnitude, duration, "Impulse")
