@@ -6,7 +6,7 @@ the object, saves the result (--out) and prints a summary (--json: one object)."
 import os
 import time
 
-from ..cli import FRAME, POSITIVE, UsageError, number
+from ..arguments import FRAME, POSITIVE, UsageError, add_out, number
 
 TYPES = ("AUTO", "LATERAL", "PINCH", "TRIPOD", "WRAP", "DISK")
 
@@ -24,7 +24,7 @@ def add_commands(sub, add_common_options):
     g.add_argument("--close", type=POSITIVE, default=0.5, help="seconds to close the fingers (default 0.5)")
     g.add_argument("--release", type=number(0, integer=True), default=0, help="frame the object is let go (default: never)")
     g.add_argument("--spine", action="store_true", help="let the spine help the reach")
-    g.add_argument("--out", default=os.path.join("out", "grasp.blend"), help="the .blend to write")
+    add_out(g, "grasp.blend")
     add_common_options(g)
     return {"grasp": cmd_grasp}
 

@@ -6,12 +6,11 @@ operators, saves a .blend (--out) and prints a summary (--json: one object)."""
 import os
 import time
 
-from ..cli import COUNT, FINITE, NON_NEGATIVE, POSITIVE, UsageError, number
+from ..arguments import COUNT, FINITE, NON_NEGATIVE, POSITIVE, UsageError, add_input, number
 
 
 def _inputs(p, out):
-    p.add_argument("file", help="a .blend or .bvh file")
-    p.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
+    add_input(p)
     p.add_argument("--action", help="source action (default: the armature's active action)")
     p.add_argument("--bones", help="comma-separated bones to process (default: every channel)")
     p.add_argument("--replace", action="store_true", help="rewrite the source action instead of writing a new one")

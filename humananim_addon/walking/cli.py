@@ -8,7 +8,8 @@ summary (--json: one object)."""
 import os
 import time
 
-from ..cli import DEFAULT_CLIP, FINITE, NON_NEGATIVE, POSITIVE, UsageError, number
+from ..cli import DEFAULT_CLIP
+from ..arguments import FINITE, NON_NEGATIVE, POSITIVE, UsageError, add_out, number
 
 
 def add_commands(sub, add_common_options):
@@ -38,7 +39,7 @@ def add_commands(sub, add_common_options):
     c.add_argument("--frame-start", type=number(0, integer=True), default=0, help="first frame of the walk (default: scene start)")
     c.add_argument("--generator", action="append", default=[], metavar="ACTION:SCOPE:FRAME[:PRIORITY[:WEIGHT]]",
                    help="add a generator strip playing ACTION on SCOPE from FRAME; repeatable")
-    c.add_argument("--out", default=os.path.join("out", "walk.blend"), help="the .blend to write")
+    add_out(c, "walk.blend")
     add_common_options(c)
     return {"walk": cmd_walk}
 
