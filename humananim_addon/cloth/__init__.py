@@ -1,1 +1,2 @@
-"""Cloth on the character: the settings and the job (job.py), the command line (cli.py)."""
+"""Cloth on the character: the settings (properties.py), the job (job.py), the command `humananim cloth`
+(cli.py)."""

@@ -1,1 +1,2 @@
-"""Flexible bodies (lattice modes): the settings and the job (job.py), the command line (cli.py)."""
+"""Flexible characters (lattice modes): the settings (properties.py), the job (job.py), the command
+`humananim flexible` (cli.py)."""

@@ -1,1 +1,2 @@
-"""Hands: grasp, follow, hold and self-collision: the settings and the job (job.py), the command line (cli.py)."""
+"""Hands: grasp, follow, hold and self-collision: the settings (properties.py), the job (job.py), the
+command `humananim grasp` (cli.py)."""

@@ -1,1 +1,2 @@
-"""Simulate (inverse dynamics): the settings and the job (job.py); its command line is in cli.py."""
+"""Simulate (closed-loop inverse dynamics): its settings (properties.py), the job (job.py), the command
+`humananim simulate` (cli.py)."""

@@ -1,1 +1,2 @@
-"""Motion Queue (synthesis): the queue's settings and the job (job.py), the command line (cli.py)."""
+"""The Motion Queue (synthesis): the queue's settings (properties.py), the job (job.py), the command
+`humananim synthesize` (cli.py)."""

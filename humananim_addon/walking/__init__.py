@@ -1,1 +1,2 @@
-"""Walk along a path and the generator stack: the settings and the job (job.py), the command line (cli.py)."""
+"""Walking along a path and the generator stack: the settings (properties.py), the job (job.py), the
+command `humananim walk` (cli.py)."""
