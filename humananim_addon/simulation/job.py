@@ -20,6 +20,12 @@ USAGE = "humananim_strength_usage"  # required / available torque, worst axis; >
 ASSIST = "humananim_balance_assist"  # N of residual force the pelvis needed
 
 
+def frame_range(props, action):
+    start = props.frame_start or action.frame_range[0]
+    end = props.frame_end or action.frame_range[1]
+    return start, end
+
+
 def solver_settings(scene, props, skeleton, traj):
     """The solver's Settings from the panel's values, the scene's gravity and the pushes."""
     gravity = gravity_of(scene)
