@@ -12,9 +12,8 @@ class VIEW3D_PT_humananim_simulation(HumanAnimPanel, bpy.types.Panel):
     def draw(self, context):
         props = context.scene.humananim_simulation
         layout = self.layout
-        draw_loads_and_pushes(layout, context, props, ("controller", "tracking", "balance_assist", "strength_scale",
-                                                       "load_left", "load_right"),
-                              "pushes", "push_index", "push", "Pushes")
+        draw_loads_and_pushes(layout, context, props, ("controller", "tracking", "balance_assist", "strength_scale"),
+                              "pushes", "push_index", "push", "Pushes", after_ground=("load_left", "load_right"))
         layout.prop(context.scene.humananim, "output")
         layout.operator("humananim.simulate", icon="PHYSICS")
 
