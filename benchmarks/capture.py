@@ -139,7 +139,7 @@ def _free_udp_port():
 
 def run_config(config, seconds, baseline_dir):
     import bpy
-    from humananim.humananim_addon import capture
+    from humananim.humananim_addon.capture import job as capture
     from humananim.humananim_addon.bvh_import import import_bvh
 
     mvn_port = _free_udp_port()

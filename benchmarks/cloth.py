@@ -87,7 +87,7 @@ def best_of(repeat, measure, key):
 
 
 def our_run(arm, scene, garment, body, collider, last, level=2):
-    from humananim.humananim_addon import cloth
+    from humananim.humananim_addon.cloth import job as cloth
     from humananim.solver.progress import run_to_end
     props = scene.humananim_cloth
     props.garment, props.armature, props.pin_group = garment, arm, "waist"
@@ -115,8 +115,8 @@ def blender_garment(job, arm, name):
     """Our rest surface as a plain mesh for Blender's cloth: the same rendered faces; the fine
     vertices of the pinned ring pinned, carried by the pelvis through an Armature modifier."""
     import bpy
-    from humananim.humananim_addon.cloth import new_mesh_object
-    from humananim.humananim_addon.cloth import roles_of
+    from humananim.humananim_addon.cloth.job import new_mesh_object
+    from humananim.humananim_addon.cloth.job import roles_of
     fine = job.sim.smoother.surface(job.mesh.rest)
     obj = new_mesh_object(name, fine, job.sim.smoother.faces, arm, smooth=True)
     top = fine[:, 2] >= job.mesh.rest[job.sim.pins, 2].min() - 1e-6
@@ -207,7 +207,7 @@ def main(argv=None):
 
 
 def garment(arm, scene, kind):
-    from humananim.humananim_addon import cloth
+    from humananim.humananim_addon.cloth import job as cloth
     scene.frame_set(1)
     if kind == "skirt":
         return cloth.add_skirt(arm, scene, name="Skirt")
@@ -217,7 +217,7 @@ def garment(arm, scene, kind):
 
 
 def measure(args):
-    from humananim.humananim_addon import cloth
+    from humananim.humananim_addon.cloth import job as cloth
     out = {"numpy_add_us": numpy_add_us(), "seconds": args.seconds, "cases": {}}
     arm, scene, last = scene_at_30fps(args.seconds)
     garments = {kind: garment(arm, scene, kind) for kind in ("skirt", "coat")}
@@ -247,7 +247,7 @@ def measure(args):
 
 def measure_mesh_body(arm, scene, garment_obj, body, last):
     """Our run with the body searched by MeshBody (rebuilt per pose) instead of SkinnedBody."""
-    from humananim.humananim_addon import cloth
+    from humananim.humananim_addon.cloth import job as cloth
     keep = cloth.skinned_collider
     cloth.skinned_collider = lambda body, arm, tris, positions, world: cloth.MeshBody(tris, len(positions))
     try:

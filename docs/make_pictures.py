@@ -7,7 +7,7 @@ Each picture runs the batch command a user would (`python -m humananim demo`, `g
 `simulate`, `compress`), opens the .blend it wrote and renders the result with Workbench in a
 temporary scene (the bpy module renders headless with Workbench only): armatures as sticks
 along their deform bones, meshes (capsule bodies, garments, props) as Blender evaluates them at
-each frame. The dynamic-control picture is the demo's own (humananim_addon/overlay.py).
+each frame. The dynamic-control picture is the demo's own (humananim_addon/motion_control/overlay.py).
 Pictures are posterised before saving so each stays small enough to check in (< 150 KB)."""
 
 import argparse
@@ -26,8 +26,8 @@ import numpy as np  # noqa: E402
 from mathutils import Matrix, Vector  # noqa: E402
 
 from humananim.humananim_addon import cli  # noqa: E402
-from humananim.humananim_addon import overlay  # noqa: E402
-from humananim.humananim_addon.overlay import text_object, tube_object  # noqa: E402
+from humananim.humananim_addon.motion_control import overlay  # noqa: E402
+from humananim.humananim_addon.motion_control.overlay import text_object, tube_object  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 PICTURES = os.path.join(HERE, "pictures")

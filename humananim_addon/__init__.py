@@ -6,23 +6,27 @@ bpy-free parts (the device protocols in `devices`) import without Blender."""
 _cli_handle = None
 
 
+# The capabilities whose settings (property groups) register with the add-on, in order; capture's
+# job wraps its settings' registration (it closes a running session on unregister).
+SETTINGS = ("simulation.properties", "motion_control.properties", "sequence", "cloth.properties",
+            "flexible.properties", "walking.properties", "capture.job", "hands.properties", "synthesis.properties")
+
+
+def _settings_modules():
+    import importlib
+    return [importlib.import_module(f".{name}", __package__) for name in SETTINGS]
+
+
 def register():
     global _cli_handle
     import bpy
-    from . import (capture, cli, cloth, flexible, hands, motion_control, overlay, preferences, properties,
-                   sequence, simulation, synthesis, walking)
+    from . import cli, preferences, properties
+    from .motion_control import overlay
     from .. import operators, panels  # they import the bridge: import them after it
     bpy.utils.register_class(preferences.HumanAnimPreferences)
     properties.register()
-    simulation.register()
-    motion_control.register()
-    sequence.register()
-    cloth.register()
-    flexible.register()
-    walking.register()
-    capture.register()
-    hands.register()
-    synthesis.register()
+    for module in _settings_modules():
+        module.register()
     operators.register()
     panels.register()
     overlay.register()
@@ -36,8 +40,8 @@ def register():
 def unregister():
     global _cli_handle
     import bpy
-    from . import (capture, cloth, flexible, hands, motion_control, overlay, preferences, properties, sequence,
-                   simulation, synthesis, walking)
+    from . import preferences, properties
+    from .motion_control import overlay
     from .. import operators, panels
     if _cli_handle is not None:
         bpy.utils.unregister_cli_command(_cli_handle)
@@ -45,14 +49,7 @@ def unregister():
     overlay.unregister()
     panels.unregister()
     operators.unregister()
-    synthesis.unregister()
-    hands.unregister()
-    capture.unregister()
-    walking.unregister()
-    flexible.unregister()
-    cloth.unregister()
-    sequence.unregister()
-    motion_control.unregister()
-    simulation.unregister()
+    for module in reversed(_settings_modules()):
+        module.unregister()
     properties.unregister()
     bpy.utils.unregister_class(preferences.HumanAnimPreferences)

@@ -3,7 +3,6 @@
 Every command prints a short summary, or with --json one JSON object of what it did, where it
 wrote and what it measured. A user mistake is one line on stderr and exit status 2."""
 
-import argparse
 import importlib
 import contextlib
 import json
@@ -15,94 +14,27 @@ import time
 
 import numpy as np
 
+from .arguments import (COUNT, FINITE, FRACTION, FRAME, NON_NEGATIVE, POSITIVE, OneLineParser, UsageError,  # noqa: F401
+                        add_common, add_input, add_out, fail, number, one_line)
+
 DEFAULT_CLIP = os.path.join(os.path.dirname(__file__), "data", "mocap", "cmu_131_01.bvh")
 log = logging.getLogger(__name__)
-
-
-class UsageError(Exception):
-    """A mistake in the command line or its files: reported in one line."""
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse with its usage mistakes as one line on stderr (exit status 2), like every other
-    mistake; --help still prints the usage."""
-
-    def error(self, message):
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def number(low=None, high=None, above=False, integer=False, what=None):
-    """An argparse type: a finite number (an integer with `integer`) >= low (> low with `above`)
-    and <= high. NaN, infinities and out-of-range values are usage mistakes."""
-    bound = " ".join(filter(None, [f"{'>' if above else '>='} {low:g}" if low is not None else "",
-                                   f"<= {high:g}" if high is not None else ""]))
-    what = what or f"a{'' if integer else ' finite'} {'whole ' if integer else ''}number" + (f" {bound}" if bound else "")
-
-    def convert(text):
-        try:
-            value = int(text) if integer else float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
-        if not math.isfinite(value) or (low is not None and (value <= low if above else value < low)) \
-                or (high is not None and value > high):
-            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
-        return value
-    convert.__name__ = "number"  # argparse names the type in its messages
-    return convert
-
-
-FINITE = number()
-POSITIVE = number(0.0, above=True)
-NON_NEGATIVE = number(0.0)
-FRACTION = number(0.0, 1.0)
-COUNT = number(1, integer=True)
-FRAME = number(integer=True, what="a whole frame number")
 
 
 def build_parser():
     parser = OneLineParser(prog="humananim", description="HumanAnim batch jobs")
     sub = parser.add_subparsers(dest="command", required=True, metavar="command")
     info = sub.add_parser("info", help="bones, body roles, segment masses, frames of a rig")
-    info.add_argument("file", help="a .blend or .bvh file")
-    info.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
-    _common(info)
+    add_input(info, help="a .blend or .bvh file")
+    add_common(info)
     demo = sub.add_parser("demo", help="import the bundled CMU clip, build the body model, save a .blend")
     demo.add_argument("--bvh", default=DEFAULT_CLIP, help="motion to import (default: bundled CMU 131_01)")
-    demo.add_argument("--out", default=os.path.join("out", "demo.blend"), help="the .blend to write")
-    _common(demo)
-    sim = sub.add_parser("simulate", help="closed-loop simulation: the rig follows its action under "
-                                          "gravity, loads and pushes; writes a new action")
-    sim.add_argument("file", help="a .blend or .bvh file")
-    sim.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
-    sim.add_argument("--action", help="source action (default: the armature's active action)")
-    sim.add_argument("--frames", nargs=2, type=FRAME, metavar=("START", "END"), help="frame range")
-    sim.add_argument("--tracking", type=FRACTION, default=1.0, help="0 ragdoll .. 1 full tracking (default 1)")
-    sim.add_argument("--controller", choices=("inverse_dynamics", "pd"), default="inverse_dynamics")
-    sim.add_argument("--balance-assist", type=NON_NEGATIVE, default=1.0,
-                     help="share of the pelvis force the feet can't give that is applied anyway (default 1)")
-    sim.add_argument("--strength", type=POSITIVE, default=1.0, help="muscle strength scale (default 1)")
-    sim.add_argument("--ground", type=FINITE, help="ground height in metres (default: the lowest "
-                                                  "point the feet reach in the motion)")
-    sim.add_argument("--load-left", type=NON_NEGATIVE, default=0.0, help="kg carried in the left hand")
-    sim.add_argument("--load-right", type=NON_NEGATIVE, default=0.0, help="kg carried in the right hand")
-    sim.add_argument("--push", action="append", default=[], metavar="FRAME:BONE:FX,FY,FZ[:SECONDS]",
-                     help="a push of the force vector (N, world axes) on a bone; repeatable; BONE may hold "
-                          "colons (10:mixamorig:Spine2:0,-300,0) or be in double quotes")
-    sim.add_argument("--output", choices=("ACTION", "NLA"), default="ACTION")
-    sim.add_argument("--out", default=os.path.join("out", "simulate.blend"), help="the .blend to write")
-    _common(sim)
+    add_out(demo, "demo.blend")
+    add_common(demo)
     for name in COMMAND_MODULES:  # each capability module adds its own commands
         module = importlib.import_module(f".{name}", __package__)
-        COMMANDS.update(module.add_commands(sub, _common))
+        COMMANDS.update(module.add_commands(sub, add_common))
     return parser
-
-
-def _common(p):
-    p.add_argument("--mass", type=POSITIVE, help="total body mass in kg (default 70)")
-    p.add_argument("--scale", type=POSITIVE, help="metres per BVH unit (default: guessed from the figure's "
-                                                   "height; a figure no common unit makes 1.0-2.3 m tall is refused)")
-    p.add_argument("--json", action="store_true", help="print one JSON object (its 'qa' key: the motion QA)")
-    p.add_argument("--strict", action="store_true", help="exit with status 3 when the result fails the motion QA")
 
 
 def main(argv=None):
@@ -118,8 +50,7 @@ def main(argv=None):
             if "qa" not in result:
                 result["qa"] = qa_of_result(result)
     except (HumanAnimError, UsageError) as error:
-        print(f"{name}: error: {one_line(error)}", file=sys.stderr)
-        return 2
+        return fail(name, error)
     qa = result["qa"]
     for line in qa.get("warnings", []):
         print(f"{name}: warning: QA: {line}", file=sys.stderr)
@@ -128,11 +59,6 @@ def main(argv=None):
     else:
         print(_text_summary(result) + "\n" + qa_text(qa))
     return 3 if getattr(args, "strict", False) and qa.get("passed") is False else 0
-
-
-def one_line(error):
-    """An error's message on one line (Blender's own messages may span several)."""
-    return " ".join(str(error).split())
 
 
 def check_writable(args):
@@ -195,7 +121,7 @@ def qa_of_result(summary, obj=None, ground=None):
     """The motion QA of a command's result (its `armature` and new `action`), stored on the
     armature; a result that is not an armature's motion says so."""
     import bpy
-    from . import qa
+    from .qa import job as qa
     obj = obj or bpy.data.objects.get(summary.get("armature") or "")
     if obj is None or obj.type != "ARMATURE" or not summary.get("action"):
         return qa.not_measured("this command's result is not a new action on an armature")
@@ -269,7 +195,7 @@ def cmd_info(args):
 def source_qa(obj, scene):
     """The motion QA of the armature's own action (no input to compare with): its height, floor,
     NaN, pops against the absolute caps."""
-    from . import qa
+    from .qa import job as qa
     action = obj.animation_data.action if obj.animation_data else None
     if action is None:
         return qa.not_measured("the armature has no action")
@@ -299,7 +225,7 @@ def cmd_demo(args):
     result.update(command="demo", input=os.path.abspath(args.bvh), bvh_unit=unit,
                   wrote=[out] + [path for s in skirts for path in s["wrote"]], picture=picture,
                   control=control, cloth=skirts, qa=control["qa"], seconds=round(time.perf_counter() - t0, 3))
-    from .control_cli import text_summary
+    from .motion_control.cli import text_summary
     result["summary"] = "\n".join(
         [_text_summary(result)] + ["  " + line for line in text_summary(control).splitlines()[:-1]]
         + [f"  cloth: '{s['object']}' on '{s['armature']}', {s['particles']} particles to {s['fine_faces']} "
@@ -321,7 +247,7 @@ def demo_cloth(walker, scene, out, scale=None):
     on a skinned capsule body, simulated over the demo frames; point caches beside the .blend."""
     import bpy
     from ..solver.progress import run_to_end
-    from . import cloth
+    from .cloth import job as cloth
     from .bvh_import import import_bvh
     save_blend(out)  # the caches' relative paths need the .blend's folder
     hopper, _, _ = import_bvh(DEMO_HOP, scale)
@@ -345,7 +271,7 @@ def demo_control(obj, scene, skeleton, out):
     """Dynamic control of the demo clip with a load in both hands and a push on the chest; saves
     the .blend at `out` and a picture beside it."""
     from mathutils import Vector
-    from .control_cli import add_impulse_from_vector, control_and_save
+    from .motion_control.cli import add_impulse_from_vector, control_and_save
     props = scene.humananim_control
     props.frame_start, props.frame_end = DEMO_FRAMES
     props.load_left = props.load_right = DEMO_LOAD_KG
@@ -358,8 +284,8 @@ def demo_control(obj, scene, skeleton, out):
 def demo_picture(obj, scene, control, skirts, out):
     """The controlled walk over its input with its loads, push and skirt, beside the .blend."""
     import bpy
-    from . import overlay
-    from .control_cli import _title
+    from .motion_control import overlay
+    from .motion_control.cli import _title
     garments = [bpy.data.objects[s["object"]] for s in skirts if s["armature"] == obj.name]
 
     def render(path):
@@ -368,32 +294,6 @@ def demo_picture(obj, scene, control, skirts, out):
     picture = write_atomically(os.path.splitext(out)[0] + ".png", render)
     control["wrote"].append(picture)
     return picture
-
-
-def cmd_simulate(args):
-    import bpy
-    from ..solver.progress import run_to_end
-    from . import simulation, validation
-    t0 = time.perf_counter()
-    obj, scene, unit = load_job(args, "humananim_simulation")
-    props = scene.humananim_simulation
-    props.tracking, props.controller = args.tracking, args.controller.upper()
-    props.balance_assist, props.strength_scale = args.balance_assist, args.strength
-    props.ground = "MOTION" if args.ground is None else "HEIGHT"
-    props.ground_height = args.ground or 0.0
-    props.load_left, props.load_right = args.load_left, args.load_right
-    scene.humananim.output = args.output
-    for text in args.push:
-        frame, bone, force, seconds = parse_arrow(text, obj, "--push", 0.1)
-        simulation.add_push(obj, scene, bone, frame, force, float(np.linalg.norm(force)), seconds)
-    validation.check_job(obj, props, "pushes")
-    summary = run_to_end(simulation.run(obj, scene))
-    out = save_blend(args.out, summary, obj, args.ground)
-    summary.update(command="simulate", file=os.path.abspath(args.file), armature=obj.name, wrote=[out],
-                   seconds=round(time.perf_counter() - t0, 3))
-    if unit:
-        summary["bvh_unit"] = unit
-    return summary
 
 
 def parse_arrow(text, obj, option, default_seconds):
@@ -450,6 +350,15 @@ def load_job(args, props):
     return obj, scene, unit
 
 
+def set_loads_and_ground(args, props):
+    """The options arguments.add_loads, add_strength and add_ground_height give, set on a job's
+    settings (a forces.LoadsAndPushes group)."""
+    props.load_left, props.load_right = args.load_left, args.load_right
+    props.strength_scale = args.strength
+    props.ground = "MOTION" if args.ground is None else "HEIGHT"
+    props.ground_height = args.ground or 0.0
+
+
 def load_rig(args):
     """A dynamics command's file (a .blend, or a BVH imported into an empty scene) and armature,
     with --mass set on the rig: (armature, scene, BVH unit or None)."""
@@ -493,7 +402,7 @@ def _load(path, armature_name, scale):
 
 
 def _remember_sources():
-    from .qa import digest_actions
+    from .qa.job import digest_actions
     _SOURCE_DIGESTS.clear()
     _SOURCE_DIGESTS.update(digest_actions())
 
@@ -528,13 +437,6 @@ def rig_summary(obj, scene, total_mass=None):
 def _text_summary(r):
     if "summary" in r:  # a command that phrases its own summary
         return r["summary"]
-    if r["command"] == "simulate":
-        return "\n".join([
-            f"simulate: '{r['armature']}' followed '{r['source_action']}' for {r['frames']} frames "
-            f"({r['simulated_seconds']:.2f} s) in {r['seconds']:.2f} s, {r['real_time_factor']:.2f}x real time",
-            f"  tracking error {r['tracking_error_deg_rms']:.2f} deg RMS, peak strength use "
-            f"{r['peak_strength_usage']:.2f}, peak balance assist {r['peak_balance_assist_n']:.0f} N",
-            f"  wrote action '{r['action']}' and {r['wrote'][0]}"])
     lines = [f"{r['command']}: armature '{r['armature']}', {r['bone_count']} bones, "
              f"roles by {r['convention']}"]
     if r.get("missing_roles"):
@@ -555,8 +457,8 @@ def _text_summary(r):
     return "\n".join(lines)
 
 
-COMMANDS = {"info": cmd_info, "demo": cmd_demo, "simulate": cmd_simulate}
+COMMANDS = {"info": cmd_info, "demo": cmd_demo}
 # Modules of this package with `add_commands(subparsers, add_common_options) -> {name: run(args)}`;
 # `run` returns the summary dict (with "command" and "wrote") and raises HumanAnimError/UsageError.
-COMMAND_MODULES = ("sequence_cli", "control_cli", "cloth_cli", "flexible_cli", "walking_cli", "capture_cli",
-                   "hands_cli", "synthesis_cli", "cleanup.cli", "batch")
+COMMAND_MODULES = ("simulation.cli", "sequence.cli", "motion_control.cli", "cloth.cli", "flexible.cli", "walking.cli", "capture.cli",
+                   "hands.cli", "synthesis.cli", "cleanup.cli", "batch")

@@ -59,5 +59,5 @@ def check_job(obj, props, events="pushes"):
 
 
 def _fcurves(action):
-    from .qa import _all_fcurves
+    from .qa.job import _all_fcurves
     return _all_fcurves(action)

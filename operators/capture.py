@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..humananim_addon import capture
+from ..humananim_addon.capture import job as capture
 from ..solver.errors import HumanAnimError
 from .common import RemoveActiveItem, active_armature
 

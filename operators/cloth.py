@@ -3,7 +3,7 @@
 import bpy
 from bpy.props import FloatProperty, IntProperty
 
-from ..humananim_addon import cloth
+from ..humananim_addon.cloth import job as cloth
 from ..solver.errors import HumanAnimError
 from .common import JobOperator, _end_job, _fail, active_armature, run_reporting
 

@@ -28,7 +28,7 @@ def remember_sources(operator):
     """Digests of every action before an operator that makes a motion runs (`measures_motion`),
     so its QA can show the source untouched."""
     if getattr(operator, "measures_motion", False):
-        from ..humananim_addon.qa import digest_actions
+        from ..humananim_addon.qa.job import digest_actions
         operator._qa_digests = digest_actions()
 
 
@@ -36,7 +36,7 @@ def with_qa(operator, context, obj, summary, text, ground=None):
     """The operator's message with the motion QA of its result (`summary`'s action on `obj`),
     which is stored on the armature for the QA panel: a WARNING naming the worst bone and frames
     when it fails a threshold."""
-    from ..humananim_addon import qa
+    from ..humananim_addon.qa import job as qa
     from ..solver.qa import summary_line
     report = qa.measure_summary(obj, context.scene, summary, getattr(operator, "_qa_digests", None), ground)
     if not report.get("measures"):
@@ -189,3 +189,34 @@ def set_progress(context, label, fraction):
     for area in getattr(context.screen, "areas", ()):
         if area.type == "VIEW_3D":
             area.tag_redraw()
+
+
+class ArmatureJob(JobOperator):
+    """A job on the active armature's motion whose result the motion QA measures: a
+    subclass names the bridge's job (`run = staticmethod(f)`, f(obj, scene) a generator of progress
+    that returns the summary) and its one-line report (`message(summary)`)."""
+
+    measures_motion = True
+
+    @classmethod
+    def poll(cls, context):
+        return active_armature(context) is not None
+
+    def job(self, context):
+        obj = active_armature(context)
+        summary = yield from self.run(obj, context.scene)
+        return with_qa(self, context, obj, summary, self.message(summary))
+
+
+def arrow_list_operators(what, label, settings, items, index, add):
+    """The Add and Remove operators of a job's list of forces drawn as arrows (Simulate's pushes,
+    Dynamic Control's impulses): `add(obj, scene, bone, frame)` makes one; removing keeps its Empty."""
+    add_op = type(f"HUMANANIM_OT_add_{what}", (AddOnActiveBone, bpy.types.Operator), {
+        "__doc__": f"Add {label} on the active bone: an arrow Empty in front of it, pointing into the body",
+        "bl_idname": f"humananim.add_{what}", "bl_label": f"Add {what.title()}", "what": what,
+        "add": staticmethod(add)})
+    remove_op = type(f"HUMANANIM_OT_remove_{what}", (RemoveActiveItem, bpy.types.Operator), {
+        "__doc__": f"Remove the selected {what} (its arrow Empty stays in the scene)",
+        "bl_idname": f"humananim.remove_{what}", "bl_label": f"Remove {what.title()}",
+        "settings": settings, "items": items, "index": index})
+    return add_op, remove_op

@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..humananim_addon import flexible
+from ..humananim_addon.flexible import job as flexible
 from ..solver.flexible import FlexibleError
 from .common import JobOperator, RemoveActiveItem, run_reporting
 

@@ -3,8 +3,8 @@ self-collisions. Each writes a new action; the animator's keys are only read."""
 
 import bpy
 
-from ..humananim_addon import hands
-from .common import JobOperator, active_armature, with_qa
+from ..humananim_addon.hands import job as hands
+from .common import ArmatureJob, JobOperator, active_armature, with_qa
 
 
 def _selected_object(context):
@@ -74,42 +74,35 @@ class HUMANANIM_OT_follow_object(JobOperator, bpy.types.Operator):
                 f"{s['max_grip_error_deg']:.2f} deg over frames {s['frames'][0]}-{s['frames'][1]}")
 
 
-class HUMANANIM_OT_hold(JobOperator, bpy.types.Operator):
+class HUMANANIM_OT_hold(ArmatureJob, bpy.types.Operator):
     """Reach and hold another character's bone, then follow it as it moves"""
 
     bl_idname = "humananim.hold"
     bl_label = "Hold"
-    measures_motion = True
+    run = staticmethod(hands.run_hold)
 
     @classmethod
     def poll(cls, context):
         return active_armature(context) is not None and context.scene.humananim_hands.other is not None
 
-    def job(self, context):
-        obj = active_armature(context)
-        s = yield from hands.run_hold(obj, context.scene)
-        return with_qa(self, context, obj, s, f"'{s['action']}': holds {s['held']} ({s['type'].lower()}), frames {s['frames'][0]}-"
+    @staticmethod
+    def message(s):
+        return (f"'{s['action']}': holds {s['held']} ({s['type'].lower()}), frames {s['frames'][0]}-"
                 f"{s['frames'][1]}, grip kept within {s['max_grip_error_mm']:.2f} mm")
 
 
-class HUMANANIM_OT_remove_self_collisions(JobOperator, bpy.types.Operator):
+class HUMANANIM_OT_remove_self_collisions(ArmatureJob, bpy.types.Operator):
     """Keep the arms out of the trunk and head, and the legs out of each other, over the frame range (sensors
     at elbows, hands, knees and feet, corrected while hands and feet keep their goals)"""
 
     bl_idname = "humananim.remove_self_collisions"
     bl_label = "Remove Self-Collisions"
-    measures_motion = True
+    run = staticmethod(hands.run_self_collisions)
 
-    @classmethod
-    def poll(cls, context):
-        return active_armature(context) is not None
-
-    def job(self, context):
-        obj = active_armature(context)
-        s = yield from hands.run_self_collisions(obj, context.scene)
-        return with_qa(self, context, obj, s, f"'{s['action']}': {s['frames_corrected']} frames corrected ({s['leg_frames_corrected']} for "
-                f"the legs), deepest "
-                f"{s['max_depth_before_mm']:.0f} mm -> {s['max_depth_after_mm']:.0f} mm")
+    @staticmethod
+    def message(s):
+        return (f"'{s['action']}': {s['frames_corrected']} frames corrected ({s['leg_frames_corrected']} for "
+                f"the legs), deepest {s['max_depth_before_mm']:.0f} mm -> {s['max_depth_after_mm']:.0f} mm")
 
 
 CLASSES = (HUMANANIM_OT_grasp, HUMANANIM_OT_release, HUMANANIM_OT_follow_object, HUMANANIM_OT_hold,

@@ -2,46 +2,33 @@
 
 import bpy
 
-from ..humananim_addon import motion_control, overlay, validation
-from .common import AddOnActiveBone, JobOperator, RemoveActiveItem, active_armature, with_qa
+from ..humananim_addon import validation
+from ..humananim_addon.motion_control import job as motion_control
+from ..humananim_addon.motion_control import overlay
+from .common import ArmatureJob, arrow_list_operators
 
 
-class HUMANANIM_OT_dynamic_control(JobOperator, bpy.types.Operator):
+class HUMANANIM_OT_dynamic_control(ArmatureJob, bpy.types.Operator):
     """Keep the character's motion under loads, impulses and collisions (comfort and balance control), and bake the result"""
 
     bl_idname = "humananim.dynamic_control"
     bl_label = "Dynamic Control"
-    measures_motion = True
 
-    @classmethod
-    def poll(cls, context):
-        return active_armature(context) is not None
+    @staticmethod
+    def run(obj, scene):
+        validation.check_job(obj, scene.humananim_control, "impulses")
+        return motion_control.run(obj, scene)
 
-    def job(self, context):
-        obj = active_armature(context)
-        validation.check_job(obj, context.scene.humananim_control, "impulses")
-        summary = yield from motion_control.run(obj, context.scene)
-        return with_qa(self, context, obj, summary, f"'{summary['action']}': {summary['frames']} frames in {summary['seconds']:.1f} s "
+    @staticmethod
+    def message(summary):
+        return (f"'{summary['action']}': {summary['frames']} frames in {summary['seconds']:.1f} s "
                 f"({summary['real_time_factor']:.2f}x real time), peak stress "
                 f"{summary['peak_stress_nm']:.0f} N m ({summary['peak_stress_bone']}), balance error "
                 f"{100 * summary['max_balance_error_m']:.1f} cm, {summary['frames_falling']} frames falling")
 
 
-class HUMANANIM_OT_add_impulse(AddOnActiveBone, bpy.types.Operator):
-    """Add an impulse on the active bone: an arrow Empty in front of it, pointing into the body"""
-
-    bl_idname = "humananim.add_impulse"
-    bl_label = "Add Impulse"
-    what = "impulse"
-    add = staticmethod(motion_control.add_impulse)
-
-
-class HUMANANIM_OT_remove_impulse(RemoveActiveItem, bpy.types.Operator):
-    """Remove the selected impulse (its arrow Empty stays in the scene)"""
-
-    bl_idname = "humananim.remove_impulse"
-    bl_label = "Remove Impulse"
-    settings, items, index = "humananim_control", "impulses", "impulse_index"
+HUMANANIM_OT_add_impulse, HUMANANIM_OT_remove_impulse = arrow_list_operators(
+    "impulse", "an impulse", "humananim_control", "impulses", "impulse_index", motion_control.add_impulse)
 
 
 class HUMANANIM_OT_toggle_overlay(bpy.types.Operator):

@@ -4,30 +4,25 @@ limb's constraint) and the bake into a new action."""
 import bpy
 from bpy.props import IntProperty
 
-from ..humananim_addon import synthesis
+from ..humananim_addon.synthesis import job as synthesis
 from ..solver.errors import MotionError
-from .common import JobOperator, RemoveActiveItem, active_armature, run_reporting, with_qa
+from .common import ArmatureJob, RemoveActiveItem, active_armature, run_reporting
 
 
-class HUMANANIM_OT_synthesize(JobOperator, bpy.types.Operator):
+class HUMANANIM_OT_synthesize(ArmatureJob, bpy.types.Operator):
     """Join the Motion Queue's actions (blend, connect or inertialize), optionally under dynamic control with protective steps, falls and recovery, into a new action"""
 
     bl_idname = "humananim.synthesize"
     bl_label = "Synthesize Motion"
-    measures_motion = True
+    run = staticmethod(synthesis.run)
 
-    @classmethod
-    def poll(cls, context):
-        return active_armature(context) is not None
-
-    def job(self, context):
-        obj = active_armature(context)
-        s = yield from synthesis.run(obj, context.scene)
+    @staticmethod
+    def message(s):
         msg = synthesis.text_line(s)
         rejected = [r for r in s["requests"] if not r["accepted"]]
         if rejected:
             msg += "; " + "; ".join(r["reason"] for r in rejected)
-        return with_qa(self, context, obj, s, msg)
+        return msg
 
 
 class HUMANANIM_OT_queue_add(bpy.types.Operator):

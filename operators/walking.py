@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..humananim_addon import walking
+from ..humananim_addon.walking import job as walking
 from .common import JobOperator, active_armature, run_reporting, with_qa
 
 

@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..humananim_addon import cloth
+from ..humananim_addon.cloth import job as cloth
 from .rig import HumanAnimPanel
 
 

@@ -38,4 +38,26 @@ def draw_force_list(layout, context, props, items, index, add, remove, label):
     sub.prop(item, "magnitude", text="Impulse (N s)" if item.duration == 0.0 else "Force (N)")
 
 
+def draw_loads_and_pushes(layout, context, props, options, items, index, what, label, after_ground=()):
+    """The settings Simulate and Dynamic Control share (humananim_addon.forces.LoadsAndPushes): the
+    source action and frames, the job's own `options` (property names, in order), the ground, the
+    `after_ground` options, the scene's gravity, and the job's list of arrow forces (`items`,
+    `index`, operators humananim.add_<what> and humananim.remove_<what>) under `label`."""
+    col = layout.column()
+    col.use_property_split = True
+    col.prop(props, "action")
+    row = col.row(align=True)
+    row.prop(props, "frame_start")
+    row.prop(props, "frame_end")
+    for name in options:
+        col.prop(props, name)
+    col.prop(props, "ground")
+    if props.ground == "HEIGHT":
+        col.prop(props, "ground_height")
+    for name in after_ground:
+        col.prop(props, name)
+    col.prop(context.scene, "gravity")
+    draw_force_list(layout, context, props, items, index, f"humananim.add_{what}", f"humananim.remove_{what}", label)
+
+
 CLASSES = (HUMANANIM_UL_forces,)

@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..humananim_addon.flexible import MAX_ACTIVE
+from ..humananim_addon.flexible.job import MAX_ACTIVE
 from ..operators.flexible import flexible_object
 from .common import edited_list
 from .rig import HumanAnimPanel

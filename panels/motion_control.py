@@ -2,8 +2,8 @@
 
 import bpy
 
-from ..humananim_addon import overlay
-from .common import draw_force_list
+from ..humananim_addon.motion_control import overlay
+from .common import draw_loads_and_pushes
 from .rig import HumanAnimPanel
 
 
@@ -14,24 +14,9 @@ class VIEW3D_PT_humananim_control(HumanAnimPanel, bpy.types.Panel):
     def draw(self, context):
         props = context.scene.humananim_control
         layout = self.layout
-        col = layout.column()
-        col.use_property_split = True
-        col.prop(props, "action")
-        row = col.row(align=True)
-        row.prop(props, "frame_start")
-        row.prop(props, "frame_end")
-        col.prop(props, "load_left")
-        col.prop(props, "load_right")
-        col.prop(props, "load_frame")
-        col.prop(props, "strength_scale")
-        col.prop(props, "substeps")
-        col.prop(props, "tracking_only")
-        col.prop(props, "ground")
-        if props.ground == "HEIGHT":
-            col.prop(props, "ground_height")
-        col.prop(context.scene, "gravity")
-        draw_force_list(layout, context, props, "impulses", "impulse_index", "humananim.add_impulse",
-                        "humananim.remove_impulse", "Impulses and Forces")
+        draw_loads_and_pushes(layout, context, props, ("load_left", "load_right", "load_frame", "strength_scale",
+                                                       "substeps", "tracking_only"),
+                              "impulses", "impulse_index", "impulse", "Impulses and Forces")
         col = layout.column()
         col.use_property_split = True
         col.prop(props, "collider")

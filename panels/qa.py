@@ -3,7 +3,7 @@ source), the worst bone and frame of each, and a button to go to that frame."""
 
 import bpy
 
-from ..humananim_addon import qa
+from ..humananim_addon.qa import job as qa
 from ..solver.qa import rows
 from .rig import HumanAnimPanel
 

@@ -59,7 +59,7 @@ class VIEW3D_PT_humananim_synthesis(HumanAnimPanel, bpy.types.Panel):
         col = layout.column()
         col.use_property_split = True
         col.prop(props, "reactions")
-        from ..humananim_addon.synthesis import environment_set
+        from ..humananim_addon.synthesis.job import environment_set
         if props.reactions or environment_set(context.scene.humananim_control):
             col.label(text="Loads, pushes and collider: Dynamic Control panel")
             col.prop(props, "step_speed_min")

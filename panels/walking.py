@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..humananim_addon import walking
+from ..humananim_addon.walking import job as walking
 from .rig import HumanAnimPanel
 
 

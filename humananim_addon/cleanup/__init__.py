@@ -57,7 +57,7 @@ def _marker(action, frame, name):
 
 def stored(obj):
     """The last clean-up report on `obj`, or None."""
-    from .. import qa
+    from ..qa import job as qa
     return qa.stored(obj, PROPERTY)
 
 

@@ -6,15 +6,14 @@
 import os
 import time
 
-from ..cli import FINITE, FRACTION, POSITIVE, UsageError
+from ..arguments import FINITE, FRACTION, POSITIVE, UsageError, add_input, add_out
 
 
 def add_commands(sub, add_common_options):
     c = sub.add_parser("cleanup", help="clean up capture: glitches, jitter, floor, foot skate (a new action)")
-    c.add_argument("file", help="a .blend or .bvh file")
-    c.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
+    add_input(c)
     c.add_argument("--action", help="source action (default: the armature's active action)")
-    c.add_argument("--out", default=os.path.join("out", "cleanup.blend"), help="the .blend to write")
+    add_out(c, "cleanup.blend")
     for repair, what in (("glitches", "flips, spikes and dropouts"), ("jitter", "jitter"),
                          ("floor", "the floor"), ("skate", "foot skate")):
         c.add_argument(f"--no-{repair}", action="store_true", help=f"leave {what} as they are")

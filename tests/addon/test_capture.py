@@ -12,7 +12,7 @@ bpy = pytest.importorskip("bpy")
 pytest.importorskip("serial")
 
 from conftest import CMU_CLIPS  # noqa: E402  (at import: later folders' conftest modules take the name)
-from humananim.humananim_addon import capture  # noqa: E402
+from humananim.humananim_addon.capture import job as capture  # noqa: E402
 from humananim.humananim_addon.action_api import fcurves_of  # noqa: E402
 from humananim.operators.capture import HUMANANIM_OT_capture_live  # noqa: E402
 from humananim.solver import rotations  # noqa: E402

@@ -15,7 +15,8 @@ from conftest import CMU_CLIPS, world_pose
 
 bpy = pytest.importorskip("bpy")
 
-from humananim.humananim_addon import cleanup, qa  # noqa: E402
+from humananim.humananim_addon import cleanup  # noqa: E402
+from humananim.humananim_addon.qa import job as qa  # noqa: E402
 
 
 def _turn_deg(m):
@@ -52,7 +53,7 @@ def test_operator_repairs_the_wrist_and_thumb_and_writes_markers(cmu_rig):
     assert _turn_deg(after)[:, wrist].max() < 20 and _turn_deg(after)[:, thumb].max() < 30
     markers = {m.name for m in result.pose_markers}
     assert {"foot.L=supporting", "foot.R=supporting", "foot.L=angular", "foot.R=angular"} <= markers
-    from humananim.humananim_addon.synthesis import marker_overrides
+    from humananim.humananim_addon.synthesis.job import marker_overrides
     overrides = marker_overrides(result, [float(f) for f in range(1, 996)])
     assert any(limb == "foot.L" and cons == "supporting" for limb, _, _, cons in overrides)
     report = cleanup.stored(cmu_rig)

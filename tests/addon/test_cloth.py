@@ -10,7 +10,7 @@ from conftest import CMU_CLIPS, import_cmu
 
 bpy = pytest.importorskip("bpy")
 
-from humananim.humananim_addon import cloth  # noqa: E402
+from humananim.humananim_addon.cloth import job as cloth  # noqa: E402
 from humananim.operators.cloth import HUMANANIM_OT_cloth_simulate  # noqa: E402
 from humananim.solver.cloth import Smoother, read_pc2  # noqa: E402
 

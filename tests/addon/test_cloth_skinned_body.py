@@ -13,7 +13,7 @@ from conftest import CMU_CLIPS, MOCAP
 
 bpy = pytest.importorskip("bpy")
 
-from humananim.humananim_addon import cloth  # noqa: E402
+from humananim.humananim_addon.cloth import job as cloth  # noqa: E402
 from humananim.humananim_addon.bvh_import import import_bvh  # noqa: E402
 from humananim.solver.progress import run_to_end  # noqa: E402
 

@@ -6,7 +6,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from humananim.humananim_addon import action_api, flexible  # noqa: E402
+from humananim.humananim_addon import action_api  # noqa: E402
+from humananim.humananim_addon.flexible import job as flexible  # noqa: E402
 from humananim.solver.progress import run_to_end  # noqa: E402
 
 

@@ -37,7 +37,7 @@ def test_add_on_the_active_bone_then_remove_the_selected(metarig, add, remove, s
 
 
 def test_remove_device(empty_scene):
-    from humananim.humananim_addon import capture
+    from humananim.humananim_addon.capture import job as capture
     s = empty_scene.humananim_capture
     for kind in ("FLOCK", "CYBERGLOVE"):
         capture.add_device(empty_scene, kind)

@@ -10,7 +10,8 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from conftest import fcurve_snapshot  # noqa: E402
-from humananim.humananim_addon import action_api, hands  # noqa: E402
+from humananim.humananim_addon import action_api  # noqa: E402
+from humananim.humananim_addon.hands import job as hands  # noqa: E402
 from humananim.humananim_addon.armature import armature_to_world  # noqa: E402
 from humananim.solver.hands.grasp import TYPE_FINGERS  # noqa: E402
 from humananim.solver.hands.sensors import sensor_centres  # noqa: E402

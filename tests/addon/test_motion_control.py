@@ -10,7 +10,10 @@ import numpy as np  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
 from conftest import fcurve_snapshot, world_pose  # noqa: E402
-from humananim.humananim_addon import action_api, actions, motion_control, overlay, synthesis  # noqa: E402
+from humananim.humananim_addon import action_api, actions  # noqa: E402
+from humananim.humananim_addon.motion_control import job as motion_control  # noqa: E402
+from humananim.humananim_addon.motion_control import overlay  # noqa: E402
+from humananim.humananim_addon.synthesis import job as synthesis  # noqa: E402
 from humananim.humananim_addon.armature import skeleton_from_armature  # noqa: E402
 
 pytestmark = pytest.mark.slow

@@ -8,8 +8,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from humananim.humananim_addon import overlay  # noqa: E402
-from humananim.humananim_addon.motion_control import OverlayData  # noqa: E402
+from humananim.humananim_addon.motion_control import overlay  # noqa: E402
+from humananim.humananim_addon.motion_control.job import OverlayData  # noqa: E402
 
 SIZE = 0.1  # label text size (m)
 

@@ -58,7 +58,7 @@ def _puncher(scene, sk, still, speed):
 
 
 def _bake(obj, scene, still_action, puncher):
-    from humananim.humananim_addon import synthesis
+    from humananim.humananim_addon.synthesis import job as synthesis
     from humananim.solver.progress import run_to_end
     props = scene.humananim_control
     props.collider, props.collider_radius, props.collider_mass = puncher, 0.05, FIST_KG

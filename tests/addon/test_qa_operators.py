@@ -9,7 +9,7 @@ from conftest import world_pose
 
 bpy = pytest.importorskip("bpy")
 
-from humananim.humananim_addon import qa  # noqa: E402
+from humananim.humananim_addon.qa import job as qa  # noqa: E402
 from humananim.operators.common import with_qa  # noqa: E402
 
 
@@ -73,7 +73,7 @@ def test_operators_refuse_ranges_and_impulses_outside_the_clip(cmu_rig):
         bpy.ops.humananim.simulate()
     control = scene.humananim_control
     control.frame_start, control.frame_end = 1, 30
-    from humananim.humananim_addon import motion_control
+    from humananim.humananim_addon.motion_control import job as motion_control
     motion_control.add_impulse(cmu_rig, scene, "Chest", 60, None, 30.0)
     with pytest.raises(RuntimeError, match="impulse on 'Chest' at frame 60 is outside the frame range 1-30"):
         bpy.ops.humananim.dynamic_control()

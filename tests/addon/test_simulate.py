@@ -6,7 +6,8 @@ bpy = pytest.importorskip("bpy")
 import numpy as np  # noqa: E402
 
 from conftest import fcurve_snapshot, import_cmu, world_pose  # noqa: E402
-from humananim.humananim_addon import action_api, simulation  # noqa: E402
+from humananim.humananim_addon import action_api  # noqa: E402
+from humananim.humananim_addon.simulation import job as simulation  # noqa: E402
 
 pytestmark = pytest.mark.slow
 

@@ -15,13 +15,13 @@ bpy = pytest.importorskip("bpy")
 
 
 def _run(obj, scene):
-    from humananim.humananim_addon import synthesis
+    from humananim.humananim_addon.synthesis import job as synthesis
     from humananim.solver.progress import run_to_end
     return run_to_end(synthesis.run(obj, scene))
 
 
 def test_cmu_clips_join_with_planted_feet_and_a_new_action(cmu_rig):
-    from humananim.humananim_addon import synthesis
+    from humananim.humananim_addon.synthesis import job as synthesis
     obj, scene = cmu_rig, bpy.context.scene
     source = obj.animation_data.action
     before = fcurve_snapshot(source, obj)
@@ -62,7 +62,7 @@ def _keyframed_actions(obj, scene):
 
 
 def test_metarig_still_step_kick_with_markers(metarig):
-    from humananim.humananim_addon import synthesis
+    from humananim.humananim_addon.synthesis import job as synthesis
     obj, scene = metarig, bpy.context.scene
     acts = _keyframed_actions(obj, scene)
     for name, mode in (("still", "BLEND"), ("step", "BLEND"), ("kick", "CONNECT"), ("still", "INERTIALIZE")):
@@ -85,7 +85,8 @@ def test_metarig_still_step_kick_with_markers(metarig):
 
 
 def test_push_gives_a_protective_step(metarig):
-    from humananim.humananim_addon import motion_control, synthesis
+    from humananim.humananim_addon.motion_control import job as motion_control
+    from humananim.humananim_addon.synthesis import job as synthesis
     obj, scene = metarig, bpy.context.scene
     acts = _keyframed_actions(obj, scene)
     synthesis.add_entry(scene, acts["still"], "BLEND")
@@ -157,7 +158,7 @@ def test_operators_queue_nla_strips_mark_and_bake(metarig):
 def test_motion_queue_panel_draws_entries_markers_and_reactions(metarig):
     from test_panels import RecordingLayout
     from humananim.panels.synthesis import VIEW3D_PT_humananim_synthesis as Panel
-    from humananim.humananim_addon import synthesis
+    from humananim.humananim_addon.synthesis import job as synthesis
     obj, scene = metarig, bpy.context.scene
     acts = _keyframed_actions(obj, scene)
     e = synthesis.add_entry(scene, acts["still"], "CONNECT")

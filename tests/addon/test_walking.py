@@ -10,8 +10,9 @@ bpy = pytest.importorskip("bpy")
 import numpy as np  # noqa: E402
 
 from conftest import assert_same_pose, import_cmu, world_pose  # noqa: E402
-from humananim.humananim_addon import action_api, walking  # noqa: E402
-from humananim.humananim_addon.walking_cli import bumpy_ground, line_object, s_curve_object  # noqa: E402
+from humananim.humananim_addon import action_api  # noqa: E402
+from humananim.humananim_addon.walking import job as walking  # noqa: E402
+from humananim.humananim_addon.walking.cli import bumpy_ground, line_object, s_curve_object  # noqa: E402
 from humananim.solver.progress import run_to_end  # noqa: E402
 from humananim.solver.walking import scope_bones  # noqa: E402
 
@@ -252,7 +253,7 @@ def test_speed_ramp_and_per_segment_speeds_on_a_curve(metarig):
     assert _planted(result, w, frames) < 0.002
     assert result.path.distance_to(_hip_centre(result, w)).max() < 0.03
     # per segment: the curve's control points split the path
-    from humananim.humananim_addon.walking_cli import _curve
+    from humananim.humananim_addon.walking.cli import _curve
     bent = _curve(scene, "Bent", [(0, 3, 0), (6, 3, 0), (13, 7, 0)])
     summary, action, result = _walk(metarig, bent, speed_mode="SEGMENTS", segment_speeds="0.8, 1.6")
     assert len(result.path.corners) == 3 and result.path.corners[1] == pytest.approx(6.0, abs=0.01)

@@ -21,7 +21,7 @@ def run(*args):
 
 
 def test_walk_a_curve_in_a_blend(metarig, tmp_path):
-    from humananim.humananim_addon.walking_cli import s_curve_object
+    from humananim.humananim_addon.walking.cli import s_curve_object
     s_curve_object(bpy.context.scene, 5.0, 0.7)
     src = tmp_path / "rig.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(src))

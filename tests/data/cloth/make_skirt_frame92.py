@@ -18,7 +18,7 @@ FIRST, LAST = 89, 92
 
 def main():
     import humananim
-    from humananim.humananim_addon import cloth
+    from humananim.humananim_addon.cloth import job as cloth
     from humananim.humananim_addon.cli import _chatter_to_stderr
     from humananim.solver.cloth import simulation
     sys.path.insert(0, str(Path(humananim.__file__).parent / "benchmarks"))

@@ -9,78 +9,11 @@ until the limb's next marker or the action's end."""
 
 import time
 
-import bpy
 import numpy as np
-from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, \
-    StringProperty
 
-from ..solver.errors import MotionError, RigError
-from . import actions
-from .armature import skeleton_from_armature
-from .properties import settings_registration
-
-MODES = (("BLEND", "Blend", "Overlap the end of the previous action with the start of this one (constraints "
-                            "at the join must agree)"),
-         ("CONNECT", "Connect", "Insert a generated step: base foot fixed, flying foot through keyframes"),
-         ("INERTIALIZE", "Inertialize", "Start this action at once; the offset from the previous pose and "
-                                        "velocity decays over the blend time"))
-LIMB_ITEMS = tuple((k, k, "") for k in ("foot.L", "foot.R", "hand.L", "hand.R", "root"))
-CONSTRAINT_ITEMS = (("supporting", "Supporting", "Planted on the ground"),
-                    ("angular", "Angular", "Joint angles are kept or blended"),
-                    ("spatial", "Spatial", "End-effector position and orientation are kept or blended"))
-
-
-class HumanAnimQueueEntry(bpy.types.PropertyGroup):
-    action: PointerProperty(name="Action", type=bpy.types.Action)
-    frame_start: IntProperty(name="Start", default=0, description="0: the action's first frame")
-    frame_end: IntProperty(name="End", default=0, description="0: the action's last frame")
-    mode: EnumProperty(name="Transition", items=MODES, description="How this action joins the previous one")
-    interrupt: BoolProperty(name="Interrupt", description="Start it at the frame below, interrupting the "
-                                                          "previous action, instead of after it")
-    interrupt_frame: IntProperty(name="At Frame", default=0,
-                                 description="Frame of the motion so far (counted from its first frame) to "
-                                             "interrupt at")
-    initial_duration: FloatProperty(name="Initial", default=0.25, min=0.02, soft_max=2.0, unit="TIME_ABSOLUTE",
-                                    description="Length of the initial phase used for transitions")
-    terminal_duration: FloatProperty(name="Terminal", default=0.25, min=0.02, soft_max=2.0,
-                                     unit="TIME_ABSOLUTE", description="Length of the terminal phase")
-    status: StringProperty(name="Status", description="Accepted, or why the request was rejected")
-    accepted: BoolProperty(name="Accepted", default=True)
-
-
-class HumanAnimSynthesis(bpy.types.PropertyGroup):
-    entries: CollectionProperty(type=HumanAnimQueueEntry)
-    entry_index: IntProperty()
-    reactions: BoolProperty(name="Dynamic Control and Reactions", default=False,
-                            description="Run the synthesized motion through dynamic control with protective "
-                                        "steps, falls and recovery (always on when the Dynamic Control panel "
-                                        "has loads, pushes or a collider)")
-    step_speed_min: FloatProperty(name="Step Speed Min", default=0.5, min=0.0, unit="VELOCITY",
-                                  description="Eq. 3.6: a protective step above this root speed (m/s)")
-    step_speed_max: FloatProperty(name="Step Speed Max", default=1.0, min=0.0, unit="VELOCITY",
-                                  description="Eq. 3.6/3.9: above this root speed the character falls (m/s)")
-    step_acceleration: FloatProperty(name="Acceleration", default=10.0, min=0.0, unit="ACCELERATION",
-                                     description="Eq. 3.6/3.9: root acceleration a reaction needs (m/s^2)")
-    k_root: FloatProperty(name="k root", default=0.4, min=0.0, soft_max=2.0,
-                          description="Eq. 3.7: terminal root = k root * velocity + initial root (s)")
-    k_foot: FloatProperty(name="k foot", default=1.0, min=0.0, soft_max=3.0,
-                          description="Eq. 3.8: flying foot = k foot * (root - base foot) + root")
-    recovery_time: FloatProperty(name="Recovery Time", default=0.5, min=0.0, soft_max=5.0, unit="TIME_ABSOLUTE",
-                                 description="Recover to the initial posture when a joint misses its target "
-                                             "longer than this")
-    fall_back: PointerProperty(name="Fall Back", type=bpy.types.Action,
-                               description="Your falling-back action; empty: a generated one")
-    fall_forward: PointerProperty(name="Fall Forward", type=bpy.types.Action,
-                                  description="Your falling-forward action; empty: a generated one")
-    marker_limb: EnumProperty(name="Limb", items=LIMB_ITEMS)
-    marker_constraint: EnumProperty(name="Constraint", items=CONSTRAINT_ITEMS)
-    last_summary: StringProperty(name="Last Result")
-
-
-CLASSES = (HumanAnimQueueEntry, HumanAnimSynthesis)
-
-register, unregister = settings_registration(CLASSES, bpy.types.Scene, "humananim_synthesis", HumanAnimSynthesis)
-
+from ...solver.errors import MotionError, RigError
+from .. import actions
+from ..armature import skeleton_from_armature
 
 # ---- queue editing ------------------------------------------------------------------------------
 
@@ -121,7 +54,7 @@ def add_marker(action, frame, limb, constraint):
 
 def marker_overrides(action, frames):
     """(limb, start, end, constraint) edits from the action's pose markers within `frames`."""
-    from ..solver.synthesis.action import CONSTRAINT_CODES, LIMBS
+    from ...solver.synthesis.action import CONSTRAINT_CODES, LIMBS
     by_limb = {}
     for m in action.pose_markers:
         if "=" not in m.name:
@@ -156,7 +89,7 @@ def _entry_range(entry):
 
 def read_entry(obj, scene, skeleton, entry):
     """The queue entry as solver action data (generator: yields read progress)."""
-    from ..solver.synthesis import from_trajectories
+    from ...solver.synthesis import from_trajectories
     if entry.action is None:
         raise MotionError("a Motion Queue entry has no action")
     traj = yield from actions.iter_read_action(obj, scene, skeleton, entry.action, frame_range=_entry_range(entry))
@@ -174,7 +107,7 @@ def environment_set(control):
 
 
 def reaction_settings(props):
-    from ..solver.synthesis.reactions import ReactionSettings
+    from ...solver.synthesis.reactions import ReactionSettings
     return ReactionSettings(step_speed=(props.step_speed_min, props.step_speed_max),
                             step_acceleration=props.step_acceleration, fall_speed=props.step_speed_max,
                             fall_acceleration=props.step_acceleration, k_root=props.k_root, k_foot=props.k_foot,
@@ -183,8 +116,8 @@ def reaction_settings(props):
 
 def synthesize(obj, scene, skeleton, acts, modes, interrupts):
     """The Synthesizer over solver actions: (synthesizer, requests)."""
-    from ..solver.synthesis import Synthesizer
-    from ..solver.synthesis.metrics import planted_slide, spike_ratio
+    from ...solver.synthesis import Synthesizer
+    from ...solver.synthesis.metrics import planted_slide, spike_ratio
     syn = Synthesizer(acts[0])
     for act, mode, at in zip(acts[1:], modes[1:], interrupts[1:]):
         r = syn.queue(act, mode.lower(), "now" if at is not None else "after", at)
@@ -221,8 +154,8 @@ def run(obj, scene):
     support = syn.support()
     reaction = None
     if props.reactions or environment_set(scene.humananim_control):
-        from ..solver.synthesis.reactions import react
-        from . import motion_control
+        from ...solver.synthesis.reactions import react
+        from ..motion_control import job as motion_control
         cs = motion_control.solver_settings(scene, scene.humananim_control, obj, skeleton, traj)
         falls = {}
         for key, act in (("back", props.fall_back), ("forward", props.fall_forward)):

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import motion_control
+from . import job as motion_control
 
 log = logging.getLogger(__name__)
 
@@ -206,7 +206,7 @@ def render_result(obj, scene, action, path, title=None, garments=(), count=5):
     """The still of a dynamic-control result (`action`, made by motion_control.run on `obj`): the
     loads hanging from the hands, each push as an arrow at its frame, and `garments` (mesh
     objects, e.g. a simulated skirt) as they stand at each snapshot. Returns the frames shown."""
-    from .armature import skeleton_from_armature
+    from ..armature import skeleton_from_armature
     data = motion_control.CACHE[(obj.name, action)]
     props = scene.humananim_control
     skeleton = skeleton_from_armature(obj, scene)

@@ -9,16 +9,13 @@ from dataclasses import dataclass, replace
 
 import bpy
 import numpy as np
-from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, \
-    StringProperty
 
-from ..solver.body_roles import SIDES, sided
-from ..solver.errors import MotionError, RigError
-from . import actions
-from .actions import bone_path
-from .armature import skeleton_from_armature
-from .arrows import arrow_forces, place_arrow
-from .properties import settings_registration
+from ...solver.errors import MotionError, RigError
+from .. import actions
+from ..actions import bone_path
+from ..armature import skeleton_from_armature
+from ..arrows import arrow_forces
+from ..forces import add_arrow, gravity_of, hand_loads
 
 STRESS = "humananim_stress"  # N m: torque beyond the muscles' strength, magnitude over the axes
 BALANCE_ERROR = "humananim_balance_error"  # m: ZMP outside the support polygon
@@ -26,61 +23,6 @@ FALLING_BALANCE = -1.0  # the balance error's value while falling (nothing to me
 FALLING = "humananim_falling"  # 0/1: the figure turns about its edge of support
 
 CONTROL_KINDS = ("none", "passive", "comfort", "balance")  # ControlResult.control codes 0..3
-
-
-class HumanAnimImpulse(bpy.types.PropertyGroup):
-    # no poll filter to Empties: a PointerProperty poll crashes the bpy 4.2 module at exit
-    empty: PointerProperty(name="Arrow", type=bpy.types.Object,
-                           description="An object (an arrow Empty) whose location is where the force acts "
-                                       "and whose Z axis is its direction")
-    bone: StringProperty(name="Bone", description="The bone that is pushed")
-    frame: IntProperty(name="Frame", default=1, description="When the force starts")
-    duration: FloatProperty(name="Duration", default=0.0, min=0.0, soft_max=2.0, unit="TIME_ABSOLUTE",
-                            description="0: an instantaneous impulse (Magnitude in N s); "
-                                        "otherwise a force (Magnitude in N) over this many seconds")
-    magnitude: FloatProperty(name="Magnitude", default=30.0, min=0.0, soft_max=3000.0,
-                             description="N s for an impulse (Duration 0), N for a force over its duration")
-
-
-class HumanAnimControl(bpy.types.PropertyGroup):
-    action: PointerProperty(name="Source Action", type=bpy.types.Action,
-                            description="The motion to keep; empty: the active action")
-    frame_start: IntProperty(name="Start", default=0, description="0: the action's first frame")
-    frame_end: IntProperty(name="End", default=0, description="0: the action's last frame")
-    load_left: FloatProperty(name="Left Hand Load", default=0.0, min=0.0, soft_max=50.0, unit="MASS",
-                             description="kg carried at the left hand")
-    load_right: FloatProperty(name="Right Hand Load", default=0.0, min=0.0, soft_max=50.0, unit="MASS",
-                              description="kg carried at the right hand")
-    load_frame: IntProperty(name="Load From", default=0,
-                            description="Frame the loads are picked up at; 0: from the start")
-    impulses: CollectionProperty(type=HumanAnimImpulse)
-    impulse_index: IntProperty()
-    collider: PointerProperty(name="Collide With", type=bpy.types.Object,
-                              description="Another armature (its bones become spheres) or a moving mesh "
-                                          "(bounding spheres of its evaluated vertices) the body bumps into")
-    collider_radius: FloatProperty(name="Bone Radius", default=0.06, min=0.005, soft_max=0.3, unit="LENGTH",
-                                   description="Radius of the spheres along another armature's bones")
-    collider_spheres: IntProperty(name="Spheres", default=1, min=1, max=16,
-                                  description="A mesh collider is covered by this many spheres along its "
-                                              "longest axis")
-    collider_mass: FloatProperty(name="Collider Mass", default=0.0, min=0.0, soft_max=200.0, unit="MASS",
-                                 description="0: it moves as animated whatever it hits")
-    strength_scale: FloatProperty(name="Strength", default=1.0, min=0.0, soft_max=3.0,
-                                  description="Scale of the muscle strength model")
-    substeps: IntProperty(name="Substeps", default=1, min=1, max=16, description="Control steps per frame")
-    tracking_only: BoolProperty(name="Tracking Only",
-                                description="Track the motion without comfort and balance control "
-                                            "(to compare)")
-    ground: EnumProperty(name="Ground", items=(
-        ("MOTION", "From Motion", "At the lowest point the feet reach in the source motion"),
-        ("HEIGHT", "Height", "A horizontal ground at the height below"),
-    ))
-    ground_height: FloatProperty(name="Ground Height", default=0.0, unit="LENGTH")
-
-
-CLASSES = (HumanAnimImpulse, HumanAnimControl)
-
-register, unregister = settings_registration(CLASSES, bpy.types.Scene, "humananim_control", HumanAnimControl)
 
 
 # ---- the overlay's data: in memory only ---------------------------------------------------------
@@ -133,23 +75,14 @@ def _time(traj, frame):
 
 
 def loads(props, skeleton, traj):
-    from ..solver.motion_control.controller import Load
-    out = []
+    from ...solver.motion_control.controller import Load
     start = _time(traj, props.load_frame) if props.load_frame else 0.0
-    for side, kg in zip(SIDES, (props.load_left, props.load_right)):
-        if kg <= 0.0:
-            continue
-        hand = skeleton.roles.bone(sided("hand", side))
-        if not hand:
-            raise RigError(f"no {'left' if side == 'L' else 'right'} hand found to carry the load: "
-                           "set it in Body Roles")
-        out.append(Load(bone=hand, mass=kg, start_time=start))
-    return out
+    return [Load(bone=hand, mass=kg, start_time=start) for hand, kg in hand_loads(props, skeleton, required=True)]
 
 
 def impulses(props, skeleton, traj, scene):
     """Each arrow becomes an impulse (or a force over its duration) on its bone (see arrows)."""
-    from ..solver.motion_control.controller import Impulse
+    from ...solver.motion_control.controller import Impulse
     return [Impulse(time=seconds, bone=item.bone, point=point, direction=direction, magnitude=item.magnitude,
                     duration=item.duration)
             for item, seconds, point, direction in arrow_forces(props.impulses, skeleton, traj, scene)]
@@ -164,7 +97,7 @@ def colliders(props, obj, traj, scene):
         raise RigError(f"'{obj.name}' can't collide with itself: choose another object")
     if other.type not in {"ARMATURE", "MESH"}:
         raise RigError(f"'{other.name}' is a {other.type.lower()}: collide with an armature or a mesh")
-    from ..solver.motion_control.controller import Collider
+    from ...solver.motion_control.controller import Collider
     scale = scene.unit_settings.scale_length
     saved = scene.frame_current, scene.frame_subframe
     try:
@@ -247,8 +180,8 @@ def _split_groups(co, count):
 
 
 def solver_settings(scene, props, obj, skeleton, traj):
-    from ..solver.motion_control.controller import ControlSettings
-    gravity = tuple(scene.gravity) if scene.use_gravity else (0.0, 0.0, 0.0)
+    from ...solver.motion_control.controller import ControlSettings
+    gravity = gravity_of(scene)
     height = None if props.ground == "MOTION" else props.ground_height * scene.unit_settings.scale_length
     return ControlSettings(gravity=gravity, ground_height=height, loads=tuple(loads(props, skeleton, traj)),
                            impulses=tuple(impulses(props, skeleton, traj, scene)),
@@ -262,8 +195,8 @@ def contact_overrides(action, frames):
     (synthesis.marker_overrides): `foot.L=supporting` plants the foot from that frame to the
     limb's next marker (or the range's end), another constraint lifts it; hand and root markers
     are the Motion Queue's alone."""
-    from ..solver.motion_control.contacts import Contact
-    from .synthesis import marker_overrides
+    from ...solver.motion_control.contacts import Contact
+    from ..synthesis.job import marker_overrides
     return tuple(Contact(limb[-1], start, end, cons == "supporting")
                  for limb, start, end, cons in marker_overrides(action, frames) if limb.startswith("foot."))
 
@@ -311,14 +244,14 @@ def facing(skeleton, traj):
 def ground_of(settings, skeleton, traj):
     if settings.ground_height is not None:
         return float(settings.ground_height)
-    from ..solver.motion_control.contacts import contact_floor
+    from ...solver.motion_control.contacts import contact_floor
     return contact_floor(skeleton, traj)
 
 
 def run(obj, scene):
     """The dynamic control job: read the source motion, control it, write a new action with
     stress curves and keep the overlay's data. Yields progress; returns a summary dict."""
-    from ..solver.motion_control.controller import iter_control
+    from ...solver.motion_control.controller import iter_control
     if obj is None or obj.type != "ARMATURE":
         raise RigError("select an armature object")
     props = scene.humananim_control
@@ -371,12 +304,5 @@ def run(obj, scene):
 
 def add_impulse(obj, scene, bone_name, frame, direction=None, magnitude=30.0, duration=0.0):
     """An arrow Empty in front of the bone (see arrows.place_arrow), registered as an impulse."""
-    if bone_name not in obj.data.bones:
-        raise RigError(f"'{obj.name}' has no bone named '{bone_name}'")
-    empty = place_arrow(obj, scene, bone_name, frame, direction, name="Impulse")
-    props = scene.humananim_control
-    item = props.impulses.add()
-    item.empty, item.bone, item.frame = empty, bone_name, frame
-    item.magnitude, item.duration = magnitude, duration
-    props.impulse_index = len(props.impulses) - 1
-    return item
+    return add_arrow(obj, scene, scene.humananim_control, "impulses", "impulse_index", bone_name, frame, direction,
+                     magnitude, duration, "Impulse")

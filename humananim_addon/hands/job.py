@@ -6,54 +6,21 @@ solved role bones are keyed through the controls that carry them, with the IK/FK
 
 import bpy
 import numpy as np
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..solver import rotations
-from ..solver.body_roles import sided
-from ..solver.errors import HumanAnimError, MotionError
-from ..solver.hands import grasp as grasp_solver
-from ..solver.hands import manipulation, self_collision
-from ..solver.hands.checks import grasp_measures
-from ..solver.hands.primitives import fit_primitive, kind
-from ..solver.trajectories import Trajectories
-from . import actions
-from .armature import armature_to_world, skeleton_from_armature
-from .properties import settings_registration
-from .rig.controls import control_rig_for
-from .rig.posing import key_through_controls
+from ...solver import rotations
+from ...solver.body_roles import sided
+from ...solver.errors import HumanAnimError, MotionError
+from ...solver.hands import grasp as grasp_solver
+from ...solver.hands import manipulation, self_collision
+from ...solver.hands.checks import grasp_measures
+from ...solver.hands.primitives import fit_primitive, kind
+from ...solver.trajectories import Trajectories
+from .. import actions
+from ..armature import armature_to_world, skeleton_from_armature
+from ..rig.controls import control_rig_for
+from ..rig.posing import key_through_controls
 
 CONSTRAINT = "HumanAnim Grasp"
-TYPE_ITEMS = (("AUTO", "Automatic", "From the object's primitive and the hand's size (the thesis's table)"),
-              ("LATERAL", "Lateral", "Thumb against the side of the index (a card)"),
-              ("PINCH", "Pinch", "Thumb and index tips"),
-              ("TRIPOD", "Tripod", "Thumb, index and middle tips (a small ball)"),
-              ("WRAP", "Wrap", "The whole hand around it"),
-              ("DISK", "Disk", "Fingers spread over a flat round object (a lid)"))
-
-
-class HumanAnimHands(bpy.types.PropertyGroup):
-    side: EnumProperty(name="Hand", items=(("AUTO", "Nearest", "The hand nearer the object"),
-                                           ("L", "Left", ""), ("R", "Right", "")))
-    grasp_type: EnumProperty(name="Type", items=TYPE_ITEMS)
-    pattern: PointerProperty(name="Pattern", type=bpy.types.Action,
-                             description="A hand pose from the pose library the fingers close toward "
-                                         "(its first frame); empty: the built-in pattern of the type")
-    duration: FloatProperty(name="Reach", default=1.0, min=0.1, soft_max=5.0, unit="TIME_ABSOLUTE",
-                            description="Seconds the arm takes to reach the object")
-    close_duration: FloatProperty(name="Close", default=0.5, min=0.05, soft_max=3.0, unit="TIME_ABSOLUTE",
-                                  description="Seconds the fingers take to close")
-    start_frame: IntProperty(name="Start", default=1, description="Frame the reach starts")
-    release_frame: IntProperty(name="Release", default=0,
-                               description="Frame the object is let go (0: held to the end)")
-    with_spine: BoolProperty(name="Use Spine", description="The spine bends to help the reach")
-    other: PointerProperty(name="Other Character", type=bpy.types.Object,
-                           description="The armature whose bone is held")
-    other_bone: StringProperty(name="Bone", description="The other character's bone to hold (hand, arm, shoulder)")
-    frame_start: IntProperty(name="From", default=1, description="First frame to follow or correct")
-    frame_end: IntProperty(name="To", default=100, description="Last frame to follow or correct")
-
-
-register, unregister = settings_registration((HumanAnimHands,), bpy.types.Scene, "humananim_hands", HumanAnimHands)
 
 
 # --- reading Blender -----------------------------------------------------------------------
@@ -75,7 +42,7 @@ def rig_pose(obj, scene, skeleton, crig, frames):
 def hand_skeleton(obj, scene):
     """The armature's Skeleton. Grasping needs no masses: a skin the mass model cannot use (open,
     hands only) falls back to the body tables for this run instead of failing."""
-    from ..solver.errors import RigError
+    from ...solver.errors import RigError
     try:
         return skeleton_from_armature(obj, scene)
     except RigError as error:
@@ -166,7 +133,7 @@ def hand_sensors_from_skin(obj, scene, skeleton, world):
             g = max(v.groups, key=lambda e: e.weight)
             j = index.get(g.group)
             owner[v.index] = -1 if j is None else j
-    from ..solver.hands.sensors import default_hand_sensors, sensors_from_mesh
+    from ...solver.hands.sensors import default_hand_sensors, sensors_from_mesh
     return {s: sensors_from_mesh(skeleton, default_hand_sensors(skeleton, s), world, verts, owner)
             for s in ("L", "R") if skeleton.role_index(sided("hand", s)) is not None}
 
@@ -409,8 +376,8 @@ _CONTROL_ADVICE = "grasp with the metarig, or map the hand roles to the FK contr
 def control_rig(obj, skeleton, sides=("L", "R"), with_spine=False):
     """None for a plain FK rig (no arm, spine or finger bone the solver moves follows a constraint);
     else the ControlRig whose joints still need their controls (rig.controls.map_controls)."""
-    from ..solver.body_roles import FINGERS
-    from ..solver.hands.ik import chain_joints
+    from ...solver.body_roles import FINGERS
+    from ...solver.hands.ik import chain_joints
     joints = []
     for s in sides:
         if skeleton.role_index(sided("hand", s)) is None:

@@ -8,7 +8,8 @@ summary (--json: one object)."""
 import os
 import time
 
-from .cli import DEFAULT_CLIP, FINITE, NON_NEGATIVE, POSITIVE, UsageError, number
+from ..cli import DEFAULT_CLIP
+from ..arguments import FINITE, NON_NEGATIVE, POSITIVE, UsageError, add_out, number
 
 
 def add_commands(sub, add_common_options):
@@ -38,16 +39,16 @@ def add_commands(sub, add_common_options):
     c.add_argument("--frame-start", type=number(0, integer=True), default=0, help="first frame of the walk (default: scene start)")
     c.add_argument("--generator", action="append", default=[], metavar="ACTION:SCOPE:FRAME[:PRIORITY[:WEIGHT]]",
                    help="add a generator strip playing ACTION on SCOPE from FRAME; repeatable")
-    c.add_argument("--out", default=os.path.join("out", "walk.blend"), help="the .blend to write")
+    add_out(c, "walk.blend")
     add_common_options(c)
     return {"walk": cmd_walk}
 
 
 def cmd_walk(args):
     import bpy
-    from ..solver.walking import PRESETS
-    from . import walking
-    from .cli import load_rig
+    from ...solver.walking import PRESETS
+    from . import job as walking
+    from ..cli import load_rig
     t0 = time.perf_counter()
     obj, scene, unit = load_rig(args)
     props = scene.humananim_walk
@@ -71,12 +72,12 @@ def cmd_walk(args):
     elif args.bumps:
         props.ground = bumpy_ground(scene, args.bumps)
     props.frame_start = args.frame_start
-    from ..solver.progress import run_to_end
+    from ...solver.progress import run_to_end
     summary = run_to_end(walking.run(obj, scene))
     for text in args.generator:
         _add_generator(text, bpy, obj, scene, walking)
     summary["stack"] = walking.stack_summary(obj)
-    from .cli import save_blend
+    from ..cli import save_blend
     out = save_blend(args.out, summary, obj)
     summary.update(command="walk", file=os.path.abspath(args.file), wrote=[out],
                    seconds=round(time.perf_counter() - t0, 3))

@@ -6,12 +6,11 @@ operators, saves a .blend (--out) and prints a summary (--json: one object)."""
 import os
 import time
 
-from .cli import COUNT, FINITE, NON_NEGATIVE, POSITIVE, UsageError, number
+from ..arguments import COUNT, FINITE, NON_NEGATIVE, POSITIVE, UsageError, add_input, number
 
 
 def _inputs(p, out):
-    p.add_argument("file", help="a .blend or .bvh file")
-    p.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
+    add_input(p)
     p.add_argument("--action", help="source action (default: the armature's active action)")
     p.add_argument("--bones", help="comma-separated bones to process (default: every channel)")
     p.add_argument("--replace", action="store_true", help="rewrite the source action instead of writing a new one")
@@ -59,8 +58,8 @@ def add_commands(sub, add_common_options):
 
 def _prepare(args):
     import bpy
-    from . import action_api, sequence
-    from .cli import _load
+    from .. import action_api, sequence
+    from ..cli import _load
     obj, scene, unit = _load(args.file, args.armature, args.scale)
     ad = obj.animation_data
     if args.action:
@@ -85,7 +84,7 @@ def _prepare(args):
 
 
 def _at_least_two_frames(action, obj):
-    from . import action_api
+    from .. import action_api
     keys = {round(k.co[0], 6) for fc in action_api.fcurves_of(action, obj) for k in fc.keyframe_points}
     if len(keys) < 2:
         raise UsageError(f"'{action.name}' has {len(keys)} keyed frame{'s' if len(keys) != 1 else ''}: "
@@ -93,7 +92,7 @@ def _at_least_two_frames(action, obj):
 
 
 def _save(args, summary, t0, unit):
-    from .cli import save_blend
+    from ..cli import save_blend
     out = save_blend(args.out, summary)
     summary.update(file=os.path.abspath(args.file), wrote=[out], seconds=round(time.perf_counter() - t0, 3))
     if unit:
@@ -131,7 +130,7 @@ def _lines(s):
 
 
 def cmd_filter(args):
-    from . import sequence
+    from .. import sequence
     t0 = time.perf_counter()
     obj, scene, action, sel, unit = _prepare(args)
     gains = None
@@ -152,7 +151,7 @@ def cmd_filter(args):
 
 def _second_action(args, obj):
     import bpy
-    from .bvh_import import import_bvh
+    from ..bvh_import import import_bvh
     name = args.second
     action = bpy.data.actions.get(name)
     if action is not None:
@@ -181,7 +180,7 @@ def _second_action(args, obj):
 
 
 def cmd_blend(args):
-    from . import sequence
+    from .. import sequence
     t0 = time.perf_counter()
     obj, scene, action, sel, unit = _prepare(args)
     second = _second_action(args, obj)
@@ -192,7 +191,7 @@ def cmd_blend(args):
 
 
 def cmd_compress(args):
-    from . import sequence
+    from .. import sequence
     t0 = time.perf_counter()
     obj, scene, action, sel, unit = _prepare(args)
     summary = sequence.compress(obj, scene, action, sel, args.degrees, args.cm, args.value, args.method.upper(),
@@ -201,8 +200,8 @@ def cmd_compress(args):
 
 
 def cmd_warp(args):
-    from ..solver.errors import MotionError
-    from . import sequence
+    from ...solver.errors import MotionError
+    from .. import sequence
     t0 = time.perf_counter()
     obj, scene, action, sel, unit = _prepare(args)
     try:

@@ -8,32 +8,26 @@ import time
 
 import numpy as np
 
-from .cli import COUNT, FINITE, FRAME, NON_NEGATIVE, POSITIVE, UsageError, number
+from ..arguments import (COUNT, UsageError, add_arrows, add_collider, add_ground_height, add_input, add_loads,
+                         add_out, add_output, add_source, add_strength)
 
 
 def add_commands(sub, add_common_options):
     c = sub.add_parser("control", help="dynamic motion control: the motion is kept and reacts to loads, "
                                        "impulses and collisions; writes a new action with stress curves")
-    c.add_argument("file", help="a .blend or .bvh file")
-    c.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
-    c.add_argument("--action", help="source action (default: the armature's active action)")
-    c.add_argument("--frames", nargs=2, type=FRAME, metavar=("START", "END"), help="frame range")
-    c.add_argument("--load-left", type=NON_NEGATIVE, default=0.0, help="kg carried in the left hand")
-    c.add_argument("--load-right", type=NON_NEGATIVE, default=0.0, help="kg carried in the right hand")
-    c.add_argument("--load-frame", type=number(0, integer=True), default=0, help="frame the loads are picked up at (default: start)")
-    c.add_argument("--impulse", action="append", default=[], metavar="FRAME:BONE:FX,FY,FZ[:SECONDS]",
-                   help="an impulse (N s, world axes) on a bone, or with SECONDS a force (N) over that "
-                        "time; repeatable")
-    c.add_argument("--collide", metavar="OBJECT", help="an armature or mesh object in the .blend to collide with")
-    c.add_argument("--collide-radius", type=POSITIVE, default=0.06,
-                   help="sphere radius along a colliding armature's bones (m, default 0.06)")
+    add_input(c)
+    add_source(c)
+    add_loads(c, pick_up=True)
+    add_arrows(c, "--impulse", "an impulse (N s, world axes) on a bone, or with SECONDS a force (N) over that "
+                               "time; repeatable")
+    add_collider(c, "an armature or mesh object in the .blend to collide with")
     c.add_argument("--collide-spheres", type=COUNT, default=1, help="spheres covering a colliding mesh (default 1)")
-    c.add_argument("--strength", type=POSITIVE, default=1.0, help="muscle strength scale (default 1)")
+    add_strength(c)
     c.add_argument("--substeps", type=COUNT, default=1, help="control steps per frame (default 1)")
     c.add_argument("--tracking-only", action="store_true", help="no comfort or balance control (to compare)")
-    c.add_argument("--ground", type=FINITE, help="ground height in metres (default: the motion's floor)")
-    c.add_argument("--output", choices=("ACTION", "NLA"), default="ACTION")
-    c.add_argument("--out", default=os.path.join("out", "control.blend"), help="the .blend to write")
+    add_ground_height(c, "ground height in metres (default: the motion's floor)")
+    add_output(c)
+    add_out(c, "control.blend")
     c.add_argument("--picture", metavar="PNG", help="also render a picture of the result")
     add_common_options(c)
     return {"control": cmd_control}
@@ -41,7 +35,7 @@ def add_commands(sub, add_common_options):
 
 def cmd_control(args):
     import bpy
-    from .cli import load_job, parse_arrow
+    from ..cli import load_job, parse_arrow, set_loads_and_ground
     t0 = time.perf_counter()
     obj, scene, unit = load_job(args, "humananim_control")
     props = scene.humananim_control
@@ -51,15 +45,13 @@ def cmd_control(args):
             raise UsageError(f"--collide: no object named '{args.collide}'")
         props.collider = other
     props.collider_radius, props.collider_spheres = args.collide_radius, max(1, args.collide_spheres)
-    props.load_left, props.load_right, props.load_frame = args.load_left, args.load_right, args.load_frame
-    props.strength_scale, props.substeps, props.tracking_only = args.strength, args.substeps, args.tracking_only
-    props.ground = "MOTION" if args.ground is None else "HEIGHT"
-    props.ground_height = args.ground or 0.0
+    set_loads_and_ground(args, props)
+    props.load_frame, props.substeps, props.tracking_only = args.load_frame, args.substeps, args.tracking_only
     scene.humananim.output = args.output
     for text in args.impulse:
         frame, bone, vector, seconds = parse_arrow(text, obj, "--impulse", 0.0)
         add_impulse_from_vector(obj, scene, bone, frame, vector, seconds)
-    from . import validation
+    from .. import validation
     validation.check_job(obj, props, "impulses")
     summary = control_and_save(obj, scene, args.out, args.picture, ground=args.ground)
     summary.update(command="control", file=os.path.abspath(args.file), armature=obj.name,
@@ -72,7 +64,7 @@ def cmd_control(args):
 
 def add_impulse_from_vector(obj, scene, bone, frame, vector, seconds=0.0):
     """An impulse (N s) along `vector`, or a force (N) over `seconds`: its length is the magnitude."""
-    from . import motion_control
+    from . import job as motion_control
     vector = np.asarray(vector, float)
     return motion_control.add_impulse(obj, scene, bone, frame, vector, float(np.linalg.norm(vector)), seconds)
 
@@ -80,9 +72,10 @@ def add_impulse_from_vector(obj, scene, bone, frame, vector, seconds=0.0):
 def control_and_save(obj, scene, out, picture=None, title=None, ground=None):
     """Run the job, measure it (the motion QA), save the .blend, render the picture; the summary
     with `wrote` and `qa`."""
-    from ..solver.progress import run_to_end
-    from . import motion_control, overlay
-    from .cli import save_blend, write_atomically
+    from ...solver.progress import run_to_end
+    from . import job as motion_control
+    from . import overlay
+    from ..cli import save_blend, write_atomically
     summary = run_to_end(motion_control.run(obj, scene))
     summary["armature"] = obj.name
     out = save_blend(out, summary, obj, ground)

@@ -9,9 +9,9 @@ import logging
 import bpy
 import numpy as np
 
-from ..solver import qa
-from ..solver.errors import HumanAnimError
-from . import action_api
+from ...solver import qa
+from ...solver.errors import HumanAnimError
+from .. import action_api
 
 log = logging.getLogger(__name__)
 
@@ -26,8 +26,8 @@ def not_measured(reason):
 def motion_from_action(obj, scene, action, frame_range=None, skeleton=None):
     """The QA's Motion of `action` on `obj`: bone heads and tails in the world (metres), local
     rotations, names, parents, frame rate and frame numbers; and the skeleton used."""
-    from .actions import read_action
-    from .armature import skeleton_from_armature
+    from ..actions import read_action
+    from ..armature import skeleton_from_armature
     skeleton = skeleton or skeleton_from_armature(obj, scene, require=False)
     traj = read_action(obj, scene, skeleton, action, frame_range)
     world = traj.world_frames(skeleton)
@@ -79,7 +79,7 @@ def measure_result(obj, scene, action, sources=(), frame_range=None, ground=None
     known = [s for s in sources if digests and s.name in digests]  # a source loaded later is not checked
     if known:
         checks = ("".join(digests[s.name] for s in known), "".join(action_digest(s) for s in known))
-    from ..solver.qa import feet_from_roles
+    from ...solver.qa import feet_from_roles
     # the height is measured on the posed figure: a BVH's rest pose may lie on its side
     report = qa.measure(result, inputs, feet_from_roles(skeleton.roles, skeleton.names), ground, None, checks,
                         aligned)

@@ -7,7 +7,7 @@ import os
 import re
 import time
 
-from .cli import NON_NEGATIVE, POSITIVE, UsageError
+from ..arguments import NON_NEGATIVE, POSITIVE, UsageError, add_arrows, add_collider, add_input, add_out, add_output
 
 _QUEUE = re.compile(r"^(?P<action>.+?)(?:@(?P<start>-?\d+)-(?P<end>-?\d+))?(?::(?P<mode>blend|connect|inertialize))?"
                     r"(?::now=(?P<now>\d+))?$", re.IGNORECASE)
@@ -16,8 +16,7 @@ _QUEUE = re.compile(r"^(?P<action>.+?)(?:@(?P<start>-?\d+)-(?P<end>-?\d+))?(?::(
 def add_commands(sub, add_common_options):
     c = sub.add_parser("synthesize", help="motion synthesis: join actions (blend, connect, inertialize) with "
                                           "planted feet kept, optionally with dynamic reactions; writes a new action")
-    c.add_argument("file", help="a .blend or .bvh file")
-    c.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
+    add_input(c)
     c.add_argument("--queue", action="append", default=[], metavar="ACTION[@START-END][:MODE][:now=FRAME]",
                    help="an action to queue (in order; MODE blend (default), connect or inertialize; now=FRAME "
                         "interrupts the motion so far at that frame, counted from its start); repeatable; "
@@ -25,21 +24,17 @@ def add_commands(sub, add_common_options):
     c.add_argument("--initial", type=NON_NEGATIVE, default=0.25, help="initial phase of every action, s (default 0.25)")
     c.add_argument("--terminal", type=NON_NEGATIVE, default=0.25, help="terminal phase of every action, s (default 0.25)")
     c.add_argument("--react", action="store_true", help="dynamic control with protective steps, falls, recovery")
-    c.add_argument("--impulse", action="append", default=[], metavar="FRAME:BONE:FX,FY,FZ[:SECONDS]",
-                   help="a push (N s, world axes) on a bone for --react; repeatable")
-    c.add_argument("--collide", metavar="OBJECT",
-                   help="an armature or mesh object in the .blend that collides with the character for --react "
-                        "(the puncher of the thesis's scene)")
-    c.add_argument("--collide-radius", type=POSITIVE, default=0.06,
-                   help="sphere radius along a colliding armature's bones (m, default 0.06)")
+    add_arrows(c, "--impulse", "a push (N s, world axes) on a bone for --react; repeatable")
+    add_collider(c, "an armature or mesh object in the .blend that collides with the character for --react "
+                    "(the puncher of the thesis's scene)")
     c.add_argument("--collide-mass", type=NON_NEGATIVE, default=0.0,
                    help="the collider's mass in kg (a fist with the arm behind it: a few kg); 0: kinematic, it "
                         "keeps pushing (default 0)")
     c.add_argument("--step-speed", type=POSITIVE, nargs=2, metavar=("MIN", "MAX"), default=(0.5, 1.0),
                    help="eq. 3.6 root speeds, m/s (default 0.5 1.0)")
     c.add_argument("--step-acceleration", type=POSITIVE, default=10.0, help="eq. 3.6 root acceleration, m/s^2")
-    c.add_argument("--output", choices=("ACTION", "NLA"), default="ACTION")
-    c.add_argument("--out", default=os.path.join("out", "synthesis.blend"), help="the .blend to write")
+    add_output(c)
+    add_out(c, "synthesis.blend")
     add_common_options(c)
     return {"synthesize": cmd_synthesize}
 
@@ -61,10 +56,10 @@ def _check_range(text, action, rng):
 
 def cmd_synthesize(args):
     import bpy
-    from ..solver.progress import run_to_end
-    from . import synthesis
-    from .cli import load_rig, parse_arrow
-    from .control_cli import add_impulse_from_vector
+    from ...solver.progress import run_to_end
+    from . import job as synthesis
+    from ..cli import load_rig, parse_arrow
+    from ..motion_control.cli import add_impulse_from_vector
     t0 = time.perf_counter()
     obj, scene, unit = load_rig(args)
     props = scene.humananim_synthesis
@@ -102,7 +97,7 @@ def cmd_synthesize(args):
         control.collider, control.collider_radius = other, args.collide_radius
         control.collider_mass = max(0.0, args.collide_mass)
     summary = run_to_end(synthesis.run(obj, scene))
-    from .cli import save_blend
+    from ..cli import save_blend
     out = save_blend(args.out, summary, obj)
     summary.update(command="synthesize", file=os.path.abspath(args.file), armature=obj.name, wrote=[out],
                    seconds=round(time.perf_counter() - t0, 3))

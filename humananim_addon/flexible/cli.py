@@ -9,7 +9,7 @@ import math
 import os
 import time
 
-from .cli import COUNT, FINITE, FRAME, NON_NEGATIVE, POSITIVE, UsageError
+from ..arguments import COUNT, FINITE, FRAME, NON_NEGATIVE, POSITIVE, UsageError, add_frames, add_out
 
 COST_NAMES = ("distance", "energy_distance", "energy_speed", "energy_sqrt_distance", "custom")
 
@@ -24,13 +24,13 @@ def add_commands(sub, add_common_options):
         p.add_argument("file", nargs="?", help="a .blend with the character (omit with --demo)")
         p.add_argument("--demo", action="store_true", help="use a generated table character (thesis Fig. 1.2)")
         p.add_argument("--object", help="the character object (default: the only one with a Lattice modifier)")
-        p.add_argument("--frames", nargs=2, type=FRAME, metavar=("START", "END"), help="frame range to bake")
+        add_frames(p, "frame range to bake")
         p.add_argument("--integrator", choices=("implicit", "semi_implicit", "thesis"))
         p.add_argument("--substeps", type=COUNT, help="simulation steps per frame")
         p.add_argument("--ground", type=FINITE, help="ground height (m)")
         p.add_argument("--slope", type=FINITE, help="ground slope in degrees, rising along X")
         p.add_argument("--friction", type=NON_NEGATIVE, help="Coulomb friction coefficient")
-        p.add_argument("--out", default=os.path.join("out", "flexible.blend"), help="the .blend to write")
+        add_out(p, "flexible.blend")
         add_common_options(p)
     sim.add_argument("--handover", type=FRAME, help="frame the simulation takes over from the key-framing")
     sim.add_argument("--controller", choices=("POSES", "BEST"), help="pose graph as edited, or the best found")
@@ -48,8 +48,8 @@ def add_commands(sub, add_common_options):
 
 def cmd_flexible(args):
     import bpy
-    from ..solver.progress import run_to_end
-    from . import flexible
+    from ...solver.progress import run_to_end
+    from . import job as flexible
     t0 = time.perf_counter()
     obj, scene = _load(args)
     props = obj.humananim_flexible
@@ -75,7 +75,7 @@ def cmd_flexible(args):
             baked = run_to_end(flexible.run(obj, scene))
             summary["baked"] = {k: baked[k] for k in ("lattice_action", "key_action", "frames", "distance_m")
                                 if k in baked}
-    from .cli import save_blend
+    from ..cli import save_blend
     out = save_blend(args.out)
     summary.update(command=f"flexible {args.flexible_command}", wrote=[out],
                    file=os.path.abspath(args.file) if args.file else None,
@@ -108,7 +108,7 @@ def _apply_common(args, props):
 
 def _load(args):
     import bpy
-    from . import flexible
+    from . import job as flexible
     if args.demo:
         if args.file:
             raise UsageError("give a FILE or --demo, not both")

@@ -6,8 +6,8 @@ import os
 import tempfile
 import time
 
-from ..solver.cloth.materials import ClothParams
-from .cli import UsageError
+from ...solver.cloth.materials import ClothParams
+from ..arguments import UsageError, add_input, add_out
 
 COLLIDERS = ("auto", "mesh", "capsules", "both", "none")
 PRESET_NAMES = ("cotton", "denim", "leather")
@@ -16,8 +16,7 @@ PRESET_NAMES = ("cotton", "denim", "leather")
 def add_commands(sub, add_common_options):
     c = sub.add_parser("cloth", help="fast plausible cloth: simulate a garment (or a generated skirt) on the "
                                      "character; writes a mesh object played from a PC2 point cache")
-    c.add_argument("file", help="a .blend or .bvh file")
-    c.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
+    add_input(c)
     c.add_argument("--garment", help="the coarse garment mesh object (default: the scene's cloth garment)")
     c.add_argument("--skirt", action="store_true", help="generate a skirt for the character and simulate it")
     c.add_argument("--skirt-size", nargs=2, type=int, default=(6, 11), metavar=("RINGS", "COLUMNS"),
@@ -40,7 +39,7 @@ def add_commands(sub, add_common_options):
                         f"default {ClothParams.compress_limit})")
     c.add_argument("--pn-only", action="store_true", help="plain PN triangles (no normal or edge length control)")
     c.add_argument("--keep-coarse", action="store_true", help="also write the coarse simulated mesh")
-    c.add_argument("--out", default=os.path.join("out", "cloth.blend"), help="the .blend to write")
+    add_out(c, "cloth.blend")
     add_common_options(c)
     return {"cloth": cmd_cloth}
 
@@ -57,9 +56,9 @@ def _vector(text, option):
 
 def cmd_cloth(args):
     import bpy
-    from . import cloth
-    from .cli import _load
-    from ..solver.progress import run_to_end
+    from . import job as cloth
+    from ..cli import _load
+    from ...solver.progress import run_to_end
     t0 = time.perf_counter()
     if args.level < 1 or args.substeps < 1 or args.step < 0:
         raise UsageError("--level and --substeps must be at least 1, --step at least 0")

@@ -9,96 +9,21 @@ import time
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..solver.errors import HumanAnimError, MotionError
-from ..solver.walking import PRESETS, SCOPES, Style, metrics
-from ..solver.walking.generators import Generator, schedule, scope_bones
-from ..solver.walking.walk import STAND
-from . import action_api, actions
-from .actions import bone_path, scene_fps
-from .armature import armature_to_world, skeleton_from_armature
-from .properties import settings_registration
+from ...solver.errors import HumanAnimError, MotionError
+from ...solver.walking import PRESETS, Style, metrics
+from ...solver.walking.generators import Generator, schedule, scope_bones
+from ...solver.walking.walk import STAND
+from .. import action_api, actions
+from ..actions import bone_path, scene_fps
+from ..armature import armature_to_world, skeleton_from_armature
+from .properties import STYLE_FIELDS, apply_preset  # noqa: F401 (the operator's and the command's name)
 
 GENERATOR_KEY = "humananim_generator"  # on a generator's action: its scope, priority, weight, start
 SUPPORT_KEY = "humananim_support"  # on a walk's action: the support intervals (JSON)
 TRACK_PREFIX = "HumanAnim gen: "
 STACK_KEY = "humananim_stack"  # on an armature object: its generator actions, in the order added
 CACHE = {}  # (armature name, action name) -> the last WalkResult, in memory only (tests, summaries)
-STYLE_FIELDS = ("stride", "pelvis_rotation", "pelvis_tilt", "arm_swing", "knee_flexion", "heel_strike",
-                "torso_lean")
-
-
-def apply_preset(props, name):
-    """Copy a preset's values into the custom style fields and switch to Custom (a plain function:
-    an update callback on the enum crashes the bpy 4.2 module at exit)."""
-    style = PRESETS[name.lower()]
-    for field_name in STYLE_FIELDS:
-        setattr(props, field_name, getattr(style, field_name))
-    props.preset = "CUSTOM"
-
-
-def _style_property(name, label, description, soft_max=3.0, unit="NONE"):
-    return FloatProperty(name=label, default=getattr(Style(), name), min=0.0, soft_max=soft_max,
-                         description=description, unit=unit)
-
-
-class HumanAnimWalk(bpy.types.PropertyGroup):
-    armature: PointerProperty(name="Armature", type=bpy.types.Object,
-                              description="The rig that walks; empty: the active armature")
-    path: PointerProperty(name="Path", type=bpy.types.Object,
-                          description="A curve object drawn on the ground, or an object whose keyed location "
-                                      "the root follows (Keyed Root)")
-    path_mode: EnumProperty(name="Path From", items=(
-        ("CURVE", "Curve", "Walk along the curve at the speed below"),
-        ("KEYED", "Keyed Root", "Follow the keyed location of the path object at its keys' times "
-                                "(the speed comes from the keys)"),
-    ), default="CURVE")
-    speed_mode: EnumProperty(name="Speed", items=(
-        ("CONSTANT", "Constant", "One speed all along"),
-        ("KEYED", "Keyed", "Speeds at distances along the path, interpolated"),
-        ("SEGMENTS", "Per Segment", "One speed per stretch between the curve's control points"),
-    ), default="CONSTANT")
-    speed: FloatProperty(name="Speed", default=1.3, min=0.05, soft_max=4.0, unit="VELOCITY",
-                         description="Walking speed (m/s); above a Froude number of 0.6 the walk becomes a run")
-    speed_keys: StringProperty(name="Speed Keys", default="0:1.0",
-                               description="DISTANCE:SPEED pairs (m, m/s) along the path, comma-separated")
-    segment_speeds: StringProperty(name="Segment Speeds", default="1.0",
-                                   description="One speed (m/s) per segment between control points, comma-separated")
-    preset: EnumProperty(name="Style", items=[(k.upper(), k.title(), f"The {k} walk") for k in PRESETS]
-                         + [("CUSTOM", "Custom", "The values below")], default="NEUTRAL")
-    stride: _style_property("stride", "Stride", "Cycle length as a multiple of the model's (1: normal)")
-    pelvis_rotation: _style_property("pelvis_rotation", "Pelvis Rotation", "Pelvic turning amplitude (1: normal)")
-    pelvis_tilt: _style_property("pelvis_tilt", "Pelvis Tilt", "Pelvic list and bounce amplitude (1: normal)")
-    arm_swing: _style_property("arm_swing", "Arm Swing", "Arm swing amplitude (1: normal)")
-    knee_flexion: _style_property("knee_flexion", "Knee Flexion", "Knee flexion in stance (1: normal)", 5.0)
-    heel_strike: _style_property("heel_strike", "Heel Strike", "Toe-up angle as the heel lands (1: normal)")
-    torso_lean: FloatProperty(name="Torso Lean", default=0.0, min=-20.0, max=45.0,
-                              description="Forward lean of the torso, degrees")
-    ground: PointerProperty(name="Ground", type=bpy.types.Object,
-                            description="A mesh the feet stand on (ray cast under the path); empty: a flat ground")
-    ground_height: FloatProperty(name="Ground Height", default=0.0, unit="LENGTH",
-                                 description="Height of the flat ground when no ground object is set")
-    frame_start: IntProperty(name="Start Frame", default=0,
-                             description="First frame (standing) of a walk along a curve; 0: the scene's start")
-    # a generator strip to add
-    gen_action: PointerProperty(name="Motion", type=bpy.types.Action,
-                                description="The action the generator plays (only its scope's bones are used)")
-    gen_scope: EnumProperty(name="Scope", items=[(s, s.replace(".", " ").title(), f"Bones of the {s} scope")
-                                                 for s in SCOPES], default="arm.R")
-    gen_priority: EnumProperty(name="Priority", items=(
-        ("default", "Default", "Starts once the previous generators on its scope have stopped"),
-        ("weighted", "Weighted", "Mixes with the others on its scope with its weight"),
-        ("exclusive", "Exclusive", "Starts at its time and stops the others on its scope"),
-        ("clearing", "Clearing", "Starts at its time and stops all the others"),
-    ), default="weighted")
-    gen_weight: FloatProperty(name="Weight", default=1.0, min=0.0, max=1.0)
-    gen_start: IntProperty(name="Start", default=1, description="Frame the generator is planned to start at")
-
-
-CLASSES = (HumanAnimWalk,)
-
-register, unregister = settings_registration(CLASSES, bpy.types.Scene, "humananim_walk", HumanAnimWalk)
 
 
 def style_of(props):
@@ -152,7 +77,7 @@ def _chain(mesh_verts, edges):
 def curve_path(obj, scene):
     """The path (metres, world) of a curve object as Blender evaluates it, and the arc lengths of
     its control points (the segments of per-segment speeds)."""
-    from ..solver.walking import Path
+    from ...solver.walking import Path
     if obj is None or obj.type != "CURVE":
         raise HumanAnimError("choose a curve object as the path")
     depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -188,7 +113,7 @@ def curve_path(obj, scene):
 def keyed_path(obj, scene):
     """Global_motion: the keyed location of `obj` sampled on every frame of its keys; returns
     (path, progress, first frame)."""
-    from ..solver.walking import from_keys
+    from ...solver.walking import from_keys
     ad = obj.animation_data if obj is not None else None
     if ad is None or ad.action is None:
         raise MotionError("the path object has no keyed location: key it, or use a curve")
@@ -257,7 +182,7 @@ def walk_armature(props, context_object):
 def run(obj, scene):
     """The walk job: read the settings, generate, write a new action (and its NLA strip).
     Yields progress; returns a summary dict."""
-    from ..solver.walking import iter_walk
+    from ...solver.walking import iter_walk
     props = scene.humananim_walk
     skeleton = skeleton_from_armature(obj, scene)
     fps = scene_fps(scene)
@@ -412,7 +337,7 @@ def _generator_of(action, obj, bones_of_scope):
     motion_len = float(f1 - f0)
     keyed = {_bone_of(fc.data_path) for fc in action_api.fcurves_of(action, obj)} - {None}
     scope = bones_of_scope(meta["scope"]) & keyed if meta["scope"] != "all" else keyed
-    from ..solver.trajectories import Trajectories
+    from ...solver.trajectories import Trajectories
     dummy = Trajectories(np.array([f0, f1], float), 24.0, np.tile([1.0, 0, 0, 0], (2, 1, 1)),
                          np.zeros((2, 1, 3)), np.eye(4))
     g = Generator(meta["name"], scope, dummy, meta["start"], meta["start"] + motion_len, meta["priority"],

@@ -7,14 +7,13 @@ the display rate, then the take as a new action in the saved .blend."""
 import os
 import time
 
-from .cli import UsageError
+from ..arguments import UsageError, add_input, add_out
 
 
 def add_commands(sub, add_common_options):
     c = sub.add_parser("capture", help="record a take from capture devices (or their simulators) into a new "
                                        "action")
-    c.add_argument("file", help="a .blend or .bvh file with the armature")
-    c.add_argument("--armature", help="the armature object in a .blend (default: the only one)")
+    add_input(c, help="a .blend or .bvh file with the armature")
     c.add_argument("--flock", metavar="PORT", help="a Flock of Birds on PORT, or 'sim' for its simulator")
     c.add_argument("--birds", default="1", help="FBB addresses of the birds (default 1)")
     c.add_argument("--bones", default="", help="the bone each bird is strapped on, in the order of --birds")
@@ -30,7 +29,7 @@ def add_commands(sub, add_common_options):
     c.add_argument("--rate", type=float, default=100.0, help="simulators' samples per second (default 100)")
     c.add_argument("--seconds", type=float, default=3.0, help="how long to record (default 3)")
     c.add_argument("--display-rate", type=float, default=60.0, help="display steps per second (default 60)")
-    c.add_argument("--out", default=os.path.join("out", "capture.blend"), help="the .blend to write")
+    add_out(c, "capture.blend")
     add_common_options(c)
     return {"capture": cmd_capture}
 
@@ -38,8 +37,8 @@ def add_commands(sub, add_common_options):
 def cmd_capture(args):
     import bpy
     import numpy as np
-    from . import capture
-    from .cli import _load
+    from . import job as capture
+    from ..cli import _load
     t0 = time.perf_counter()
     if not (args.flock or args.glove or args.vmc is not None or args.mvn or args.replay):
         raise UsageError("give at least one device: --flock, --glove, --mvn, --vmc or --replay")
@@ -122,7 +121,7 @@ def _free_udp_port():
 def _calibrate_when_every_sensor_reads(live, deadline):
     """Calibrate once every sensor has sent a reading (the birds of one Flock in group mode come in
     one by one at start-up); after the deadline the calibration's own error says which is silent."""
-    from ..solver.anatomical_converter import CalibrationError
+    from ...solver.anatomical_converter import CalibrationError
     while True:
         try:
             return live.calibrate()

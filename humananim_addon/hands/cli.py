@@ -6,7 +6,7 @@ the object, saves the result (--out) and prints a summary (--json: one object)."
 import os
 import time
 
-from .cli import FRAME, POSITIVE, UsageError, number
+from ..arguments import FRAME, POSITIVE, UsageError, add_out, number
 
 TYPES = ("AUTO", "LATERAL", "PINCH", "TRIPOD", "WRAP", "DISK")
 
@@ -24,16 +24,16 @@ def add_commands(sub, add_common_options):
     g.add_argument("--close", type=POSITIVE, default=0.5, help="seconds to close the fingers (default 0.5)")
     g.add_argument("--release", type=number(0, integer=True), default=0, help="frame the object is let go (default: never)")
     g.add_argument("--spine", action="store_true", help="let the spine help the reach")
-    g.add_argument("--out", default=os.path.join("out", "grasp.blend"), help="the .blend to write")
+    add_out(g, "grasp.blend")
     add_common_options(g)
     return {"grasp": cmd_grasp}
 
 
 def cmd_grasp(args):
     import bpy
-    from ..solver.progress import run_to_end
-    from . import hands
-    from .cli import load_rig
+    from ...solver.progress import run_to_end
+    from . import job as hands
+    from ..cli import load_rig
     t0 = time.perf_counter()
     obj, scene, _ = load_rig(args)
     target = bpy.data.objects.get(args.object)
@@ -44,7 +44,7 @@ def cmd_grasp(args):
     props.start_frame, props.duration, props.close_duration = args.start, args.reach, args.close
     props.release_frame, props.with_spine = args.release, args.spine
     summary = run_to_end(hands.run_grasp(obj, scene, target))
-    from .cli import save_blend
+    from ..cli import save_blend
     out = save_blend(args.out, summary, obj)
     summary.update(command="grasp", file=os.path.abspath(args.file), armature=obj.name, wrote=[out],
                    seconds=round(time.perf_counter() - t0, 3))

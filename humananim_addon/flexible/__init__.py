@@ -1,0 +1,2 @@
+"""Flexible characters (lattice modes): the settings (properties.py), the job (job.py), the command
+`humananim flexible` (cli.py)."""
