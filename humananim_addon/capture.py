@@ -376,6 +376,7 @@ class LiveCapture:
         angles = self.session.glove_calibrations[s.device].angles(s.data["raw"])
         sign = self.flex_sign[side]
         angles = {k: (v * sign if k[2] == "flex" else v) for k, v in angles.items()}
+        joints, quats = [], []
         for (finger, k), q in joint_rotations(angles, side).items():
             if finger == "palm":
                 continue
@@ -388,7 +389,10 @@ class LiveCapture:
                 if k >= len(chain):
                     continue
                 j = sk.index(chain[k])
-            basis[j, :3, :3] = rotations.to_matrix(q)
+            joints.append(j)
+            quats.append(q)
+        if joints:
+            basis[joints, :3, :3] = rotations.to_matrix(np.array(quats))
 
     # -- the display step ---------------------------------------------------------------------------
     def step(self, context):

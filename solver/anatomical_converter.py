@@ -70,6 +70,9 @@ class AnatomicalConverter:
         self._descendants = {j: skeleton.descendants(j) for j in range(skeleton.joint_count)}
         self._limbs = self._ik_limbs()
         self._chains = self._sensorless_chains()
+        # the bone whose sensor places the body (the root sensor on the root bone), else None
+        on_root = root is not None and self.attachments[root] == skeleton.root
+        self._placed = self.attachments[root] if on_root else None
 
     def _ik_limbs(self):
         sk, attached = self.skeleton, set(self.attachments.values())
@@ -124,28 +127,56 @@ class AnatomicalConverter:
         """Local pose bases (J, 4, 4) of the rig for the newest readings."""
         if not self.calibrated:
             raise CalibrationError("calibrate first: stand in the calibration pose and press Calibrate")
-        sk = self.skeleton
         targets = self.bone_targets(readings)
-        rest_local = self.rest_local
         basis = self.calib_basis.copy()
-        world = np.empty((sk.joint_count, 4, 4))
-        for j, p in enumerate(sk.parents):
-            parent = np.eye(4) if p < 0 else world[p]
-            frame = parent @ rest_local[j]
-            if j in targets:
-                rot, head = targets[j]
-                basis[j, :3, :3] = frame[:3, :3].T @ rot
-                if j == sk.root and self.root is not None and self.attachments[self.root] == j:
-                    basis[j, :3, 3] = frame[:3, :3].T @ (head - frame[:3, 3])
-            world[j] = frame @ basis[j]
-        for j, path in self._chains.items():
-            if j in targets:
-                self._share_along_chain(basis, world, j, path, targets[j][0])
+        world = self._forward(basis, targets)
+        turns = self._chain_turns(world, targets)
+        if turns:
+            world = self._forward(basis, targets, turns)
         for upper, lower, end in self._limbs:
             if end not in targets:
                 continue  # that sensor has not spoken yet
             self._two_bone_ik(basis, world, upper, lower, end, targets[end])
         return basis
+
+    def _forward(self, basis, targets, turns=None):
+        """World frames top-down, `basis` updated on the way: a bone with a target takes its
+        rotation (the root sensor's bone its position too); a bone with a turn (its share of a
+        chain's turn, in the world) takes it on top of the bones above it."""
+        sk, rest_local = self.skeleton, self.rest_local
+        world = np.empty((sk.joint_count, 4, 4))
+        for j, p in enumerate(sk.parents):
+            frame = rest_local[j] if p < 0 else world[p] @ rest_local[j]
+            if turns is not None and j in turns:
+                basis[j, :3, :3] = frame[:3, :3].T @ turns[j] @ frame[:3, :3] @ basis[j, :3, :3]
+            if j in targets:
+                rot, head = targets[j]
+                basis[j, :3, :3] = frame[:3, :3].T @ rot
+                if j == self._placed:
+                    basis[j, :3, 3] = frame[:3, :3].T @ (head - frame[:3, 3])
+            world[j] = frame @ basis[j]
+        return world
+
+    def _chain_turns(self, world, targets):
+        """{bone: world rotation}: every sensor bone's turn relative to its calibration pose
+        (with the bones above it as `world` has them), shared evenly by the bones without
+        sensors between it and the sensor above (their joints bend together, like a spine), so
+        it is not all taken at one joint. All chains at once: an MVN suit has several."""
+        sk, rest_local = self.skeleton, self.rest_local
+        ends = [j for j in self._chains if j in targets]
+        if not ends:
+            return {}
+        calib = np.array([world[sk.parents[j], :3, :3] @ rest_local[j, :3, :3] @ self.calib_basis[j, :3, :3]
+                          for j in ends])
+        relative = np.array([targets[j][0] for j in ends]) @ np.swapaxes(calib, 1, 2)
+        axis_angle = rotations.to_axis_angle(rotations.from_matrix(relative))
+        axis_angle[:, 0] /= [len(self._chains[j]) + 1 for j in ends]
+        shares = rotations.to_matrix(rotations.from_axis_angle(axis_angle))
+        turns = {}
+        for j, share in zip(ends, shares):
+            for b in self._chains[j]:  # a bone in two chains (a branch point) takes both turns
+                turns[b] = share @ turns[b] if b in turns else share
+        return turns
 
     def _sensorless_chains(self):
         """{sensor bone: the bones without sensor between it and the nearest sensor bone above}
@@ -162,26 +193,6 @@ class AnatomicalConverter:
             if path and a >= 0:
                 out[j] = path[::-1]
         return out
-
-    def _share_along_chain(self, basis, world, j, path, target_rot):
-        """The sensor bone's turn relative to its calibration pose, shared evenly by the bones
-        above it without sensors (their joints bend together, like a spine), so it is not all
-        taken at one joint."""
-        sk, rest_local = self.skeleton, self.rest_local
-        frame = world[sk.parents[j]] @ rest_local[j]
-        calib = frame[:3, :3] @ self.calib_basis[j, :3, :3]
-        axis_angle = rotations.to_axis_angle(rotations.from_matrix(target_rot @ calib.T))
-        n = len(path) + 1
-        turn = rotations.to_matrix(rotations.from_axis_angle(np.r_[axis_angle[0] / n, axis_angle[1:]]))
-        for b in path:  # top-down, each the parent of the next: one refresh below them at the end
-            frame_b = world[sk.parents[b]] @ rest_local[b]
-            new_rot = turn @ frame_b[:3, :3] @ basis[b, :3, :3]  # after the turns of the bones above
-            basis[b, :3, :3] = frame_b[:3, :3].T @ new_rot
-            world[b] = frame_b @ basis[b]
-        frame = world[sk.parents[j]] @ rest_local[j]
-        basis[j, :3, :3] = frame[:3, :3].T @ target_rot
-        world[j] = frame @ basis[j]
-        self._refresh(basis, world, path[0])  # everything below the chain once (side branches too)
 
     def _two_bone_ik(self, basis, world, upper, lower, end, target):
         sk, rest_local = self.skeleton, self.rest_local

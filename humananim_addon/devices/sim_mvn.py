@@ -121,12 +121,13 @@ class MVNSender:
 
     def tick(self):
         with self._lock:
-            now = time.perf_counter()
             for actor in self.actors:
                 counter = self.counters[actor]
                 if self.meta_every and counter % self.meta_every == 0:
                     self._send(self.meta(actor))
-                for dg in self.datagrams_of(actor, self.tick_count, counter):
+                datagrams = self.datagrams_of(actor, self.tick_count, counter)
+                now = time.perf_counter()  # when the sample leaves (a real streamer has it ready)
+                for dg in datagrams:
                     self._send(dg)
                 self.sent[(actor, counter)] = (self.tick_count, now)
                 self.counters[actor] = (counter + 1) & 0xFFFFFFFF
