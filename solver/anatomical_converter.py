@@ -105,6 +105,9 @@ class AnatomicalConverter:
             self.offsets[key] = s_world.T @ world[j, :3, :3]
             self.head_offsets[key] = s_world.T @ (world[j, :3, 3] - self.sensor_position(pos))
         self.calib_basis = basis.copy()
+        # a chain's sensor bone in the calibration pose, relative to the frame of the bone above it
+        self._chain_ends = list(self._chains)
+        self._end_calib = np.array([self.rest_local[j, :3, :3] @ basis[j, :3, :3] for j in self._chain_ends])
         self.calibrated = True
 
     def sensor_position(self, pos):
@@ -161,19 +164,22 @@ class AnatomicalConverter:
         """{bone: world rotation}: every sensor bone's turn relative to its calibration pose
         (with the bones above it as `world` has them), shared evenly by the bones without
         sensors between it and the sensor above (their joints bend together, like a spine), so
-        it is not all taken at one joint. All chains at once: an MVN suit has several."""
-        sk, rest_local = self.skeleton, self.rest_local
-        ends = [j for j in self._chains if j in targets]
+        it is not all taken at one joint: each of the n bones of a chain with its sensor bone
+        turns by the n-th root of the turn (same axis, 1/n of the angle). All chains at once:
+        an MVN suit has several."""
+        ends = [k for k, j in enumerate(self._chain_ends) if j in targets]
         if not ends:
             return {}
-        calib = np.array([world[sk.parents[j], :3, :3] @ rest_local[j, :3, :3] @ self.calib_basis[j, :3, :3]
-                          for j in ends])
-        relative = np.array([targets[j][0] for j in ends]) @ np.swapaxes(calib, 1, 2)
-        axis_angle = rotations.to_axis_angle(rotations.from_matrix(relative))
-        axis_angle[:, 0] /= [len(self._chains[j]) + 1 for j in ends]
-        shares = rotations.to_matrix(rotations.from_axis_angle(axis_angle))
+        joints = [self._chain_ends[k] for k in ends]
+        calib = world[self.skeleton.parents[joints], :3, :3] @ self._end_calib[ends]
+        turn = rotations.from_matrix(np.array([targets[j][0] for j in joints]) @ np.swapaxes(calib, 1, 2))
+        sin_half = np.linalg.norm(turn[:, 1:], axis=1)
+        half = np.arctan2(sin_half, turn[:, 0]) / [len(self._chains[j]) + 1 for j in joints]
+        axis = np.divide(turn[:, 1:], sin_half[:, None], out=np.zeros((len(joints), 3)),
+                         where=sin_half[:, None] > 1e-12)
+        shares = rotations.to_matrix(np.column_stack((np.cos(half), axis * np.sin(half)[:, None])))
         turns = {}
-        for j, share in zip(ends, shares):
+        for j, share in zip(joints, shares):
             for b in self._chains[j]:  # a bone in two chains (a branch point) takes both turns
                 turns[b] = share @ turns[b] if b in turns else share
         return turns
