@@ -15,23 +15,38 @@ the repository. Three configurations run in turn, `--rounds` times each (interle
 
 Devices: a Flock of Birds (2 birds, group mode, POSITION/QUATERNION at 120 Hz) and a CyberGlove
 (22 sensors at 120 Hz), their simulators (and the MVN sender) in a separate process on
-pseudo-terminals, logging when each record leaves them. This process runs the session as
-Blender does: the drivers read the ports through pyserial in their reader threads, the pump
-thread drains them, and the display step (capture.LIVE.step, what the modal operator calls on
-each timer event) runs at 60 Hz on the CMU clip's armature, after a calibration in the rest
-pose. The display step is this tree's for every configuration (only the device code differs).
+pseudo-terminals, logging when each record leaves them: a serial tick when its bytes are
+written to the line, an MVN sample when its datagrams are sent (after the simulator built
+them: its encoding stands in for the device's, not for our code). This process runs the
+session as Blender does: the drivers read the ports through pyserial in their reader threads,
+the pump thread drains them, and the display step (capture.LIVE.step, what the modal operator
+calls on each timer event) runs at 60 Hz on the CMU clip's armature, after a calibration in the
+rest pose. The display step is this tree's for every configuration (only the device code
+differs).
+
+The display's clock runs a little slow (one MVN sample period per round, 0.2 % at 8 s), as a
+timer and a device's crystal never agree: within every round the display steps meet the
+devices' ticks at every phase, so a round's p99 is that of a performer's session, not of one
+phase drawn at random (with a fixed phase per round, a p99 moved by up to a sample period from
+round to round).
 
 Measured per configuration: latency from a record leaving its simulator to the pose being
 applied, for every record applied (median and 99th percentile; it includes waiting for the next
-display step, on average half a frame); the transport part alone (leaving the simulator to
-decoded in the reader thread: the device code's own share); the display step's own time; the CPU share of this
-process (reader threads, pump and display steps) over the run, process CPU seconds / wall
-seconds (1.0 = one core). Each figure is the median over the rounds of that configuration; the
-rounds interleave the configurations so a change of the host's load hits all of them. Records
-are matched to the ticks that sent them by content (the
-simulators' motion is a known function of the tick). Claims: the new code's latency (median,
-p99) and CPU share over the baseline's, aim no worse (ratio <= 1.10, the runs' noise); with MVN
-added, p99 latency under one display frame at 60 Hz (16.7 ms).
+display step: a display step shows a sample up to one sample period after it arrived); the
+transport part alone (leaving the simulator to decoded in the reader thread); the display
+step's own time; the CPU share of this process (reader threads, pump and display steps) over
+the run, process CPU seconds / wall seconds (1.0 = one core). Records are matched to the ticks
+that sent them by content (the simulators' motion is a known function of the tick).
+
+Claims, each the median over the rounds of that round's ratio (a round runs its configurations
+back to back, so a change of the host's load hits both sides of a ratio): the new code's
+latency (median, p99), CPU share and transport over the baseline's, aim no worse (ratio <= 1.10,
+the runs' noise). With MVN added: its latency p99 in ms; the same above its sampling floor
+(0.99 of its 16.7 ms sample period, which any p99 holds whatever the code: a 60 Hz stream shown
+by a 60 Hz display waits up to a frame) over today's Flock + CyberGlove p99 above theirs (0.99
+of 8.3 ms), aim no worse (<= 1.10): what the code adds to the wait, MVN's path against today's;
+and the Flock + CyberGlove p99 with MVN in the session over today's without it (the display
+step solving 23 more segments).
 """
 
 import argparse
@@ -310,7 +325,8 @@ def main(argv=None):
               + (f"; MVN median {r['mvn_latency_median_ms']} ms, p99 {r['mvn_latency_p99_ms']} ms"
                  if r.get("mvn_records_applied") else "") + f", dropped {r['dropped_samples']}")
     for c in out["claims"]:
-        print(f"  {c['claim']}: {c['value']} {c['unit']} (aim {c['aim']}: {'met' if c['met'] else 'NOT met'})")
+        aim = f" (aim {c['aim']}: {'met' if c['met'] else 'NOT met'})" if c["aim"] else ""
+        print(f"  {c['claim']}: {c['value']} {c['unit']}{aim}")
 
 
 def round_ratio(runs, key, config="new", over="baseline", over_key=None):
@@ -350,11 +366,10 @@ def claims_of(runs):
     mvn = [r for r in runs if r.get("mvn_latency_p99_ms")]
     mvn_p99 = round(float(np.median([r["mvn_latency_p99_ms"] for r in mvn])), 2)
     out.append(claim("with the MVN stream added (23 segments at 60 Hz): MVN latency p99", mvn_p99, "ms"))
-    above = round(float(np.median([r["mvn_above_floor_ms"] for r in mvn])), 2)
-    out.append(claim("MVN latency p99 above its sampling floor (0.99 of a 60 Hz sample period)", above, "ms"))
     value = round_ratio(runs, "mvn_above_floor_ms", "new+mvn", "baseline", "devices_above_floor_ms")
-    out.append(claim("MVN p99 above its floor / today's Flock + CyberGlove p99 above theirs, same round", value,
-                     "ratio"))
+    out.append(claim("MVN latency p99 above its sampling floor (0.99 x 16.7 ms) / today's Flock + CyberGlove p99 "
+                     "above theirs (0.99 x 8.3 ms), median of the rounds' ratios", value, "ratio", "<= 1.10",
+                     value <= 1.10))
     value = round_ratio(runs, "devices_latency_p99_ms", "new+mvn")
     out.append(claim("with the MVN stream added: Flock + CyberGlove latency p99 / today's device code without it",
                      value, "ratio"))
