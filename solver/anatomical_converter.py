@@ -105,9 +105,10 @@ class AnatomicalConverter:
             self.offsets[key] = s_world.T @ world[j, :3, :3]
             self.head_offsets[key] = s_world.T @ (world[j, :3, 3] - self.sensor_position(pos))
         self.calib_basis = basis.copy()
-        # a chain's sensor bone in the calibration pose, relative to the frame of the bone above it
+        # a chain's sensor bone with the chain in the calibration pose, relative to the sensor bone
+        # above the chain (whose world rotation is its target: no pass over the rig needed for it)
         self._chain_ends = list(self._chains)
-        self._end_calib = np.array([self.rest_local[j, :3, :3] @ basis[j, :3, :3] for j in self._chain_ends])
+        self._chain_calib = np.array([self._calibration_below(self._chains[j] + [j]) for j in self._chain_ends])
         self.calibrated = True
 
     def sensor_position(self, pos):
@@ -132,10 +133,10 @@ class AnatomicalConverter:
             raise CalibrationError("calibrate first: stand in the calibration pose and press Calibrate")
         targets = self.bone_targets(readings)
         basis = self.calib_basis.copy()
-        world = self._forward(basis, targets)
-        turns = self._chain_turns(world, targets)
-        if turns:
-            world = self._forward(basis, targets, turns)
+        turns = self._chain_turns(targets)
+        if turns is None:  # a sensor above a chain has no reading yet: its bone is where a first pass puts it
+            turns = self._chain_turns(targets, self._forward(basis, targets))
+        world = self._forward(basis, targets, turns)
         for upper, lower, end in self._limbs:
             if end not in targets:
                 continue  # that sensor has not spoken yet
@@ -160,18 +161,35 @@ class AnatomicalConverter:
             world[j] = frame @ basis[j]
         return world
 
-    def _chain_turns(self, world, targets):
+    def _calibration_below(self, path):
+        """The rotation from the frame of the bone above `path` to its last bone's frame, the
+        bones of `path` in the calibration pose."""
+        out = np.eye(3)
+        for b in path:
+            out = out @ self.rest_local[b, :3, :3] @ self.calib_basis[b, :3, :3]
+        return out
+
+    def _chain_turns(self, targets, world=None):
         """{bone: world rotation}: every sensor bone's turn relative to its calibration pose
-        (with the bones above it as `world` has them), shared evenly by the bones without
-        sensors between it and the sensor above (their joints bend together, like a spine), so
-        it is not all taken at one joint: each of the n bones of a chain with its sensor bone
-        turns by the n-th root of the turn (same axis, 1/n of the angle). All chains at once:
-        an MVN suit has several."""
+        (the chain above it in the calibration pose below the sensor bone above the chain, as
+        its target or `world` has it), shared evenly by the bones without sensors between the
+        two (their joints bend together, like a spine), so it is not all taken at one joint:
+        each of the n bones of a chain with its sensor bone turns by the n-th root of the turn
+        (same axis, 1/n of the angle). All chains at once: an MVN suit has several. None when
+        a sensor above a chain has no reading and no `world` is given."""
+        parents = self.skeleton.parents
         ends = [k for k, j in enumerate(self._chain_ends) if j in targets]
         if not ends:
             return {}
         joints = [self._chain_ends[k] for k in ends]
-        calib = world[self.skeleton.parents[joints], :3, :3] @ self._end_calib[ends]
+        uppers = [parents[self._chains[j][0]] for j in joints]
+        if world is None:
+            if any(a not in targets for a in uppers):
+                return None
+            upper = np.array([targets[a][0] for a in uppers])
+        else:
+            upper = world[uppers, :3, :3]
+        calib = upper @ self._chain_calib[ends]
         turn = rotations.from_matrix(np.array([targets[j][0] for j in joints]) @ np.swapaxes(calib, 1, 2))
         sin_half = np.linalg.norm(turn[:, 1:], axis=1)
         half = np.arctan2(sin_half, turn[:, 0]) / [len(self._chains[j]) + 1 for j in joints]
