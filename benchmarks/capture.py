@@ -2,11 +2,12 @@
 """Latency and CPU share of a live capture session: this tree's device code side by side with
 the device code of commit 7a9849e (before issue 30), in one run, plus the Xsens MVN stream.
 
-    PYTHONPATH=<worktree parent> /work/main/.venv/bpy50/bin/python benchmarks/capture.py [--seconds 8] [--rounds 4] [--json]
+    PYTHONPATH=<worktree parent> /work/main/.venv/bpy50/bin/python benchmarks/capture.py [--seconds 6] [--rounds 8] [--json]
 
 The earlier device code is loaded with `git show 7a9849e:humananim_addon/devices/<file>` into a
 temporary package (humananim.humananim_addon.devices_baseline), nothing of it is copied into
-the repository. Three configurations run in turn, `--rounds` times each (interleaved), `--seconds` each:
+the repository. Three configurations run back to back in each of `--rounds` rounds (every other
+round in reverse order), `--seconds` each:
 
 - 'baseline': the earlier drivers, simulators and session;
 - 'new': this tree's drivers, simulators and session, the same devices;
@@ -24,7 +25,7 @@ calls on each timer event) runs at 60 Hz on the CMU clip's armature, after a cal
 rest pose. The display step is this tree's for every configuration (only the device code
 differs).
 
-The display's clock runs a little slow (one MVN sample period per round, 0.2 % at 8 s), as a
+The display's clock runs a little slow (one MVN sample period per round: 0.3 % at 6 s), as a
 timer and a device's crystal never agree: within every round the display steps meet the
 devices' ticks at every phase, so a round's p99 is that of a performer's session, not of one
 phase drawn at random (with a fixed phase per round, a p99 moved by up to a sample period from
@@ -72,6 +73,7 @@ RATE = 120.0
 MVN_RATE = 60.0
 DISPLAY = 60.0
 SWEEP = 1.0 / min(RATE, MVN_RATE)
+CONFIGS = ("baseline", "new", "new+mvn")
 BASELINE_COMMIT = "7a9849e"
 BASELINE_PACKAGE = "humananim.humananim_addon.devices_baseline"
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -297,8 +299,8 @@ def _latencies(applied, log):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--seconds", type=float, default=8.0)
-    p.add_argument("--rounds", type=int, default=4)
+    p.add_argument("--seconds", type=float, default=6.0)
+    p.add_argument("--rounds", type=int, default=8)
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     os.environ.setdefault("BLENDER_USER_RESOURCES", "/tmp/humananim-bench-user")
@@ -308,8 +310,8 @@ def main(argv=None):
     runs = []
     try:
         with contextlib.redirect_stdout(sys.stderr):  # Blender's BVH importer prints; stdout is the JSON
-            for k in range(args.rounds):
-                for config in ("baseline", "new", "new+mvn"):
+            for k in range(args.rounds):  # every other round in reverse: no configuration always runs first
+                for config in CONFIGS if k % 2 == 0 else CONFIGS[::-1]:
                     runs.append(dict(run_config(config, args.seconds, baseline_dir), round=k))
     finally:
         humananim.unregister()
