@@ -7,6 +7,7 @@ only runs on the main thread: `step()` is what the modal operator calls on every
 and what tests and batch jobs call in a loop (timers never fire in the bpy module)."""
 
 import collections
+import gc
 import logging
 import time
 
@@ -302,9 +303,15 @@ class LiveCapture:
                     q = _pose_bone_quaternion(pb)
                     pb.rotation_mode = "QUATERNION"
                     pb.rotation_quaternion = q
+        # Python's cyclic garbage collector stops every thread (readers, pump, display step) while
+        # it runs; its full passes over Blender's whole Python heap take hundreds of milliseconds
+        # on a loaded machine. What exists now is left out of them until the session closes.
+        gc.collect()
+        gc.freeze()
         self.session.start()
 
     def close(self):
+        gc.unfreeze()
         self.session.stop()
         for sim in self.sims:
             sim.stop()
