@@ -2,11 +2,12 @@
 """Latency and CPU share of a live capture session: this tree's device code side by side with
 the device code of commit 7a9849e (before issue 30), in one run, plus the Xsens MVN stream.
 
-    PYTHONPATH=<worktree parent> /work/main/.venv/bpy50/bin/python benchmarks/capture.py [--seconds 8] [--rounds 4] [--json]
+    PYTHONPATH=<worktree parent> /work/main/.venv/bpy50/bin/python benchmarks/capture.py [--seconds 6] [--rounds 8] [--json]
 
 The earlier device code is loaded with `git show 7a9849e:humananim_addon/devices/<file>` into a
 temporary package (humananim.humananim_addon.devices_baseline), nothing of it is copied into
-the repository. Three configurations run in turn, `--rounds` times each (interleaved), `--seconds` each:
+the repository. Three configurations run back to back in each of `--rounds` rounds (every other
+round in reverse order), `--seconds` each:
 
 - 'baseline': the earlier drivers, simulators and session;
 - 'new': this tree's drivers, simulators and session, the same devices;
@@ -15,28 +16,42 @@ the repository. Three configurations run in turn, `--rounds` times each (interle
 
 Devices: a Flock of Birds (2 birds, group mode, POSITION/QUATERNION at 120 Hz) and a CyberGlove
 (22 sensors at 120 Hz), their simulators (and the MVN sender) in a separate process on
-pseudo-terminals, logging when each record leaves them. This process runs the session as
-Blender does: the drivers read the ports through pyserial in their reader threads, the pump
-thread drains them, and the display step (capture.LIVE.step, what the modal operator calls on
-each timer event) runs at 60 Hz on the CMU clip's armature, after a calibration in the rest
-pose. The display step is this tree's for every configuration (only the device code differs).
+pseudo-terminals, logging when each record leaves them: a serial tick when its bytes are
+written to the line, an MVN sample when its datagrams are sent (after the simulator built
+them: its encoding stands in for the device's, not for our code). This process runs the
+session as Blender does: the drivers read the ports through pyserial in their reader threads,
+the pump thread drains them, and the display step (capture.LIVE.step, what the modal operator
+calls on each timer event) runs at 60 Hz on the CMU clip's armature, after a calibration in the
+rest pose. The display step is this tree's for every configuration (only the device code
+differs).
+
+The display's clock runs a little slow (one MVN sample period per round: 0.3 % at 6 s), as a
+timer and a device's crystal never agree: within every round the display steps meet the
+devices' ticks at every phase, so a round's p99 is that of a performer's session, not of one
+phase drawn at random (with a fixed phase per round, a p99 moved by up to a sample period from
+round to round).
 
 Measured per configuration: latency from a record leaving its simulator to the pose being
 applied, for every record applied (median and 99th percentile; it includes waiting for the next
-display step, on average half a frame); the transport part alone (leaving the simulator to
-decoded in the reader thread: the device code's own share); the display step's own time; the CPU share of this
-process (reader threads, pump and display steps) over the run, process CPU seconds / wall
-seconds (1.0 = one core). Each figure is the median over the rounds of that configuration; the
-rounds interleave the configurations so a change of the host's load hits all of them. Records
-are matched to the ticks that sent them by content (the
-simulators' motion is a known function of the tick). Claims: the new code's latency (median,
-p99) and CPU share over the baseline's, aim no worse (ratio <= 1.10, the runs' noise); with MVN
-added, p99 latency under one display frame at 60 Hz (16.7 ms).
+display step: a display step shows a sample up to one sample period after it arrived); the
+transport part alone (leaving the simulator to decoded in the reader thread); the display
+step's own time; the CPU share of this process (reader threads, pump and display steps) over
+the run, process CPU seconds / wall seconds (1.0 = one core). Records are matched to the ticks
+that sent them by content (the simulators' motion is a known function of the tick).
+
+Claims, each the median over the rounds of that round's ratio (a round runs its configurations
+back to back, so a change of the host's load hits both sides of a ratio): the new code's
+latency (median, p99), CPU share and transport over the baseline's, aim no worse (ratio <= 1.10,
+the runs' noise). With MVN added: its latency p99 in ms; the same above its sampling floor
+(0.99 of its 16.7 ms sample period, which any p99 holds whatever the code: a 60 Hz stream shown
+by a 60 Hz display waits up to a frame) over today's Flock + CyberGlove p99 above theirs (0.99
+of 8.3 ms), aim no worse (<= 1.10): what the code adds to the wait, MVN's path against today's;
+and the Flock + CyberGlove p99 with MVN in the session over today's without it (the display
+step solving 23 more segments).
 """
 
 import argparse
 import contextlib
-import datetime
 import importlib
 import importlib.util
 import json
@@ -51,9 +66,14 @@ import time
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from machine import claim, emit, result  # noqa: E402
+
 RATE = 120.0
 MVN_RATE = 60.0
 DISPLAY = 60.0
+SWEEP = 1.0 / min(RATE, MVN_RATE)
+CONFIGS = ("baseline", "new", "new+mvn")
 BASELINE_COMMIT = "7a9849e"
 BASELINE_PACKAGE = "humananim.humananim_addon.devices_baseline"
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -72,18 +92,34 @@ def register(directory, name=%(name)r):
 """
 
 SIM_SCRIPT = LOADER + r"""
-import json, sys, importlib
+import json, sys, importlib, time
 config, baseline_dir, mvn_port = sys.argv[1], sys.argv[2], int(sys.argv[3])
+
+def stamped(sim):
+    # a streamed tick is logged when its bytes are written to the line, after the simulator
+    # encoded them (each simulator's encoding is its own, not the device code's)
+    tick, send, written = sim.tick, sim.send, []
+    def send_stamped(data):
+        written.append(time.perf_counter())
+        send(data)
+    def tick_stamped(now):
+        written.clear()
+        tick(now)
+        if written and sim.sent:
+            sim.sent[-1] = (sim.sent[-1][0], written[0])
+    sim.send, sim.tick = send_stamped, tick_stamped
+    return sim.start()
+
 if config == "baseline":
     register(baseline_dir)
     fob = importlib.import_module(%(name)r + ".fob")
     cg = importlib.import_module(%(name)r + ".cyberglove")
-    f = fob.FlockSimulator(birds=(1, 2), rate=%(rate)r).start()
-    g = cg.CyberGloveSimulator(sensors=22, rate=%(rate)r).start()
+    f = stamped(fob.FlockSimulator(birds=(1, 2), rate=%(rate)r))
+    g = stamped(cg.CyberGloveSimulator(sensors=22, rate=%(rate)r))
 else:
     from humananim.humananim_addon.devices import sim_fob, sim_glove, sim_mvn
-    f = sim_fob.FlockSimulator(birds=(1, 2), rate=%(rate)r).start()
-    g = sim_glove.CyberGloveSimulator(sensors=22, rate=%(rate)r).start()
+    f = stamped(sim_fob.FlockSimulator(birds=(1, 2), rate=%(rate)r))
+    g = stamped(sim_glove.CyberGloveSimulator(sensors=22, rate=%(rate)r))
 m = sim_mvn.MVNSender(port=mvn_port, actors=(0,), rate=%(mvn_rate)r).start() if config == "new+mvn" else None
 print(json.dumps({"fob": f.port, "glove": g.port}), flush=True)
 sys.stdin.readline()
@@ -94,14 +130,6 @@ log = {"fob": f.sent, "glove": g.sent, "dropped_bytes": f.dropped_bytes + g.drop
 f.stop(); g.stop()
 print(json.dumps(log), flush=True)
 """
-
-
-def machine_speed():
-    a, b = np.random.rand(1000), np.random.rand(1000)
-    t = time.perf_counter()
-    for _ in range(10000):
-        a + b
-    return round((time.perf_counter() - t) / 10000 * 1e6, 3)
 
 
 def load_baseline():
@@ -183,6 +211,10 @@ def run_config(config, seconds, baseline_dir):
         main0 = time.thread_time()
         cpu0, wall0 = time.process_time(), time.perf_counter()
         next_t = wall0
+        # the display's clock drifts one sample period of the slowest device per round against
+        # the devices' clocks (a timer and a device's crystal never agree): every round meets
+        # every phase of the ticks against the steps, as a performer does, not one fixed phase
+        frame = 1.0 / DISPLAY + SWEEP / (seconds * DISPLAY)
         while time.perf_counter() - wall0 < seconds:
             t = time.perf_counter()
             live.step(bpy.context)
@@ -192,7 +224,7 @@ def run_config(config, seconds, baseline_dir):
                 if s.seq != last_seq.get(key):
                     applied.append((key, s, done))
                     last_seq[key] = s.seq
-            next_t += 1.0 / DISPLAY
+            next_t += frame
             time.sleep(max(0.0, next_t - time.perf_counter()))
         cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
         main_cpu = time.thread_time() - main0
@@ -267,8 +299,8 @@ def _latencies(applied, log):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--seconds", type=float, default=8.0)
-    p.add_argument("--rounds", type=int, default=4)
+    p.add_argument("--seconds", type=float, default=6.0)
+    p.add_argument("--rounds", type=int, default=8)
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     os.environ.setdefault("BLENDER_USER_RESOURCES", "/tmp/humananim-bench-user")
@@ -278,55 +310,72 @@ def main(argv=None):
     runs = []
     try:
         with contextlib.redirect_stdout(sys.stderr):  # Blender's BVH importer prints; stdout is the JSON
-            for _ in range(args.rounds):
-                for config in ("baseline", "new", "new+mvn"):
-                    runs.append(run_config(config, args.seconds, baseline_dir))
+            for k in range(args.rounds):  # every other round in reverse: no configuration always runs first
+                for config in CONFIGS if k % 2 == 0 else CONFIGS[::-1]:
+                    runs.append(dict(run_config(config, args.seconds, baseline_dir), round=k))
     finally:
         humananim.unregister()
         shutil.rmtree(baseline_dir, ignore_errors=True)
-
-    def pooled(config, key):
-        return float(np.median([r[key] for r in runs if r["config"] == config and r.get(key) is not None]))
-
-    base, new = "baseline", "new"
-    ratio = {k: round(pooled(new, k) / pooled(base, k), 3)
-             for k in ("devices_latency_median_ms", "devices_latency_p99_ms", "cpu_share",
-                       "devices_transport_latency_median_ms", "devices_transport_latency_p99_ms")}
-    mvn_p99 = pooled("new+mvn", "mvn_latency_p99_ms")
-    claims = [
-        {"claim": "latency median (Flock + CyberGlove), new / today's device code, same run",
-         "value": ratio["devices_latency_median_ms"], "unit": "ratio", "aim": "<= 1.10",
-         "met": ratio["devices_latency_median_ms"] <= 1.10},
-        {"claim": "latency p99 (Flock + CyberGlove), new / today's device code, same run",
-         "value": ratio["devices_latency_p99_ms"], "unit": "ratio", "aim": "<= 1.10",
-         "met": ratio["devices_latency_p99_ms"] <= 1.10},
-        {"claim": "CPU share of the session, new / today's device code, same run", "value": ratio["cpu_share"],
-         "unit": "ratio", "aim": "<= 1.10", "met": ratio["cpu_share"] <= 1.10},
-        {"claim": "transport median (record leaving the simulator to decoded), new / today's device code",
-         "value": ratio["devices_transport_latency_median_ms"], "unit": "ratio", "aim": "<= 1.10",
-         "met": ratio["devices_transport_latency_median_ms"] <= 1.10},
-        {"claim": "transport p99, new / today's device code", "value": ratio["devices_transport_latency_p99_ms"],
-         "unit": "ratio", "aim": "<= 1.10", "met": ratio["devices_transport_latency_p99_ms"] <= 1.10},
-        {"claim": "with the MVN stream added (23 segments at 60 Hz): MVN latency p99", "value": mvn_p99, "unit": "ms",
-         "aim": "< 16.7 (one display frame at 60 Hz)", "met": mvn_p99 < 1000 / 60},
-    ]
-    out = {"benchmark": "capture", "date": datetime.date.today().isoformat(),
-           "machine_speed": {"numpy_add_us": machine_speed()}, "claims": claims,
-           "baseline_commit": BASELINE_COMMIT, "device_rate_hz": RATE, "mvn_rate_hz": MVN_RATE,
-           "display_rate_hz": DISPLAY, "load_average": os.getloadavg(), "runs": runs}
+    out = result("capture", claims_of(runs), baseline_commit=BASELINE_COMMIT, device_rate_hz=RATE,
+                 mvn_rate_hz=MVN_RATE, display_rate_hz=DISPLAY, load_average=os.getloadavg(), runs=runs)
     if args.json:
-        os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
-        with open(os.path.join(HERE, "results", "capture.json"), "w") as f:
-            json.dump(out, f, indent=1)
-        print(json.dumps(out))
+        emit(out)
         return
     for r in runs:
         print(f"{r['config']:>9}: latency median {r['devices_latency_median_ms']} ms, p99 {r['devices_latency_p99_ms']} ms"
               f" ({r['devices_records_applied']} records), step {r['step_median_ms']} ms, CPU {100 * r['cpu_share']:.1f} %"
               + (f"; MVN median {r['mvn_latency_median_ms']} ms, p99 {r['mvn_latency_p99_ms']} ms"
                  if r.get("mvn_records_applied") else "") + f", dropped {r['dropped_samples']}")
-    for c in claims:
-        print(f"  {c['claim']}: {c['value']} {c['unit']} (aim {c['aim']}: {'met' if c['met'] else 'NOT met'})")
+    for c in out["claims"]:
+        aim = f" (aim {c['aim']}: {'met' if c['met'] else 'NOT met'})" if c["aim"] else ""
+        print(f"  {c['claim']}: {c['value']} {c['unit']}{aim}")
+
+
+def round_ratio(runs, key, config="new", over="baseline", over_key=None):
+    """The median over the rounds of each round's `config` / `over` figure (`key`, or
+    `over_key` for the `over` side): the configurations of one round ran back to back, so a
+    change of the host's load hits both sides of a ratio."""
+    by_round = {}
+    for r in runs:
+        by_round.setdefault(r["round"], {})[r["config"]] = r
+    ratios = [rs[config][key] / rs[over][over_key or key] for rs in by_round.values()
+              if config in rs and over in rs and rs[config].get(key) and rs[over].get(over_key or key)]
+    return round(float(np.median(ratios)), 3)
+
+
+def above_floor(run, kind, rate):
+    """A run's latency p99 above its sampling floor, ms: a display step meets a sample up to one
+    sample period after it arrived (the phases sweep evenly), so 0.99 of that period is in any
+    p99; the rest is transport, the display step and their tails."""
+    p99 = run.get(f"{kind}_latency_p99_ms")
+    return None if p99 is None else p99 - 0.99 * 1000.0 / rate
+
+
+def claims_of(runs):
+    for r in runs:
+        r["devices_above_floor_ms"] = above_floor(r, "devices", RATE)
+        r["mvn_above_floor_ms"] = above_floor(r, "mvn", MVN_RATE)
+    out = []
+    for text, key in (("latency median (Flock + CyberGlove)", "devices_latency_median_ms"),
+                      ("latency p99 (Flock + CyberGlove)", "devices_latency_p99_ms"),
+                      ("CPU share of the session", "cpu_share"),
+                      ("transport median (record leaving the simulator to decoded)",
+                       "devices_transport_latency_median_ms"),
+                      ("transport p99", "devices_transport_latency_p99_ms")):
+        value = round_ratio(runs, key)
+        out.append(claim(f"{text}, new / today's device code, median of the rounds' ratios", value, "ratio",
+                         "<= 1.10", value <= 1.10))
+    mvn = [r for r in runs if r.get("mvn_latency_p99_ms")]
+    mvn_p99 = round(float(np.median([r["mvn_latency_p99_ms"] for r in mvn])), 2)
+    out.append(claim("with the MVN stream added (23 segments at 60 Hz): MVN latency p99", mvn_p99, "ms"))
+    value = round_ratio(runs, "mvn_above_floor_ms", "new+mvn", "baseline", "devices_above_floor_ms")
+    out.append(claim("MVN latency p99 above its sampling floor (0.99 x 16.7 ms) / today's Flock + CyberGlove p99 "
+                     "above theirs (0.99 x 8.3 ms), median of the rounds' ratios", value, "ratio", "<= 1.10",
+                     value <= 1.10))
+    value = round_ratio(runs, "devices_latency_p99_ms", "new+mvn")
+    out.append(claim("with the MVN stream added: Flock + CyberGlove latency p99 / today's device code without it",
+                     value, "ratio"))
+    return out
 
 
 if __name__ == "__main__":

@@ -70,6 +70,9 @@ class AnatomicalConverter:
         self._descendants = {j: skeleton.descendants(j) for j in range(skeleton.joint_count)}
         self._limbs = self._ik_limbs()
         self._chains = self._sensorless_chains()
+        # the bone whose sensor places the body (the root sensor on the root bone), else None
+        on_root = root is not None and self.attachments[root] == skeleton.root
+        self._placed = self.attachments[root] if on_root else None
 
     def _ik_limbs(self):
         sk, attached = self.skeleton, set(self.attachments.values())
@@ -102,6 +105,10 @@ class AnatomicalConverter:
             self.offsets[key] = s_world.T @ world[j, :3, :3]
             self.head_offsets[key] = s_world.T @ (world[j, :3, 3] - self.sensor_position(pos))
         self.calib_basis = basis.copy()
+        # a chain's sensor bone with the chain in the calibration pose, relative to the sensor bone
+        # above the chain (whose world rotation is its target: no pass over the rig needed for it)
+        self._chain_ends = list(self._chains)
+        self._chain_calib = np.array([self._calibration_below(self._chains[j] + [j]) for j in self._chain_ends])
         self.calibrated = True
 
     def sensor_position(self, pos):
@@ -124,28 +131,76 @@ class AnatomicalConverter:
         """Local pose bases (J, 4, 4) of the rig for the newest readings."""
         if not self.calibrated:
             raise CalibrationError("calibrate first: stand in the calibration pose and press Calibrate")
-        sk = self.skeleton
         targets = self.bone_targets(readings)
-        rest_local = self.rest_local
         basis = self.calib_basis.copy()
-        world = np.empty((sk.joint_count, 4, 4))
-        for j, p in enumerate(sk.parents):
-            parent = np.eye(4) if p < 0 else world[p]
-            frame = parent @ rest_local[j]
-            if j in targets:
-                rot, head = targets[j]
-                basis[j, :3, :3] = frame[:3, :3].T @ rot
-                if j == sk.root and self.root is not None and self.attachments[self.root] == j:
-                    basis[j, :3, 3] = frame[:3, :3].T @ (head - frame[:3, 3])
-            world[j] = frame @ basis[j]
-        for j, path in self._chains.items():
-            if j in targets:
-                self._share_along_chain(basis, world, j, path, targets[j][0])
+        turns = self._chain_turns(targets)
+        if turns is None:  # a sensor above a chain has no reading yet: its bone is where a first pass puts it
+            turns = self._chain_turns(targets, self._forward(basis, targets))
+        world = self._forward(basis, targets, turns)
         for upper, lower, end in self._limbs:
             if end not in targets:
                 continue  # that sensor has not spoken yet
             self._two_bone_ik(basis, world, upper, lower, end, targets[end])
         return basis
+
+    def _forward(self, basis, targets, turns=None):
+        """World frames top-down, `basis` updated on the way: a bone with a target takes its
+        rotation (the root sensor's bone its position too); a bone with a turn (its share of a
+        chain's turn, in the world) takes it on top of the bones above it."""
+        sk, rest_local = self.skeleton, self.rest_local
+        world = np.empty((sk.joint_count, 4, 4))
+        for j, p in enumerate(sk.parents):
+            frame = rest_local[j] if p < 0 else world[p] @ rest_local[j]
+            if turns is not None and j in turns:
+                basis[j, :3, :3] = frame[:3, :3].T @ turns[j] @ frame[:3, :3] @ basis[j, :3, :3]
+            if j in targets:
+                rot, head = targets[j]
+                basis[j, :3, :3] = frame[:3, :3].T @ rot
+                if j == self._placed:
+                    basis[j, :3, 3] = frame[:3, :3].T @ (head - frame[:3, 3])
+            world[j] = frame @ basis[j]
+        return world
+
+    def _calibration_below(self, path):
+        """The rotation from the frame of the bone above `path` to its last bone's frame, the
+        bones of `path` in the calibration pose."""
+        out = np.eye(3)
+        for b in path:
+            out = out @ self.rest_local[b, :3, :3] @ self.calib_basis[b, :3, :3]
+        return out
+
+    def _chain_turns(self, targets, world=None):
+        """{bone: world rotation}: every sensor bone's turn relative to its calibration pose
+        (the chain above it in the calibration pose below the sensor bone above the chain, as
+        its target or `world` has it), shared evenly by the bones without sensors between the
+        two (their joints bend together, like a spine), so it is not all taken at one joint:
+        each of the n bones of a chain with its sensor bone turns by the n-th root of the turn
+        (same axis, 1/n of the angle). All chains at once: an MVN suit has several. None when
+        a sensor above a chain has no reading and no `world` is given."""
+        parents = self.skeleton.parents
+        ends = [k for k, j in enumerate(self._chain_ends) if j in targets]
+        if not ends:
+            return {}
+        joints = [self._chain_ends[k] for k in ends]
+        uppers = [parents[self._chains[j][0]] for j in joints]
+        if world is None:
+            if any(a not in targets for a in uppers):
+                return None
+            upper = np.array([targets[a][0] for a in uppers])
+        else:
+            upper = world[uppers, :3, :3]
+        calib = upper @ self._chain_calib[ends]
+        turn = rotations.from_matrix(np.array([targets[j][0] for j in joints]) @ np.swapaxes(calib, 1, 2))
+        sin_half = np.linalg.norm(turn[:, 1:], axis=1)
+        half = np.arctan2(sin_half, turn[:, 0]) / [len(self._chains[j]) + 1 for j in joints]
+        axis = np.divide(turn[:, 1:], sin_half[:, None], out=np.zeros((len(joints), 3)),
+                         where=sin_half[:, None] > 1e-12)
+        shares = rotations.to_matrix(np.column_stack((np.cos(half), axis * np.sin(half)[:, None])))
+        turns = {}
+        for j, share in zip(joints, shares):
+            for b in self._chains[j]:  # a bone in two chains (a branch point) takes both turns
+                turns[b] = share @ turns[b] if b in turns else share
+        return turns
 
     def _sensorless_chains(self):
         """{sensor bone: the bones without sensor between it and the nearest sensor bone above}
@@ -162,26 +217,6 @@ class AnatomicalConverter:
             if path and a >= 0:
                 out[j] = path[::-1]
         return out
-
-    def _share_along_chain(self, basis, world, j, path, target_rot):
-        """The sensor bone's turn relative to its calibration pose, shared evenly by the bones
-        above it without sensors (their joints bend together, like a spine), so it is not all
-        taken at one joint."""
-        sk, rest_local = self.skeleton, self.rest_local
-        frame = world[sk.parents[j]] @ rest_local[j]
-        calib = frame[:3, :3] @ self.calib_basis[j, :3, :3]
-        axis_angle = rotations.to_axis_angle(rotations.from_matrix(target_rot @ calib.T))
-        n = len(path) + 1
-        turn = rotations.to_matrix(rotations.from_axis_angle(np.r_[axis_angle[0] / n, axis_angle[1:]]))
-        for b in path:  # top-down, each the parent of the next: one refresh below them at the end
-            frame_b = world[sk.parents[b]] @ rest_local[b]
-            new_rot = turn @ frame_b[:3, :3] @ basis[b, :3, :3]  # after the turns of the bones above
-            basis[b, :3, :3] = frame_b[:3, :3].T @ new_rot
-            world[b] = frame_b @ basis[b]
-        frame = world[sk.parents[j]] @ rest_local[j]
-        basis[j, :3, :3] = frame[:3, :3].T @ target_rot
-        world[j] = frame @ basis[j]
-        self._refresh(basis, world, path[0])  # everything below the chain once (side branches too)
 
     def _two_bone_ik(self, basis, world, upper, lower, end, target):
         sk, rest_local = self.skeleton, self.rest_local

@@ -7,6 +7,7 @@ only runs on the main thread: `step()` is what the modal operator calls on every
 and what tests and batch jobs call in a loop (timers never fire in the bpy module)."""
 
 import collections
+import gc
 import logging
 import time
 
@@ -213,9 +214,15 @@ class LiveCapture:
                     q = _pose_bone_quaternion(pb)
                     pb.rotation_mode = "QUATERNION"
                     pb.rotation_quaternion = q
+        # Python's cyclic garbage collector stops every thread (readers, pump, display step) while
+        # it runs; its full passes over Blender's whole Python heap take hundreds of milliseconds
+        # on a loaded machine. What exists now is left out of them until the session closes.
+        gc.collect()
+        gc.freeze()
         self.session.start()
 
     def close(self):
+        gc.unfreeze()
         self.session.stop()
         for sim in self.sims:
             sim.stop()
@@ -287,6 +294,7 @@ class LiveCapture:
         angles = self.session.glove_calibrations[s.device].angles(s.data["raw"])
         sign = self.flex_sign[side]
         angles = {k: (v * sign if k[2] == "flex" else v) for k, v in angles.items()}
+        joints, quats = [], []
         for (finger, k), q in joint_rotations(angles, side).items():
             if finger == "palm":
                 continue
@@ -299,7 +307,10 @@ class LiveCapture:
                 if k >= len(chain):
                     continue
                 j = sk.index(chain[k])
-            basis[j, :3, :3] = rotations.to_matrix(q)
+            joints.append(j)
+            quats.append(q)
+        if joints:
+            basis[joints, :3, :3] = rotations.to_matrix(np.array(quats))
 
     # -- the display step ---------------------------------------------------------------------------
     def step(self, context):

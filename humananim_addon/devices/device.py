@@ -121,10 +121,11 @@ class Device:
                 pass
 
     # -- helpers for drivers -----------------------------------------------------------
-    def _read_stream(self):
-        """Bytes of a serial device in stream mode: wait for the rest of a record, not byte by
-        byte (one wake-up per record)."""
-        return self._ser.read(max(self._ser.in_waiting, self._parser.size - len(self._parser.buf), 1))
+    def _read_stream(self, whole=None):
+        """Bytes of a serial device in stream mode: wait for the rest of what the device sends
+        at once (`whole` bytes, default one record), not byte by byte: one wake-up per tick."""
+        whole = whole or self._parser.size
+        return self._ser.read(max(self._ser.in_waiting, whole - len(self._parser.buf), 1))
 
     def _records(self, data, now):
         """The records in `data` by the device's parser, its resync counters updated; None on

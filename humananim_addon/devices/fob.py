@@ -391,7 +391,7 @@ class FlockOfBirds(Device):
             want = self._parser.size * (len(self._order) if self.group else 1)
             data = self._ser.read(want)
         else:
-            data = self._read_stream()
+            data = self._read_stream(self._parser.size * len(self._order) if self.group else None)
         now = time.perf_counter()
         records = self._records(data, now)
         if records is None:

@@ -99,14 +99,16 @@ def parse_pose_quaternion(d):
     xyz, quats = values[:, 1:4].astype(float) / 100.0, values[:, 4:8].astype(float)
     if not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(quats))):
         return None
-    if np.any(np.abs(np.linalg.norm(quats, axis=1) - 1.0) > 1e-3):
+    norms = np.linalg.norm(quats, axis=1)
+    if np.any(np.abs(norms - 1.0) > 1e-3):
         return None
+    quats /= norms[:, None]
     out = {}
-    for seg, p, q in zip(ids, xyz, quats):
-        name = segment_name(int(seg), d.props)
+    for seg, p, q in zip(ids.tolist(), xyz, quats):
+        name = segment_name(seg, d.props)
         if name is None or name in out:
             return None
-        out[name] = (p, q / np.linalg.norm(q))
+        out[name] = (p, q)
     return out
 
 

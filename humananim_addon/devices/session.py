@@ -130,7 +130,12 @@ def _arrays(x):
 
 
 class Session:
-    def __init__(self, devices, pump_interval=0.004):
+    """`pump_interval`: how often the pump thread drains the devices. The display step pumps
+    before it reads, so this is not in the rig's latency: the thread keeps the take, the
+    gestures and the ring buffers going while the main thread is busy, and every wake-up of
+    it takes the interpreter's lock from the readers and the display step."""
+
+    def __init__(self, devices, pump_interval=0.02):
         self.devices = list(devices)
         self.pump_interval = pump_interval
         self.latest = {}

@@ -19,11 +19,12 @@ import time
 import numpy as np
 
 _HEADER = ">6sIBBIBBBBHH"  # reserved sent as one u16 0
+_ITEM = np.dtype([("id", ">i4"), ("values", ">f4", (7,))])  # 2.5.3: segment ID, x, y, z, q1-q4
 
 
 def default_segment_motion(actor, segment_id, t):
-    """Position (cm) and unit quaternion (w, x, y, z) of a segment at device time t (a number,
-    or an array of times: then (3, n) and (4, n))."""
+    """Position (cm) and unit quaternion (w, x, y, z) of a segment at device time t; segment_id
+    or t may be arrays (n,): then (3, n) and (4, n)."""
     t = np.asarray(t, float)
     k = segment_id + 7 * actor
     pos = np.stack([100 * np.sin(0.3 * t + k) + 50 * actor + 0 * t, 60 * np.cos(0.2 * t + 0.5 * k),
@@ -65,17 +66,18 @@ class MVNSender:
         return np.asarray(pos, float) / 100.0, np.asarray(q, float)
 
     def datagrams_of(self, actor, tick, counter):
-        items = []
-        for sid in self.segment_ids():
-            pos, q = self.motion(actor, sid, tick / self.rate)
-            q = np.asarray(q, float) * (-1 if (tick + sid) % 2 else 1)
-            items.append(struct.pack(">i7f", sid, *pos, *q))
+        ids = np.array(self.segment_ids())
+        pos, q = self.motion(actor, ids, tick / self.rate)  # every segment at once: (3, n), (4, n)
+        items = np.zeros(len(ids), dtype=_ITEM)
+        items["id"] = ids
+        items["values"][:, :3] = np.asarray(pos, float).T
+        items["values"][:, 3:] = np.asarray(q, float).T * np.where((tick + ids) % 2, -1.0, 1.0)[:, None]
         per = self.max_items or len(items)
         chunks = [items[i:i + per] for i in range(0, len(items), per)]
         out = []
         time_code = int(round(1000 * tick / self.rate)) & 0xFFFFFFFF
         for k, chunk in enumerate(chunks):
-            payload = b"".join(chunk)
+            payload = chunk.tobytes()
             counter_byte = k | (0x80 if k == len(chunks) - 1 else 0)
             header = struct.pack(_HEADER, b"MXTP02", counter, counter_byte, len(chunk), time_code, actor, 23,
                                  self.props, self.fingers, 0, len(payload))
@@ -121,12 +123,13 @@ class MVNSender:
 
     def tick(self):
         with self._lock:
-            now = time.perf_counter()
             for actor in self.actors:
                 counter = self.counters[actor]
                 if self.meta_every and counter % self.meta_every == 0:
                     self._send(self.meta(actor))
-                for dg in self.datagrams_of(actor, self.tick_count, counter):
+                datagrams = self.datagrams_of(actor, self.tick_count, counter)
+                now = time.perf_counter()  # when the sample leaves (a real streamer has it ready)
+                for dg in datagrams:
                     self._send(dg)
                 self.sent[(actor, counter)] = (self.tick_count, now)
                 self.counters[actor] = (counter + 1) & 0xFFFFFFFF

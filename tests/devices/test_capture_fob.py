@@ -97,6 +97,7 @@ def _check_stream(sim, dev, samples, fmt, birds, search=None):
 
 
 def _run(sim, dev, n=30):
+    dev.buffer.drain()  # samples the reader pushed after an earlier run's last collect are not this run's
     dev.start()
     try:
         samples = collect(dev, n)
