@@ -184,6 +184,14 @@ class SkinnedBody:
         idx = self.candidates[self.row_of[flat]].astype(np.int64)
         valid = idx >= 0
         ids = np.where(valid, idx, 0)
+        rows, ids, valid, lower = self._spheres(points, rows, ids, valid, s)
+        far = lower >= NEAR  # every candidate's bounding sphere beyond NEAR: a lower bound
+        if far.any():
+            np.minimum.at(phi, rows[far], np.minimum(lower[far], max_distance))
+            keep = ~far
+            rows, ids, valid = rows[keep], ids[keep], valid[keep]
+        if len(rows) == 0:
+            return phi, normal, velocity
         signed, nrm, vel, unsigned, tri = self._exact(points[rows], ids, valid, s, max_distance)
         # per point and closed part, the row with the nearest surface; per point, the part with
         # the smallest phi (the union), unless a far row's bound is below it
@@ -198,6 +206,29 @@ class SkinnedBody:
         out, pick = out[take], pick[take]
         phi[out], normal[out], velocity[out] = signed[pick], nrm[pick], vel[pick]
         return phi, normal, velocity
+
+    def _spheres(self, points, rows, ids, valid, s):
+        """The cheap stage before the exact one: each candidate triangle's bounding sphere at
+        time s (its centroid and the farthest corner from it) bounds its distance from below,
+        |p - c| - r, and from above, |p - c| + r. Per row, the candidates whose lower bound is
+        beyond the smallest upper bound cannot hold the nearest point: dropped, the rest sorted
+        nearest first and cut to the largest count any row keeps. Returns (rows, ids, valid,
+        each row's lower bound over its candidates)."""
+        corners = self._vertices(s)(self.triangles[ids])  # (M, C, 3, 3)
+        centre = corners.sum(axis=2) / 3.0
+        spoke = corners - centre[:, :, None, :]
+        r = np.sqrt(dot(spoke, spoke).max(axis=2))
+        d = points[rows][:, None, :] - centre
+        d = np.sqrt(dot(d, d))
+        lower = np.where(valid, d - r, np.inf)
+        upper = np.where(valid, d + r, np.inf).min(axis=1)
+        order = np.argsort(lower, axis=1)
+        lower = np.take_along_axis(lower, order, axis=1)
+        keep = lower <= upper[:, None]
+        width = max(1, int(keep.sum(axis=1).max())) if len(keep) else 1
+        ids = np.take_along_axis(ids, order[:, :width], axis=1)
+        valid = keep[:, :width]
+        return rows, ids, valid, lower[:, 0]
 
     def _exact(self, p, ids, valid, s, max_distance):
         """Signed distances of points p (M, 3) to their candidate triangles ids (M, C) on the
