@@ -127,3 +127,28 @@ def test_far_points_and_points_outside_every_grid():
     phi, normal, _ = body.query(far, 1.0, max_distance=0.05)
     assert np.all(phi == 0.05) and np.allclose(normal, [0.0, 0.0, 1.0])
     assert len(body.query(np.zeros((0, 3)), 1.0)[0]) == 0
+
+
+def test_the_sphere_stage_keeps_what_evaluating_every_candidate_finds():
+    """The bounding spheres only drop candidates that cannot hold the nearest point: the same
+    distances, normals and velocities as the exact stage over every candidate of every row."""
+    verts, tris, weights = skinned_leg()
+    reference = bones(0.0)
+    rng = np.random.default_rng(11)
+    start, end = bones(0.7, 0.2), bones(0.8, 0.25, np.array([0.02, 0.0, 0.0]))
+    v0, v1 = pose(verts, weights, reference, start), pose(verts, weights, reference, end)
+    points = near_surface_points(v1, rng, 400, 0.04)
+    out = []
+    for prune in (True, False):
+        body = SkinnedBody(tris, verts, reference, weights)
+        if not prune:
+            body._spheres = lambda points, rows, ids, valid, s: (rows, ids, valid, np.zeros(len(rows)))
+        body.set_motion(v0, start, v1, end, dt=1 / 30)
+        out.append(body.query(points, 0.5))
+    (phi, normal, velocity), (phi_all, normal_all, velocity_all) = out
+    exact = phi_all < NEAR
+    assert exact.sum() > 100
+    assert np.allclose(phi[exact], phi_all[exact], atol=1e-12)
+    assert np.allclose(normal[exact], normal_all[exact], atol=1e-9)
+    assert np.allclose(velocity[exact], velocity_all[exact], atol=1e-9)
+    assert (phi[~exact] <= phi_all[~exact] + 1e-12).all()  # farther: a lower bound, as before
