@@ -25,9 +25,6 @@ SECONDS = 1.0  # of each clip, at 30 simulated frames a second (CI time)
 # known failures (issue 29 open, docs/cloth.md): on the Bandai Namco run the upper arm swings
 # through the sleeveless coat and the garments' rendered surface is caught between body parts
 KNOWN = {"bandai_run"}
-# and on Blender 4.2, whose grown body differs a little, the coat's rendered surface on the walk
-# (11 mm)
-KNOWN_42 = {("cmu_walk", "coat")}
 
 
 @pytest.fixture(scope="module", params=sorted(CLIPS))
@@ -78,8 +75,6 @@ def test_garment_stays_out_of_the_skinned_body_and_keeps_its_size(character, gar
     name, arm, scene, body = character
     if name in KNOWN:
         request.applymarker(pytest.mark.xfail(strict=True, reason="deeper than 2 mm on the Bandai Namco run (issue 29)"))
-    if (name, garment) in KNOWN_42 and bpy.app.version < (4, 5, 0):
-        request.applymarker(pytest.mark.xfail(strict=True, reason="deeper than 2 mm on Blender 4.2 (issue 29)"))
     scene.frame_set(scene.frame_start)
     if garment == "skirt":
         obj = cloth.add_skirt(arm, scene, name="Skirt")
