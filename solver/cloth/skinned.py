@@ -1,19 +1,15 @@
 """Collision with the character's skinned mesh at a cost that hardly grows with its size.
 
 A skinned body's surface moves, piece by piece, nearly rigidly with its bones. So the search
-structure is built once, in each bone's own frame, and never rebuilt: every triangle belongs to
-the bone that weighs most on its corners; the triangles' centroids at a reference pose (the
-first simulated frame), expressed in their bone's frame there, go into one cKDTree, each bone's
-lifted to its own height along a fourth axis (so one query over (point, bone) pairs searches
-each bone's triangles only). A query point is carried into the reference pose by each bone near
-it (the bone's motion since the reference pose, inverted), where the tree gives that bone's K
-nearest triangles; their exact distances are then taken on the skinned triangles as they are at
-the query's time (the frame's start and end poses interpolated, for those triangles only), with
-the side from the pseudo-normal at the nearest point. Where skinning is not rigid (around the
-joints) the carried point is near, not at, its place: the K candidates of every bone near the
-point, all evaluated exactly, cover that. Nothing per query or per frame is proportional to the
-body's triangle count but the tree's logarithmic depth (the poses themselves come from Blender).
-See docs/cloth.md for the measurements behind this choice.
+structure is built once, in each bone's own frame at a reference pose (the first simulated
+frame), and never rebuilt: every triangle belongs to the bone that weighs most on its corners;
+per bone, a grid whose cells bound the distance to the bone's triangles from below and list the
+nearest ones. A query point is carried into the frames of the bones near it; far cells give a
+lower bound; the listed triangles' bounding spheres, as the body is at the query's time, drop
+the rows and candidates that cannot be near; the rest are evaluated exactly on the skinned
+triangles (the frame's start and end poses interpolated), with the side from the pseudo-normal
+at the nearest point, checked in the mesh's rest pose for points found inside (a skinned mesh
+folds into itself at bent joints). See docs/cloth.md for the measurements behind this choice.
 """
 
 import numpy as np
