@@ -30,8 +30,10 @@ ms per frame, and the speed-ups. (The rendered surface's vertices are pushed out
 every frame; tests/addon/test_cloth_skinned_body.py measures their depth.) Claims: ours at least 10x faster than Blender's cloth at equal
 rendered faces on every body; the collision's cost growing sublinearly with the body's triangle
 count (the exponent of the growth from the smallest to the largest body below 1); the thesis
-skirt on the 20,000-triangle body at 30 frames a second or more (Preview Cloth's interactivity,
-Blender I/O included). Times are CPU time of this process (time.process_time), so other
+skirt on the 20,000-triangle body at 30 frames a second or more in Preview Cloth (its timer's
+tick measured headless, as the modal operator calls it: the frame set, the pose and the skinned
+body read from Blender, one frame simulated, the preview mesh written; the first tick, which
+builds the body's search grids, is reported apart). Times are CPU time of this process (time.process_time), so other
 processes on a shared machine count less; numpy's a + b on two 1,000-float arrays tells how fast
 the machine was.
 """
@@ -109,6 +111,33 @@ def our_run(arm, scene, garment, body, collider, last, level=2):
             "max_mean_stretch": float(np.max(np.abs(job.stretch))),
             "collider": type(job.sim.bodies[0]).__name__,
             "stiffness_capped": bool(job.sim.dynamics.capped)}, job
+
+
+def preview_run(arm, scene, garment, body, last):
+    """Preview Cloth headless: what the modal operator's timer does, tick by tick (ClothPreview.tick:
+    set the frame, read the pose and the skinned body from Blender, simulate one frame, write the
+    preview mesh). The first tick sets the simulation up (the body's search grids): timed apart."""
+    from humananim.humananim_addon import cloth
+    props = scene.humananim_cloth
+    props.garment, props.armature, props.pin_group = garment, arm, "waist"
+    props.body, props.collider, props.level = body, "MESH", 2
+    props.frame_start, props.frame_end, props.frame_step = 1, last, 1
+    scene.frame_set(1)
+    preview = cloth.ClothPreview(scene, frames=last - 1)
+    try:
+        t0, w0 = _clock(), time.perf_counter()
+        preview.tick()
+        setup, setup_wall = _clock() - t0, time.perf_counter() - w0
+        ticks = []
+        while preview.simulating:
+            t0 = _clock()
+            preview.tick()
+            ticks.append(_clock() - t0)
+    finally:
+        preview.stop()
+    ms = 1000.0 * float(np.median(ticks))
+    return {"setup_s": setup, "setup_wall_s": setup_wall, "ticks": len(ticks), "median_tick_ms": ms,
+            "mean_tick_ms": 1000.0 * float(np.mean(ticks)), "frames_per_second": 1000.0 / ms}
 
 
 def blender_garment(job, arm, name):
@@ -230,8 +259,9 @@ def measure(args):
         for kind, obj in garments.items():
             ours, job = best_of(r, lambda: our_run(arm, scene, obj, body, "MESH", last), "total_ms")
             case = {"body_triangles": triangles, "ours": ours}
-            if size == 20000 and kind == "skirt":  # the previous method, for the ratio
+            if size == 20000 and kind == "skirt":  # the previous method, for the ratio; the preview
                 case["mesh_body"] = measure_mesh_body(arm, scene, obj, body, last)
+                case["preview"] = preview_run(arm, scene, obj, body, last)
             if not args.no_blender:
                 b = blender_cloth_ms(arm, scene, job, body, last, f"{kind.title()}Blender{size}")
                 case["blender_cloth"] = b
@@ -280,10 +310,13 @@ def claims(out, args):
         found.append({"claim": "thesis skirt on the 20,000-triangle body: collision ms per frame",
                       "value": round(c["collision_ms"], 2), "unit": "ms", "aim": "a few ms (<= 5)",
                       "met": bool(c["collision_ms"] <= 5.0)})
-        fps = 1000.0 / c["with_blender_io_ms"]
-        found.append({"claim": "thesis skirt on the 20,000-triangle body: frames simulated a second, Blender I/O "
-                               "included (Preview Cloth)", "value": round(fps, 1), "unit": "frames/s",
-                      "aim": ">= 30", "met": bool(fps >= 30.0)})
+        if "preview" in skirt:
+            fps = skirt["preview"]["frames_per_second"]
+            found.append({"claim": "thesis skirt on the 20,000-triangle body: Preview Cloth frames a second (median "
+                                   "timer tick after its setup, Blender I/O included)", "value": round(fps, 1),
+                          "unit": "frames/s", "aim": ">= 30", "met": bool(fps >= 30.0)})
+            found.append({"claim": "thesis skirt on the 20,000-triangle body: Preview Cloth's setup (first tick)",
+                          "value": round(skirt["preview"]["setup_s"], 2), "unit": "s", "aim": None, "met": None})
         if "mesh_body" in skirt:
             v = skirt["mesh_body"]["collision_ms"] / c["collision_ms"]
             found.append({"claim": "thesis skirt on the 20,000-triangle body: collision, MeshBody (rebuilt per pose) "
@@ -318,6 +351,10 @@ def report(out, as_json):
         print(line)
         if "mesh_body" in case:
             print(f"{'':12s} the same with MeshBody: collision {case['mesh_body']['collision_ms']:6.2f} ms/frame")
+        if "preview" in case:
+            v = case["preview"]
+            print(f"{'':12s} Preview Cloth: setup {v['setup_s']:.2f} s, then {v['median_tick_ms']:.1f} ms a tick "
+                  f"({v['frames_per_second']:.1f} frames/s)")
         if "blender_cloth" in case:
             b = case["blender_cloth"]
             print(f"{'':12s} Blender cloth {b['faces']} faces: {b['ms']:.1f} ms/frame -> ours "

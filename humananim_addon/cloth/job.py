@@ -161,8 +161,18 @@ def skinned_collider(body, arm, triangles, positions, world):
     if deformed and len(positions) == len(body.data.vertices) and closed_parts(triangles, len(positions)).max() == 0:
         weights = group_weights(body, [b.name for b in arm.data.bones])
         if weights.sum(axis=1).min() > 0.0:
-            return SkinnedBody(triangles, positions, world, weights)
+            return SkinnedBody(triangles, positions, world, weights, rest=rest_pose(body, arm))
     return MeshBody(triangles, len(positions))
+
+
+def rest_pose(body, arm):
+    """The body mesh's own vertices and the armature's bones in its rest pose (world, metres):
+    the pose the mesh was modelled in, before the Armature modifier deforms it."""
+    scene = bpy.context.scene
+    co = np.empty(len(body.data.vertices) * 3)
+    body.data.vertices.foreach_get("co", co)
+    m = np.array(body.matrix_world)
+    return (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]) * _metres(scene), bone_world(arm, scene, rest=True)
 
 
 FIGURE_HEIGHT = (0.3, 3.0)  # metres: the figures cloth accepts (its thickness, speeds and grids are for people)

@@ -1,19 +1,15 @@
 """Collision with the character's skinned mesh at a cost that hardly grows with its size.
 
 A skinned body's surface moves, piece by piece, nearly rigidly with its bones. So the search
-structure is built once, in each bone's own frame, and never rebuilt: every triangle belongs to
-the bone that weighs most on its corners; the triangles' centroids at a reference pose (the
-first simulated frame), expressed in their bone's frame there, go into one cKDTree, each bone's
-lifted to its own height along a fourth axis (so one query over (point, bone) pairs searches
-each bone's triangles only). A query point is carried into the reference pose by each bone near
-it (the bone's motion since the reference pose, inverted), where the tree gives that bone's K
-nearest triangles; their exact distances are then taken on the skinned triangles as they are at
-the query's time (the frame's start and end poses interpolated, for those triangles only), with
-the side from the pseudo-normal at the nearest point. Where skinning is not rigid (around the
-joints) the carried point is near, not at, its place: the K candidates of every bone near the
-point, all evaluated exactly, cover that. Nothing per query or per frame is proportional to the
-body's triangle count but the tree's logarithmic depth (the poses themselves come from Blender).
-See docs/cloth.md for the measurements behind this choice.
+structure is built once, in each bone's own frame at a reference pose (the first simulated
+frame), and never rebuilt: every triangle belongs to the bone that weighs most on its corners;
+per bone, a grid whose cells bound the distance to the bone's triangles from below and list the
+nearest ones. A query point is carried into the frames of the bones near it; far cells give a
+lower bound; the listed triangles' bounding spheres, as the body is at the query's time, drop
+the rows and candidates that cannot be near; the rest are evaluated exactly on the skinned
+triangles (the frame's start and end poses interpolated), with the side from the pseudo-normal
+at the nearest point, checked in the mesh's rest pose for points found inside (a skinned mesh
+folds into itself at bent joints). See docs/cloth.md for the measurements behind this choice.
 """
 
 import numpy as np
@@ -30,6 +26,7 @@ REACH = 0.05  # metres: the default max_distance of queries, and the grids' marg
 NEAR = 0.02  # metres: phi is exact below this (beyond the thickness); farther, possibly a lower bound
 DEEP = 0.02  # metres: a point found farther inside is taken to be outside (see SkinnedBody)
 LOCAL_SEARCH = True
+FOLD_CHECK = True  # points found inside are checked at the reference pose (SkinnedBody._outside_at_reference)
 MAX_CELLS = 2_000_000  # the grids' cells over all bones, at most (their spacing grows to fit)
 
 
@@ -46,7 +43,7 @@ class SkinnedBody:
     the frames of the bones whose bounding capsule it is near; a cell whose bound is beyond the
     query's reach ends the search there; otherwise its candidates are evaluated exactly."""
 
-    def __init__(self, triangles, reference, bones, weights, neighbours=12, spacing=None):
+    def __init__(self, triangles, reference, bones, weights, neighbours=12, spacing=None, rest=None):
         self.triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
         reference = np.asarray(reference, float)
         bones = _rigid(bones)
@@ -58,7 +55,14 @@ class SkinnedBody:
         self.bones = used  # the bones that own triangles
         slot = np.full(len(bones), -1)
         slot[used] = np.arange(len(used))
-        slot_of_tri = slot[owner]
+        self.slot_of_tri = slot_of_tri = slot[owner]
+        # the second bone weighing most on each triangle's corners (the owner where that bone
+        # owns no triangles or has no weight there): where skinning blends two bones
+        tri_weight = weights[t].sum(axis=1)
+        tri_weight[np.arange(len(t)), owner] = -1.0
+        second = tri_weight.argmax(axis=1)
+        second = np.where((tri_weight.max(axis=1) > 0.0) & (slot[second] >= 0), second, owner)
+        self.blend_slots = np.column_stack([slot_of_tri, slot[second]])
         corners = reference[t]
         centroid = corners.mean(axis=1)
         spread = np.sqrt(((corners - centroid[:, None]) ** 2).sum(axis=2)).max(axis=1)  # each triangle's reach
@@ -118,6 +122,14 @@ class SkinnedBody:
         self.part_of = closed_parts(t, len(reference))
         self.v0 = self.v1 = None
         self._at = None
+        # the unfolded pose the side of points found inside is checked at (_outside_at_reference):
+        # the mesh's rest pose when given (rest vertices (V, 3), bone matrices (J, 4, 4)), where a
+        # body is modelled, else the reference pose
+        rest_vertices, rest_bones = (reference, bones) if rest is None else rest
+        rest_vertices = np.asarray(rest_vertices, float)
+        self.rest_frames = _rigid(rest_bones)[used]
+        self._rest_vertices = lambda idx: rest_vertices[idx]
+        self._rest_tree = cKDTree(rest_vertices[t].mean(axis=1))
 
     def set_motion(self, v0, bones0, v1=None, bones1=None, dt=1.0):
         """The skinned vertices and the bones' world matrices at the frame's start and end."""
@@ -178,13 +190,27 @@ class SkinnedBody:
         if far.any():
             np.minimum.at(phi, rows[far], np.minimum(lower[far], max_distance))
         keep = ~far
-        rows, flat = rows[keep], flat[keep]
+        rows, flat, local, bone = rows[keep], flat[keep], local[keep], bone[keep]
         if len(rows) == 0:
             return phi, normal, velocity
         idx = self.candidates[self.row_of[flat]].astype(np.int64)
         valid = idx >= 0
         ids = np.where(valid, idx, 0)
+        rows, ids, valid, lower = self._spheres(points, rows, ids, valid, s)
+        far = lower >= NEAR  # every candidate's bounding sphere beyond NEAR: a lower bound
+        if far.any():
+            np.minimum.at(phi, rows[far], np.minimum(lower[far], max_distance))
+            keep = ~far
+            rows, ids, valid, local, bone = rows[keep], ids[keep], valid[keep], local[keep], bone[keep]
+        if len(rows) == 0:
+            return phi, normal, velocity
         signed, nrm, vel, unsigned, tri = self._exact(points[rows], ids, valid, s, max_distance)
+        if FOLD_CHECK:
+            inside = np.flatnonzero(signed < 0.0)
+            if len(inside):
+                fold = inside[self._outside_at_reference(points[rows[inside]], tri[inside], s)]
+                signed[fold] = np.minimum(unsigned[fold], max_distance)
+                nrm[fold] = -nrm[fold]
         # per point and closed part, the row with the nearest surface; per point, the part with
         # the smallest phi (the union), unless a far row's bound is below it
         part = self.part_of[tri]
@@ -199,25 +225,36 @@ class SkinnedBody:
         phi[out], normal[out], velocity[out] = signed[pick], nrm[pick], vel[pick]
         return phi, normal, velocity
 
+    def _spheres(self, points, rows, ids, valid, s):
+        """The cheap stage before the exact one: each candidate triangle's bounding sphere at
+        time s (its centroid and the farthest corner from it) bounds its distance from below,
+        |p - c| - r, and from above, |p - c| + r. Per row, the candidates whose lower bound is
+        beyond the smallest upper bound cannot hold the nearest point: dropped, the rest sorted
+        nearest first and cut to the largest count any row keeps. Returns (rows, ids, valid,
+        each row's lower bound over its candidates)."""
+        corners = self._vertices(s)(self.triangles[ids])  # (M, C, 3, 3)
+        centre = corners.sum(axis=2) / 3.0
+        spoke = corners - centre[:, :, None, :]
+        r = np.sqrt(dot(spoke, spoke).max(axis=2))
+        d = points[rows][:, None, :] - centre
+        d = np.sqrt(dot(d, d))
+        lower = np.where(valid, d - r, np.inf)
+        upper = np.where(valid, d + r, np.inf).min(axis=1)
+        order = np.argsort(lower, axis=1)
+        lower = np.take_along_axis(lower, order, axis=1)
+        keep = lower <= upper[:, None]
+        width = max(1, int(keep.sum(axis=1).max())) if len(keep) else 1
+        ids = np.take_along_axis(ids, order[:, :width], axis=1)
+        valid = keep[:, :width]
+        return rows, ids, valid, lower[:, 0]
+
     def _exact(self, p, ids, valid, s, max_distance):
         """Signed distances of points p (M, 3) to their candidate triangles ids (M, C) on the
         skinned mesh at time s: the nearest; its side from the angle-weighted pseudo-normal of
         the nearest point's feature (face, edge or vertex: exact for a closed mesh, Baerentzen and
         Aanaes 2005), made from the skinned triangles around it. (phi, normal, velocity, distance, triangle)."""
         v = self._vertices(s)
-        best, t_best, b, dk = _nearest(p, ids, valid, self.triangles, v)
-        # one step of local search where the nearest point is on a candidate's edge or corner:
-        # the triangles around its corners (where skinning blends bones the cell's candidates
-        # can miss the nearest, never by far; inside a face the nearest is a local minimum)
-        found = np.isfinite(best)
-        zero = b <= 1e-12
-        count = zero.sum(axis=1)
-        if LOCAL_SEARCH:
-            for h, around in self._neighbours(t_best, zero, count, found):
-                best2, t2, b2, d2 = _nearest(p[h], np.maximum(around, 0), around >= 0, self.triangles, v)
-                better = best2 < best[h]
-                k = h[better]
-                best[k], t_best[k], b[k], dk[k] = best2[better], t2[better], b2[better], d2[better]
+        best, t_best, b, dk, found = self._nearest_searched(p, ids, valid, v)
         pseudo = self._pseudo_normal(t_best, b, v)
         # inside only within DEEP of the surface: cloth collided every substep is never deeper
         # (it enters by what the body moves in a substep), while a skinned mesh folded or cut
@@ -232,6 +269,54 @@ class SkinnedBody:
         c = self.triangles[t_best]
         velocity = np.einsum("ij,ijk->ik", np.where(found[:, None], b, 0.0), (self.v1[c] - self.v0[c]) / self.dt)
         return phi, normal, velocity, best, t_best
+
+    def _nearest_searched(self, p, ids, valid, v):
+        """The nearest of the candidate triangles (vertices v(indices)), then one step of local
+        search where the nearest point is on a candidate's edge or corner: the triangles around
+        its corners (where skinning blends bones the cell's candidates can miss the nearest,
+        never by far; inside a face the nearest is a local minimum). (distance, triangle,
+        barycentric, p minus the point, found)."""
+        best, t_best, b, dk = _nearest(p, ids, valid, self.triangles, v)
+        found = np.isfinite(best)
+        zero = b <= 1e-12
+        count = zero.sum(axis=1)
+        if LOCAL_SEARCH:
+            for h, around in self._neighbours(t_best, zero, count, found):
+                best2, t2, b2, d2 = _nearest(p[h], np.maximum(around, 0), around >= 0, self.triangles, v)
+                better = best2 < best[h]
+                k = h[better]
+                best[k], t_best[k], b[k], dk[k] = best2[better], t2[better], b2[better], d2[better]
+        return best, t_best, b, dk, found
+
+    def _outside_at_reference(self, p, tri, s):
+        """Whether points p found inside the skinned mesh (their nearest triangle tri) are outside
+        it in the rest pose, carried there by each of the two bones weighing most on that
+        triangle. A skinned mesh folds or cuts into itself around a bent joint; near such a fold
+        the nearest face can face away from a point that is outside the body (winding number 0).
+        Carried back with a bone into the unfolded rest pose, where the mesh is a clean closed
+        surface and the pseudo-normal's side is exact, such a point is outside. A point inside
+        the body stays inside when carried by one of its bones at least (where skinning blends
+        two bones, carried by the other one it can land outside: the shoulder's skin of an arm
+        raised from the rest pose's, carried by the arm): only points outside with both are."""
+        block, offset = self._pose(s)
+        frames = block.reshape(3, -1, 3)  # [k, b, i]: row i of bone b's inverse, column k
+        out = np.ones(len(p), dtype=bool)
+        for column in (0, 1):
+            bone = self.blend_slots[tri, column]
+            h = np.flatnonzero(out & ((column == 0) | (bone != self.blend_slots[tri, 0])))
+            if len(h) == 0:
+                continue
+            bone = bone[h]
+            local = np.einsum("mk,kmi->mi", p[h], frames[:, bone, :]) + offset.reshape(-1, 3)[bone]
+            frame = self.rest_frames[bone]
+            q = np.einsum("mij,mj->mi", frame[:, :3, :3], local) + frame[:, :3, 3]
+            k = min(self.k, self._rest_tree.n)
+            _, idx = self._rest_tree.query(q, k=k)
+            idx = idx.reshape(len(q), k)
+            v = self._rest_vertices
+            best, t_best, b, dk, found = self._nearest_searched(q, idx, np.ones(idx.shape, dtype=bool), v)
+            out[h] = found & (dot(dk, self._pseudo_normal(t_best, b, v)) > 0.0)
+        return out
 
     def _neighbours(self, tri, zero, count, found):
         """Where the nearest point is on an edge or a corner of triangle `tri`, the triangles

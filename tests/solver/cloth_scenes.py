@@ -69,26 +69,6 @@ def _capsules_mesh(a, b):
     return np.vstack(vs), np.vstack(ts)
 
 
-def reference_walk(collider, frames=20):
-    """The COTTON skirt on the walking legs (capsules, or the skinned mesh of them) for `frames`
-    frames at 30 fps: (particles per frame (frames + 1, P, 3), fine surface of the last frame,
-    the simulation). tests/solver/cloth_reference.npz holds this run's output, first from the
-    implementation before the fast path (commit 8b3ebab), re-recorded (numpy 1.26, `python
-    tests/solver/cloth_scenes.py`) when collisions went inside the frame-end Provot sweeps, when
-    the face case moved to a frame's last substep and when the frame-end sweeps became 12
-    Chebyshev-accelerated ones (with 3 sweeps a substep and one velocity sweep); the fine
-    surface when the edge control's bisection took 8 halvings, not 10."""
-    from humananim.solver.cloth import ClothSimulation, preset
-    mesh, pinned, capsules = walking_skirt()
-    bodies = [capsules] if collider == "capsules" else [SkinnedLegs()]
-    sim = ClothSimulation(mesh, preset("COTTON"), pinned, bodies, level=2, fps=30)
-    pin0 = mesh.rest[pinned]
-    xs = [sim.x.copy()]
-    for _ in walk(sim, pin0, capsules, bodies, frames):
-        xs.append(sim.x.copy())
-    return np.array(xs), sim.surface(), sim
-
-
 def walk(sim, pin0, capsules, bodies, frames):
     """Step `sim` through `frames` frames of the walking legs at 30 fps, the capsules and any
     skinned body following them; yields each frame's capsule ends (a, b) after its step."""
@@ -102,11 +82,3 @@ def walk(sim, pin0, capsules, bodies, frames):
         sim.step(pin0, 1 / 30)
         yield a1, b1
         a0, b0 = a1, b1
-
-
-if __name__ == "__main__":  # re-records cloth_reference.npz (after a deliberate change of the physics)
-    import os
-    out = {}
-    for collider in ("capsules", "mesh"):
-        out[f"{collider}_particles"], out[f"{collider}_fine"], _ = reference_walk(collider)
-    np.savez_compressed(os.path.join(os.path.dirname(os.path.abspath(__file__)), "cloth_reference.npz"), **out)
