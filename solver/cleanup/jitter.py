@@ -17,6 +17,8 @@ from ..dynamics.spatial import quat_exp, quat_log
 
 DEFAULT_CUTOFF_HZ = 6.0
 NOISE_SIGMAS = 3.0
+NOISE_WINDOW_SECONDS = 1.0
+NOISE_PERCENTILE = 25.0
 
 
 def low_pass(x, fps, cutoff_hz, axis=0):
@@ -28,18 +30,25 @@ def low_pass(x, fps, cutoff_hz, axis=0):
     return filtfilt(b, a, x, axis=axis)
 
 
-def noise_scale(residual):
+def noise_scale(residual, fps=None):
     """Per channel (1, K, 1) the jitter's size, from the residual's second differences (white
-    noise of size s has second differences of size s * sqrt(6); smooth motion has almost none):
-    a clean clip's fast motion is not mistaken for noise."""
-    second = np.linalg.norm(np.diff(residual, 2, axis=0), axis=-1, keepdims=True)
-    return np.median(second, axis=0, keepdims=True) / np.sqrt(6.0)
+    noise of size s has second differences of size s * sqrt(6); smooth motion has almost none).
+    Jitter is there all the time, fast motion only at times: with `fps`, the size is the 25th
+    percentile over the clip of its median over windows of NOISE_WINDOW_SECONDS, so a clean clip's
+    fast moments are not taken for noise."""
+    second = np.linalg.norm(np.diff(residual, 2, axis=0), axis=-1)  # (F - 2, K)
+    w = 0 if fps is None else int(round(NOISE_WINDOW_SECONDS * fps))
+    if w < 3 or len(second) < 2 * w:
+        return np.median(second, axis=0)[None, :, None] / np.sqrt(6.0)
+    windows = np.lib.stride_tricks.sliding_window_view(second, w, axis=0)[::max(1, w // 2)]  # (n, K, w)
+    local = np.median(windows, axis=-1)
+    return np.percentile(local, NOISE_PERCENTILE, axis=0)[None, :, None] / np.sqrt(6.0)
 
 
-def garrote(residual, sigmas=None):
+def garrote(residual, sigmas=None, fps=None):
     """Shrink residual vectors (F, K, d): small ones (noise) to zero, large ones kept."""
     size = np.linalg.norm(residual, axis=-1, keepdims=True)
-    t = (NOISE_SIGMAS if sigmas is None else sigmas) * noise_scale(residual)
+    t = (NOISE_SIGMAS if sigmas is None else sigmas) * noise_scale(residual, fps)
     keep = np.clip(1.0 - (t / np.maximum(size, 1e-12)) ** 2, 0.0, 1.0)
     return residual * keep
 
@@ -49,7 +58,7 @@ def smooth_rotations(quats, fps, cutoff_hz=DEFAULT_CUTOFF_HZ, strength=1.0):
     q = rotations.make_continuous(rotations.normalize(np.asarray(quats, float)))
     smooth = rotations.normalize(low_pass(q, fps, cutoff_hz))
     residual = quat_log(rotations.multiply(rotations.conjugate(smooth), q))  # smooth * exp(r) = q
-    kept = residual - strength * (residual - garrote(residual))
+    kept = residual - strength * (residual - garrote(residual, fps=fps))
     return rotations.make_continuous(rotations.multiply(smooth, quat_exp(kept)))
 
 
@@ -57,4 +66,4 @@ def smooth_positions(positions, fps, cutoff_hz=DEFAULT_CUTOFF_HZ, strength=1.0):
     p = np.asarray(positions, float)
     smooth = low_pass(p, fps, cutoff_hz)
     residual = p - smooth
-    return smooth + residual - strength * (residual - garrote(residual))
+    return smooth + residual - strength * (residual - garrote(residual, fps=fps))
