@@ -20,7 +20,7 @@ each cleaned with only the repair it calls for (seeded per clip):
   against the original (RMS and max, deg) and the bone-tail position error (RMS, mm) before and
   after.
 - floor and skate: the root lifted 5 cm and drifting 5 cm (a sine of 0.3 Hz) over the ground.
-  The floor found against the original's plus 5 cm (mm), the lowest body point and the lowest foot point
+  The floor found against the original's plus 5 cm (mm), the lowest body point (the pelvis and the bones under it) and the lowest foot point
   after (mm, below 0 is through the floor; only feet are repaired), the slide of every planted foot point within its contact (mm; contacts of
   the corrupted clip) before and after.
 - clean: the uncorrupted clip through glitches and jitter: the change (RMS, deg).
@@ -150,13 +150,15 @@ def feet_case(sk, tr):
     bad = tr.with_root_pose(sk, moved, orientation)
     planted = feet.planted_points(feet.foot_points(sk, bad.world_frames(sk)), tr.fps)
     out, report = clean_up(sk, bad, Options(glitches=False, jitter=False, ground=floor))
-    pts = np.concatenate((out.world_frames(sk)[..., :3, 3], tails(sk, out)), axis=1)
+    body = [sk.root] + sk.descendants(sk.root)  # not a ground-level root bone above the pelvis
+    pts = np.concatenate((out.world_frames(sk)[:, body][..., :3, 3], tails(sk, out)[:, body]), axis=1)
     foot = feet.foot_points(sk, out.world_frames(sk))
     return {"floor_error_mm": 1000 * abs(report["floor_m"] - (floor + 0.05)),
             "lowest_mm": 1000 * float(pts[..., 2].min() - floor),
             "lowest_foot_mm": 1000 * float(min(p[..., 2].min() for p in foot.values()) - floor),
             "slide_before_mm": slide_mm(sk, bad, planted), "slide_after_mm": slide_mm(sk, out, planted),
-            "hovering_frames": report["repairs"][2]["hovering_frames"]}
+            "hovering_contacts": report["repairs"][2]["hovering_contacts"],
+            "pelvis_lowered_cm": max(report["repairs"][2]["pelvis_lowered_cm"], report["repairs"][3]["pelvis_lowered_cm"])}
 
 
 def clean_case(sk, tr):
@@ -231,7 +233,10 @@ def main():
                  "slide_before_mm_median": float(np.median([f["slide_before_mm"] for f in fl])),
                  "slide_after_mm_median": float(np.median([f["slide_after_mm"] for f in fl])),
                  "slide_after_mm_max": max(f["slide_after_mm"] for f in fl),
-                 "slide_after_under_2mm_clips": sum(f["slide_after_mm"] < 2.0 for f in fl), "clips": len(fl)},
+                 "slide_after_under_2mm_clips": sum(f["slide_after_mm"] < 2.0 for f in fl), "clips": len(fl),
+                 "hovering_contacts": sum(f["hovering_contacts"] for f in fl),
+                 "pelvis_lowered_cm_median": float(np.median([f["pelvis_lowered_cm"] for f in fl])),
+                 "pelvis_lowered_cm_max": max(f["pelvis_lowered_cm"] for f in fl)},
         "clean_rms_deg_max": max(clean), "clean_rms_deg_median": float(np.median(clean)),
         "dropout_max_deg_by_fps": {f"{fps:g}": max(r["max_deg"] for r in rs) for fps, rs in _by_fps(kinds).items()},
     }
@@ -266,7 +271,9 @@ def main():
     f = result["feet"]
     print(f"floor: found within {f['floor_error_mm_max']:.1f} mm; lowest point {f['lowest_mm_min']:.1f} mm (feet {f['lowest_foot_mm_min']:.1f} mm); slide "
           f"{f['slide_before_mm_median']:.1f} -> {f['slide_after_mm_median']:.2f} mm median, worst {f['slide_after_mm_max']:.2f} mm, "
-          f"{f['slide_after_under_2mm_clips']}/{f['clips']} clips under 2 mm")
+          f"{f['slide_after_under_2mm_clips']}/{f['clips']} clips under 2 mm; "
+          f"hovering contacts {f['hovering_contacts']}; pelvis lowered {f['pelvis_lowered_cm_median']:.1f} cm median, "
+          f"{f['pelvis_lowered_cm_max']:.1f} cm worst")
     print(f"clean clip: change {result['clean_rms_deg_median']:.3f} deg RMS median, worst {result['clean_rms_deg_max']:.3f}")
     print("dropouts, largest error by frame rate: " + ", ".join(f"{k} fps {v:.1f} deg" for k, v in result["dropout_max_deg_by_fps"].items()))
     for c in result["claims"]:

@@ -124,13 +124,14 @@ def _floor(skeleton, traj, o, report):
     points = _points(skeleton, traj)
     offsets = feet.foot_offsets(points, traj.fps, floor=ground, skate=False)
     traj, moved = feet.move_feet(skeleton, traj, offsets)
-    contacts = feet.find_contacts(points, traj.fps)
     after = _points(skeleton, traj)
-    # a hovering foot on a straight leg can't be lowered without moving the body off its path
-    hovering = sum(int((p[contacts[s]][..., 2].min(axis=1) > ground + 0.002).sum()) for s, p in after.items())
+    # a contact hovers when even its lowest point stays above the floor
+    hovering = sum(int(p[a:b][..., 2].min() > ground + 0.002) for s, p in after.items()
+                   for a, b in feet.contact_runs(report["planted"][s].any(axis=1)))
     return traj, {"floor_m": found, "ground_m": ground, "shift_m": ground - found,
                   "feet_moved_cm": {s: float(100 * np.abs(d[:, 2]).max()) for s, d in offsets.items()},
-                  "hovering_frames": hovering}
+                  "pelvis_lowered_cm": round(float(100 * moved["pelvis_drop"].max()), 2),
+                  "hovering_contacts": hovering}
 
 
 def _skate(skeleton, traj, o, report):
@@ -141,9 +142,10 @@ def _skate(skeleton, traj, o, report):
                           for s, c in contacts.items()}
     offsets = feet.foot_offsets(points, traj.fps, floor=report.get("ground_m"), skate=True, planted=planted)
     traj, moved = feet.move_feet(skeleton, traj, offsets)
-    traj, _ = feet.pin_toes(skeleton, traj, report.get("ground_m"))
+    traj, _ = feet.pin_toes(skeleton, traj, report.get("ground_m"), planted)
     slide = {s: float(100 * np.linalg.norm(d[:, :2], axis=1).max()) for s, d in offsets.items()}
-    return traj, {"contacts": report["contacts"], "largest_correction_cm": slide}
+    return traj, {"contacts": report["contacts"], "largest_correction_cm": slide,
+                  "pelvis_lowered_cm": round(float(100 * moved["pelvis_drop"].max()), 2)}
 
 
 def _changes(skeleton, before, after):
