@@ -72,6 +72,16 @@ def _segments(values):
     return list(zip(np.r_[0, cuts], np.r_[cuts, len(values)]))
 
 
+def _ease(x, xp, fp):
+    """Like np.interp, but eased (smoothstep) between known values, so a correction fades in and
+    out with no jump in speed."""
+    right = np.clip(np.searchsorted(xp, x), 1, len(xp) - 1)
+    left = right - 1
+    s = np.clip((x - xp[left]) / np.maximum(xp[right] - xp[left], 1e-12), 0.0, 1.0)
+    w = s * s * (3 - 2 * s)
+    return fp[left] + w * (fp[right] - fp[left])
+
+
 def _heading(v):
     return np.arctan2(v[..., 1], v[..., 0])
 
@@ -81,8 +91,10 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
     and the point it turns about (4:7). Horizontally (skate): while a point of the foot is
     planted, back to where that point landed (the ball while it is down, else the toe tip, so the
     heel can rise and the foot roll); while both are down, the foot turned back to its heading at
-    landing. Vertically (with `floor`): each contact moved so its lowest point is on the floor,
-    and no frame's foot below it. Faded in and out around each contact. `planted`: the contacts
+    landing. Vertically (with `floor`): each contact moved so its lowest point is on the floor
+    (or at the foot's own level, the low percentile of its contacts, where that is higher); a
+    contact more than HEIGHT_ON above that stands on something else and is left; a contact
+    through the floor is lifted whole. No frame's foot goes below the floor. Faded in and out around each contact. `planted`: the contacts
     (planted_points) when already known, e.g. found before the floor repair flattened them."""
     ramp = max(1, int(round(RAMP_SECONDS * fps)))
     planted = planted_points(points, fps) if planted is None else planted
@@ -109,8 +121,13 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
         if floor is not None:  # planted: each contact's lowest point on the floor (the foot
             # rolls as captured); in the air: never below it
             low = p[..., 2].min(axis=1)
+            # a foot whose contacts all sit higher than the other's (a marker or a sole placed
+            # higher) keeps its own level above the floor rather than being pushed to it
+            level = max(0.0, float(np.percentile(low[on], FLOOR_PERCENTILE)) - floor) if on.sum() >= 3 else 0.0
             for a, b in contact_runs(on):
-                d[a:b, 2] = floor - low[a:b].min()
+                gap = low[a:b].min() - floor - level
+                # a contact far above the floor stands on something else: left where it is
+                d[a:b, 2] = -gap if 0.0 < gap <= HEIGHT_ON else max(floor - low[a:b].min(), 0.0)
             d[~on, 2] = np.maximum(floor - low[~on], 0.0)
         moved = on | (d[:, 2] > 0)
         far = np.convolve(moved.astype(float), np.ones(2 * ramp + 1), "same") == 0
@@ -118,7 +135,7 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
         for c, known in ((0, moved), (1, moved), (2, moved), (3, flat if skate else moved)):
             known = known | far
             if known.any() and not known.all():
-                d[~known, c] = np.interp(idx[~known], idx[known], d[known, c])
+                d[~known, c] = _ease(idx[~known], idx[known], d[known, c])
         if floor is not None:  # a fade that lowers a hovering foot stops at the floor
             d[:, 2] = np.maximum(d[:, 2], floor - p[..., 2].min(axis=1))
         out[side] = d
@@ -151,6 +168,7 @@ def knee_hinge(skeleton, quats, side):
 
 MIN_KNEE_BEND_DEG = 8.0  # a solved stance knee is never straighter than this, or than in the capture
 ROOT_EASE_SECONDS = 0.2  # the pelvis is lowered and raised back over about this time
+MAX_PELVIS_DROP = 0.03  # m: a foot further out of reach is left hovering (and reported)
 
 
 def _leg(skeleton, side):
@@ -204,7 +222,7 @@ def pelvis_drop(skeleton, traj, targets, ease_frames):
     """(F,) how far (m) to lower the pelvis so every leg reaches its ankle target (targets {side:
     (F, 3)}, NaN where the foot is left alone) with its knee bent as allowed_reach says: the
     least drop per frame, widened and smoothed over `ease_frames` so the body eases down and up
-    (never below what a frame needs)."""
+    (never below what a frame needs), at most MAX_PELVIS_DROP."""
     world = traj.world_frames(skeleton)
     need = np.zeros(traj.frame_count)
     for side, target in targets.items():
@@ -215,6 +233,7 @@ def pelvis_drop(skeleton, traj, targets, ease_frames):
         height = np.sqrt(np.maximum(reach_max ** 2 - flat2, 0.0))  # the hip's height over the target
         drop = np.where(np.isfinite(d[:, 2]), -d[:, 2] - height, 0.0)
         need = np.maximum(need, np.nan_to_num(drop, nan=0.0))
+    need = np.minimum(need, MAX_PELVIS_DROP)
     if not need.any():
         return need
     r = max(1, int(ease_frames))
@@ -238,7 +257,16 @@ def reach(skeleton, traj, side, target, foot_rotation, frames):
     R = world[..., :3, :3]
     hip, knee, ankle = (world[:, j, :3, 3] for j in (thigh, shin, foot))
     target = np.asarray(target, float)[frames]
-    a, b, A, Rk, psi, n = _knee_terms(sk, world, side, knee_hinge(sk, traj.rotations, side))
+    hinge = knee_hinge(sk, traj.rotations, side)
+    a, b, A, Rk, psi, n = _knee_terms(sk, world, side, hinge)
+    # a target beyond the allowed reach (the pelvis lowered only so far) is reached from above:
+    # the foot hovers rather than slides, and the knee keeps its bend
+    longest = allowed_reach(sk, world, side, hinge)
+    d = target - hip
+    far = np.linalg.norm(d, axis=1) > longest
+    flat2 = np.sum(d[far, :2] ** 2, axis=1)
+    target = target.copy()
+    target[far, 2] = hip[far, 2] - np.sqrt(np.maximum(longest[far] ** 2 - flat2, 0.0))
     c_new = np.linalg.norm(target - hip, axis=1)
     cos_alpha = np.clip(((c_new ** 2 - a * a - b * b) / 2 - A) / np.maximum(Rk, 1e-12), -1.0, 1.0)
     alpha = np.arccos(cos_alpha)  # the bend from straight that gives c_new
