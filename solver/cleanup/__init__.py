@@ -15,6 +15,7 @@ from .. import qa, rotations
 from ..trajectories import Trajectories
 from . import feet
 from . import glitches as glitch_repair
+from . import ground as ground_surface
 from . import jitter as jitter_filter
 
 REPAIRS = ("glitches", "jitter", "floor", "skate")
@@ -30,7 +31,9 @@ class Options:
     glitch_strength: float = 1.0  # detection: speed limits divided by it
     jitter_strength: float = 1.0  # 0..1: how much of the jitter is removed
     jitter_hz: float = jitter_filter.DEFAULT_CUTOFF_HZ
-    ground: float = 0.0  # floor height (m, world Z) the feet are put on; None keeps the found floor
+    # the ground the feet are put on: a height (m, world Z), a surface (solver.cleanup.ground: a
+    # height field or a mesh), or None to keep the floor found under the feet
+    ground: object = 0.0
 
 
 def motion(skeleton, traj):
@@ -74,6 +77,7 @@ def clean_up(skeleton, traj, options=None):
             entry["qa_after"] = qa_measures(skeleton, traj, ground)
         report["repairs"].append(entry)
     report.pop("planted", None)  # arrays: not part of the report
+    report.pop("surface", None)
     return traj, report
 
 
@@ -108,30 +112,36 @@ def _points(skeleton, traj):
 
 
 def _floor(skeleton, traj, o, report):
-    """The whole body moved up or down so the floor under the planted feet is at the ground; then
-    each planted foot put on it (no sinking, no hovering) by the legs' IK."""
+    """The whole body moved up or down so the feet's floor (found under the planted feet) is on
+    the ground (a height, or a surface: a height field or a mesh, solver.cleanup.ground); then
+    each contact put on it (no sinking, no hovering) by the legs' IK."""
     points = _points(skeleton, traj)
     # contacts found before the feet are put on the floor (which makes every planted frame
     # equally low and would merge them): the skate repair holds the same ones
     report["planted"] = feet.planted_points(points, traj.fps)
-    found = feet.find_floor(points, feet.find_contacts(points, traj.fps))
-    ground = found if o.ground is None else float(o.ground)
+    contacts = {s: d.any(axis=1) for s, d in report["planted"].items()}
+    found = feet.find_floor(points, contacts)  # world Z of the feet's floor
+    surface = ground_surface.as_ground(found if o.ground is None else o.ground)
+    shift = -feet.find_floor(points, contacts, surface)  # the feet's floor onto the ground
     position, orientation = traj.root_pose(skeleton)
     position = position.copy()
-    position[:, 2] += ground - found
+    position[:, 2] += shift
     traj = traj.with_root_pose(skeleton, position, orientation)
-    report.update(floor_m=found, ground_m=ground)
+    flat = isinstance(surface, ground_surface.Flat)
+    report.update(floor_m=found, ground_m=surface.z if flat else None, surface=surface)
     points = _points(skeleton, traj)
-    offsets = feet.foot_offsets(points, traj.fps, floor=ground, skate=False)
+    offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=False, planted=report["planted"])
     traj, moved = feet.move_feet(skeleton, traj, offsets)
     after = _points(skeleton, traj)
+    heights = {s: feet.heights_above(p, surface).min(axis=1) for s, p in after.items()}
     # a contact hovers when even its lowest point stays above the floor
-    hovering = sum(int(p[a:b][..., 2].min() > ground + 0.002) for s, p in after.items()
-                   for a, b in feet.contact_runs(report["planted"][s].any(axis=1)))
-    return traj, {"floor_m": found, "ground_m": ground, "shift_m": ground - found,
-                  "feet_moved_cm": {s: float(100 * np.abs(d[:, 2]).max()) for s, d in offsets.items()},
+    hovering = sum(int(h[a:b].min() > 0.002) for s, h in heights.items() for a, b in feet.contact_runs(contacts[s]))
+    deepest = min(float(np.min(h[np.isfinite(h)], initial=np.inf)) for h in heights.values())
+    return traj, {"floor_m": found, "ground_m": surface.z if flat else None, "ground": surface.describe(),
+                  "shift_m": shift, "feet_moved_cm": {s: float(100 * np.abs(d[:, 2]).max()) for s, d in offsets.items()},
                   "pelvis_lowered_cm": round(float(100 * moved["pelvis_drop"].max()), 2),
-                  "hovering_contacts": hovering}
+                  "hovering_contacts": hovering,
+                  "lowest_foot_cm": round(100 * deepest, 2) if np.isfinite(deepest) else None}
 
 
 def _skate(skeleton, traj, o, report):
@@ -140,9 +150,10 @@ def _skate(skeleton, traj, o, report):
     contacts = {side: down.any(axis=1) for side, down in planted.items()}
     report["contacts"] = {s: [[float(traj.frames[a]), float(traj.frames[b - 1])] for a, b in feet.contact_runs(c)]
                           for s, c in contacts.items()}
-    offsets = feet.foot_offsets(points, traj.fps, floor=report.get("ground_m"), skate=True, planted=planted)
+    surface = report.get("surface")
+    offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=True, planted=planted)
     traj, moved = feet.move_feet(skeleton, traj, offsets)
-    traj, _ = feet.pin_toes(skeleton, traj, report.get("ground_m"), planted)
+    traj, _ = feet.pin_toes(skeleton, traj, surface, planted)
     slide = {s: float(100 * np.linalg.norm(d[:, :2], axis=1).max()) for s, d in offsets.items()}
     return traj, {"contacts": report["contacts"], "largest_correction_cm": slide,
                   "pelvis_lowered_cm": round(float(100 * moved["pelvis_drop"].max()), 2)}

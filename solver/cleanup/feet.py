@@ -54,15 +54,29 @@ def contact_runs(mask):
     return [(a, b) for on, a, b in runs(mask) if on]  # b exclusive
 
 
-def find_floor(points, contacts=None):
-    """The floor height: a low percentile, over the frames, of the lowest foot point (over the
-    contact frames when given), so a few toe dips or a foot through the floor do not set it, and
-    few planted frames hover above it (lowering a foot needs a leg that can still stretch)."""
-    low = np.min([p[..., 2].min(axis=1) for p in points.values()], axis=0)
-    if contacts:
-        on = np.any([c for c in contacts.values()], axis=0)
-        if on.sum() >= 3:
-            return float(np.percentile(low[on], FLOOR_PERCENTILE))
+def heights_above(points, ground=None, shift=None):
+    """(F, k) height of each foot point above the ground under it (`ground`: a height, a surface
+    from solver.cleanup.ground, or None for Z = 0), the points first moved by shift (F, 2) over
+    the ground; +inf where there is no ground under a point (off a mesh)."""
+    from .ground import as_ground
+    g = as_ground(0.0 if ground is None else ground)
+    xy = points[..., :2] if shift is None else points[..., :2] + shift[:, None, :]
+    under = g.height(xy)
+    return np.where(np.isfinite(under), points[..., 2] - under, np.inf)
+
+
+def find_floor(points, contacts=None, ground=None):
+    """The floor: a low percentile, over the frames, of the lowest foot point's height (above
+    `ground` when given, see heights_above; else its world Z), over the contact frames when
+    given, so a few toe dips or a foot through the floor do not set it, and few planted frames
+    hover above it (lowering a foot needs a leg that can still stretch)."""
+    low = np.min([heights_above(p, ground).min(axis=1) for p in points.values()], axis=0)
+    on = np.any([c for c in contacts.values()], axis=0) if contacts else np.ones(len(low), bool)
+    if on.sum() < 3:
+        on = np.ones(len(low), bool)
+    low = low[on & np.isfinite(low)]
+    if not len(low):
+        raise ValueError("no foot is over the ground mesh: it does not lie under the motion")
     return float(np.percentile(low, FLOOR_PERCENTILE))
 
 
@@ -91,7 +105,7 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
     and the point it turns about (4:7). Horizontally (skate): while a point of the foot is
     planted, back to where that point landed (the ball while it is down, else the toe tip, so the
     heel can rise and the foot roll); while both are down, the foot turned back to its heading at
-    landing. Vertically (with `floor`): each contact moved so its lowest point is on the floor
+    landing. Vertically (with `floor`, a height or a surface from solver.cleanup.ground): each contact moved so its lowest point is on the floor
     (or at the foot's own level, the low percentile of its contacts, where that is higher); a
     contact more than HEIGHT_ON above that stands on something else and is left; a contact
     through the floor is lifted whole. No frame's foot goes below the floor. Faded in and out around each contact. `planted`: the contacts
@@ -119,16 +133,18 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
                 h = _heading(p[a:b, 1, :2] - p[a:b, 0, :2])
                 d[a:b, 3] = np.angle(np.exp(1j * (h[0] - h)))
         if floor is not None:  # planted: each contact's lowest point on the floor (the foot
-            # rolls as captured); in the air: never below it
-            low = p[..., 2].min(axis=1)
+            # rolls as captured); in the air: never below it. Heights above the ground under
+            # each point where the hold puts it.
+            low = heights_above(p, floor, d[:, :2]).min(axis=1)
             # a foot whose contacts all sit higher than the other's (a marker or a sole placed
             # higher) keeps its own level above the floor rather than being pushed to it
-            level = max(0.0, float(np.percentile(low[on], FLOOR_PERCENTILE)) - floor) if on.sum() >= 3 else 0.0
+            seen = low[on & np.isfinite(low)]
+            level = max(0.0, float(np.percentile(seen, FLOOR_PERCENTILE))) if len(seen) >= 3 else 0.0
             for a, b in contact_runs(on):
-                gap = low[a:b].min() - floor - level
+                gap = low[a:b].min() - level
                 # a contact far above the floor stands on something else: left where it is
-                d[a:b, 2] = -gap if 0.0 < gap <= HEIGHT_ON else max(floor - low[a:b].min(), 0.0)
-            d[~on, 2] = np.maximum(floor - low[~on], 0.0)
+                d[a:b, 2] = -gap if 0.0 < gap <= HEIGHT_ON else max(-low[a:b].min(), 0.0)
+            d[~on, 2] = np.maximum(-low[~on], 0.0)
         moved = on | (d[:, 2] > 0)
         far = np.convolve(moved.astype(float), np.ones(2 * ramp + 1), "same") == 0
         idx = np.arange(F)
@@ -137,7 +153,7 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
             if known.any() and not known.all():
                 d[~known, c] = _ease(idx[~known], idx[known], d[known, c])
         if floor is not None:  # a fade that lowers a hovering foot stops at the floor
-            d[:, 2] = np.maximum(d[:, 2], floor - p[..., 2].min(axis=1))
+            d[:, 2] = np.maximum(d[:, 2], -heights_above(p, floor, d[:, :2]).min(axis=1))
         out[side] = d
     return out
 
@@ -353,7 +369,8 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
             flat = np.linalg.norm(want[:, :2], axis=1)
             want[:, 2] = (1.0 if now[0, 2] >= 0 else -1.0) * np.sqrt(np.maximum(reach ** 2 - flat ** 2, 0.0))
             if floor is not None:  # the tip stays on or above the floor: then as near as it reaches
-                low = floor - head[a:b, 2]
+                tip = head[a:b] + want
+                low = want[:, 2] - heights_above(tip[:, None], floor)[:, 0]  # the tip's lowest offset
                 lifted = want[:, 2] < low
                 want[lifted, 2] = np.minimum(low[lifted], reach[lifted])
                 side_room = np.sqrt(np.maximum(reach[lifted] ** 2 - want[lifted, 2] ** 2, 0.0))
