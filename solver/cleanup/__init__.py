@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import qa, rotations
+from ..errors import MotionError
 from ..trajectories import Trajectories
 from . import feet
 from . import glitches as glitch_repair
@@ -122,7 +123,13 @@ def _floor(skeleton, traj, o, report):
     contacts = {s: d.any(axis=1) for s, d in report["planted"].items()}
     found = feet.find_floor(points, contacts)  # world Z of the feet's floor
     surface = ground_surface.as_ground(found if o.ground is None else o.ground)
-    shift = -feet.find_floor(points, contacts, surface)  # the feet's floor onto the ground
+    # the body follows the ground's rise and fall under the planted feet (constant on a flat
+    # floor), then the feet's floor is put on it
+    terrain = feet.terrain_under(points, contacts, surface, traj.fps)
+    if not np.isfinite(terrain).all():
+        raise MotionError("no foot is over the ground: the ground mesh does not lie under the motion")
+    lifted = {s: p + np.stack((0 * terrain, 0 * terrain, terrain), axis=1)[:, None] for s, p in points.items()}
+    shift = terrain - feet.find_floor(lifted, contacts, surface)
     position, orientation = traj.root_pose(skeleton)
     position = position.copy()
     position[:, 2] += shift
@@ -138,7 +145,7 @@ def _floor(skeleton, traj, o, report):
     hovering = sum(int(h[a:b].min() > 0.002) for s, h in heights.items() for a, b in feet.contact_runs(contacts[s]))
     deepest = min(float(np.min(h[np.isfinite(h)], initial=np.inf)) for h in heights.values())
     return traj, {"floor_m": found, "ground_m": surface.z if flat else None, "ground": surface.describe(),
-                  "shift_m": shift, "feet_moved_cm": {s: float(100 * np.abs(d[:, 2]).max()) for s, d in offsets.items()},
+                  "shift_m": float(np.median(shift)), "terrain_rise_m": float(np.ptp(terrain)), "feet_moved_cm": {s: float(100 * np.abs(d[:, 2]).max()) for s, d in offsets.items()},
                   "pelvis_lowered_cm": round(float(100 * moved["pelvis_drop"].max()), 2),
                   "hovering_contacts": hovering,
                   "lowest_foot_cm": round(100 * deepest, 2) if np.isfinite(deepest) else None}

@@ -65,6 +65,35 @@ def heights_above(points, ground=None, shift=None):
     return np.where(np.isfinite(under), points[..., 2] - under, np.inf)
 
 
+TERRAIN_SECONDS = 0.5  # the body follows a ground's rise and fall smoothed over this time
+
+
+def terrain_under(points, contacts, ground, fps):
+    """(F,) the height of the ground under the planted feet, smoothed over TERRAIN_SECONDS and
+    eased between contacts: how far the body rises or falls with a ground that is not flat
+    (constant on a flat floor)."""
+    from scipy.ndimage import uniform_filter1d
+    from .ground import as_ground
+    g = as_ground(ground)
+    F = len(next(iter(points.values())))
+    total, count = np.zeros(F), np.zeros(F)
+    for side, p in points.items():
+        lowest = p[np.arange(F), p[..., 2].argmin(axis=1)]
+        h = g.height(lowest[:, :2])
+        use = contacts[side] & np.isfinite(h)
+        total[use] += h[use]
+        count[use] += 1
+    known = count > 0
+    if not known.any():
+        return np.full(F, np.nan)
+    idx = np.arange(F)
+    under = np.zeros(F)
+    under[known] = total[known] / count[known]
+    if not known.all():
+        under[~known] = _ease(idx[~known], idx[known], under[known])
+    return uniform_filter1d(under, max(1, int(round(TERRAIN_SECONDS * fps))), mode="nearest")
+
+
 def find_floor(points, contacts=None, ground=None):
     """The floor: a low percentile, over the frames, of the lowest foot point's height (above
     `ground` when given, see heights_above; else its world Z), over the contact frames when
@@ -76,7 +105,8 @@ def find_floor(points, contacts=None, ground=None):
         on = np.ones(len(low), bool)
     low = low[on & np.isfinite(low)]
     if not len(low):
-        raise ValueError("no foot is over the ground mesh: it does not lie under the motion")
+        from ..errors import MotionError
+        raise MotionError("no foot is over the ground: the ground mesh does not lie under the motion")
     return float(np.percentile(low, FLOOR_PERCENTILE))
 
 

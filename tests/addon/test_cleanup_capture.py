@@ -101,3 +101,64 @@ def test_cleanup_command_refuses_bad_options(tmp_path):
     r = run("cleanup", CMU_CLIPS[0], "--jitter-hz", "nan", "--out", str(tmp_path / "x.blend"))
     assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "x.blend").exists()
+
+
+def _ramp(x, y):
+    return 0.1 + 0.03 * x  # a ramp rising 3 cm a metre, 10 cm up at x = 0
+
+
+def _ramp_mesh(half=6.0, n=12):
+    """A ramp as a grid of quads, (vertices, faces)."""
+    xs = np.linspace(-half, half, n + 1)
+    verts = [(x, y, _ramp(x, y)) for y in xs for x in xs]
+    faces = [(j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i)
+             for j in range(n) for i in range(n)]
+    return verts, faces
+
+
+def test_operator_puts_the_feet_on_a_ground_mesh(cmu_rig):
+    scene = bpy.context.scene
+    verts, faces = _ramp_mesh()
+    mesh = bpy.data.meshes.new("Ramp")
+    mesh.from_pydata(verts, [], faces)
+    ground = bpy.data.objects.new("Ramp", mesh)
+    scene.collection.objects.link(ground)
+    bpy.context.view_layer.objects.active = cmu_rig
+    source = cmu_rig.animation_data.action
+    names = [pb.name for pb in cmu_rig.pose.bones]
+    feet_bones = [names.index(n) for n in ("LeftAnkle", "RightAnkle", "LeftToe", "RightToe")]
+    lengths = np.array([cmu_rig.data.bones[names[j]].length for j in feet_bones])
+
+    def heights(surface):
+        """Per frame the lowest foot point above `surface`, as Blender evaluates the action."""
+        m = world_pose(cmu_rig, scene, list(range(1, 996, 3)))[:, feet_bones]
+        tails = m[..., :3, 3] + m[..., :3, 1] / np.linalg.norm(m[..., :3, 1], axis=-1, keepdims=True) * lengths[:, None]
+        return (tails[..., 2] - surface(tails[..., 0], tails[..., 1])).min(axis=1)
+
+    assert bpy.ops.humananim.clean_up_capture(jitter=False, ground_object="Ramp") == {"FINISHED"}
+    floor = cleanup.stored(cmu_rig)["repairs"][2]
+    assert floor["ground"]["kind"] == "mesh" and floor["lowest_foot_cm"] > -0.1
+    on_ramp = heights(_ramp)
+    assert on_ramp.min() > -0.002  # no foot through the ramp
+    cleanup.assign(cmu_rig, source)  # the same clean-up onto a flat floor 10 cm up
+    assert bpy.ops.humananim.clean_up_capture(jitter=False, ground=0.1) == {"FINISHED"}
+    on_floor = heights(lambda x, y: 0.1 + 0 * x)
+    # standing on the ramp as on the flat floor (CMU 131_01's feet keep their own level above it)
+    assert np.percentile(on_ramp, 10) < np.percentile(on_floor, 10) + 0.005
+
+
+def test_cleanup_command_on_a_ground_obj(tmp_path):
+    verts, faces = _ramp_mesh()
+    obj = tmp_path / "ramp.obj"  # written Y up, as Blender's OBJ exporter does
+    obj.write_text("\n".join([f"v {x} {z} {-y}" for x, y, z in verts] +
+                             ["f " + " ".join(str(i + 1) for i in f) for f in faces]))
+    out = tmp_path / "clean.blend"
+    r = run("cleanup", CMU_CLIPS[0], "--no-jitter", "--ground-mesh", str(obj), "--out", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    floor = json.loads(r.stdout)["report"]["repairs"][2]
+    assert floor["ground"]["kind"] == "mesh" and floor["lowest_foot_cm"] > -0.1
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nv 1 0 0\n")
+    r = run("cleanup", CMU_CLIPS[0], "--ground-mesh", str(bad), "--out", str(tmp_path / "x.blend"))
+    assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "x.blend").exists()
