@@ -31,6 +31,9 @@ class HUMANANIM_OT_clean_up_capture(bpy.types.Operator):
                                   search=lambda self, context, text: [o.name for o in bpy.data.objects
                                                                       if o.type == "MESH" and text.lower() in o.name.lower()])
     skate: BoolProperty(name="Foot Skate", default=True, description="Hold planted feet where they land")
+    physics: BoolProperty(name="Physical Pass", default=False,
+                          description="Run the result through dynamic control (tracking only): the pelvis and centre of "
+                                      "mass obey gravity and the support; the balance error is reported")
 
     @classmethod
     def poll(cls, context):
@@ -50,6 +53,7 @@ class HUMANANIM_OT_clean_up_capture(bpy.types.Operator):
                     raise MotionError(f"no object named '{self.ground_object}' for the ground")
                 ground = cleanup.ground_from_object(mesh, context.evaluated_depsgraph_get())
             options = Options(glitches=self.glitches, jitter=self.jitter, floor=self.floor, skate=self.skate,
+                              physics=self.physics,
                               glitch_strength=self.glitch_strength, jitter_strength=self.jitter_strength,
                               jitter_hz=self.jitter_hz, ground=ground)
             s = cleanup.clean_action(obj, context.scene, action, options)

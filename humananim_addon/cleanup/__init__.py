@@ -113,6 +113,10 @@ def lines(report):
                 head += f", pelvis lowered up to {r['pelvis_lowered_cm']:.1f} cm"
             if r.get("hovering_contacts"):
                 head += f", {r['hovering_contacts']} contacts above it left"
+        elif r["repair"] == "physics":
+            head += (f", balance error up to {r['balance_error_max_cm']:.1f} cm (frame {r['balance_error_frame']:g}),"
+                     f" {r['out_of_balance_frames']} frames over 1 cm" if r.get("balance_error_frame") is not None
+                     else ", balanced throughout")
         qa = [f"{k} {r['qa_before'][k]['value']:g}->{r['qa_after'][k]['value']:g} {r['qa_after'][k]['unit']}"
               for k in ("slide", "penetration", "pop_velocity") if k in r.get("qa_after", {})
               and r["qa_before"][k]["value"] is not None and r["qa_after"][k]["value"] is not None]

@@ -18,6 +18,9 @@ def add_commands(sub, add_common_options):
     for repair, what in (("glitches", "flips, spikes and dropouts"), ("jitter", "jitter"),
                          ("floor", "the floor"), ("skate", "foot skate")):
         c.add_argument(f"--no-{repair}", action="store_true", help=f"leave {what} as they are")
+    c.add_argument("--physics", action="store_true",
+                   help="the optional physical pass: the result run through dynamic control, tracking only "
+                        "(balance error reported)")
     c.add_argument("--jitter-hz", type=POSITIVE, default=6.0, help="jitter low-pass cut-off in Hz (default 6)")
     c.add_argument("--jitter-strength", type=FRACTION, default=1.0, help="0-1: how much jitter to remove (default 1)")
     c.add_argument("--glitch-strength", type=POSITIVE, default=1.0,
@@ -39,7 +42,7 @@ def add_commands(sub, add_common_options):
 def options(args, ground=None):
     from ...solver.cleanup import Options
     return Options(glitches=not args.no_glitches, jitter=not args.no_jitter, floor=not args.no_floor,
-                   skate=not args.no_skate, glitch_strength=args.glitch_strength,
+                   skate=not args.no_skate, physics=args.physics, glitch_strength=args.glitch_strength,
                    jitter_strength=args.jitter_strength, jitter_hz=args.jitter_hz,
                    ground=args.ground if ground is None else ground)
 

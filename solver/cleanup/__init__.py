@@ -19,7 +19,7 @@ from . import glitches as glitch_repair
 from . import ground as ground_surface
 from . import jitter as jitter_filter
 
-REPAIRS = ("glitches", "jitter", "floor", "skate")
+REPAIRS = ("glitches", "jitter", "floor", "skate", "physics")
 QA_KEYS = ("slide", "penetration", "pop_velocity", "pop_acceleration")
 
 
@@ -29,6 +29,7 @@ class Options:
     jitter: bool = True
     floor: bool = True
     skate: bool = True
+    physics: bool = False  # the optional physical pass (dynamic control, tracking only)
     glitch_strength: float = 1.0  # detection: speed limits divided by it
     jitter_strength: float = 1.0  # 0..1: how much of the jitter is removed
     jitter_hz: float = jitter_filter.DEFAULT_CUTOFF_HZ
@@ -64,7 +65,8 @@ def clean_up(skeleton, traj, options=None):
     last frame)]}, "floor_m": found floor, "ground_m": the floor it was put on}."""
     o = options or Options()
     report = {"repairs": []}
-    steps = (("glitches", _glitches), ("jitter", _jitter), ("floor", _floor), ("skate", _skate))
+    steps = (("glitches", _glitches), ("jitter", _jitter), ("floor", _floor), ("skate", _skate),
+             ("physics", _physics))
     ground = None
     for name, step in steps:
         entry = {"repair": name, "enabled": bool(getattr(o, name))}
@@ -164,6 +166,37 @@ def _skate(skeleton, traj, o, report):
     slide = {s: float(100 * np.linalg.norm(d[:, :2], axis=1).max()) for s, d in offsets.items()}
     return traj, {"contacts": report["contacts"], "largest_correction_cm": slide,
                   "pelvis_lowered_cm": round(float(100 * moved["pelvis_drop"].max()), 2)}
+
+
+def _physics(skeleton, traj, o, report):
+    """The optional physical pass: the cleaned motion run through dynamic control with tracking
+    only (solver.motion_control, its public entry `control`), so the pelvis and the centre of mass
+    obey gravity and the support, with no reaction added (no comfort, balance or falling). The
+    contacts found here are the controller's support; the balance error (how far the ZMP leaves the
+    support polygon, beyond the input's own excursion) is reported."""
+    from ..motion_control.contacts import Contact
+    from ..motion_control.controller import ControlSettings, control
+    contacts = report.get("contacts")
+    if contacts is None:  # the skate repair was off: the contacts of this motion
+        planted = feet.planted_points(_points(skeleton, traj), traj.fps)
+        contacts = {s: [[float(traj.frames[a]), float(traj.frames[b - 1])] for a, b in feet.contact_runs(d.any(axis=1))]
+                    for s, d in planted.items()}
+    overrides = tuple(Contact(side, first, last, True) for side, runs in contacts.items() for first, last in runs)
+    ground = report.get("ground_m")
+    settings = ControlSettings(tracking_only=True, ground_height=ground, support_overrides=overrides,
+                               remove_foot_skate=False)
+    result = control(skeleton, traj, settings)
+    balance = np.asarray(result.balance_error, float)
+    finite = balance[np.isfinite(balance)]
+    worst = int(np.nanargmax(balance)) if finite.size else None
+    slide = np.asarray(result.foot_slide, float)
+    return result.trajectories, {
+        "balance_error_max_cm": round(float(100 * finite.max()), 2) if finite.size else 0.0,
+        "balance_error_median_cm": round(float(100 * np.median(finite)), 2) if finite.size else 0.0,
+        "balance_error_frame": float(traj.frames[worst]) if worst is not None else None,
+        "out_of_balance_frames": int(np.count_nonzero(finite > 0.01)),
+        "foot_slide_max_mm": round(float(1000 * np.nanmax(slide)), 2) if np.isfinite(slide).any() else 0.0,
+        "ground_m": result.ground_height}
 
 
 def _changes(skeleton, before, after):

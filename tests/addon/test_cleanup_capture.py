@@ -66,14 +66,15 @@ def test_operator_repairs_the_wrist_and_thumb_and_writes_markers(cmu_rig):
     log = []
     VIEW3D_PT_humananim_cleanup.draw(type("P", (), {"layout": RecordingLayout(log)})(), bpy.context)
     labels = [entry[1] for entry in log if entry[0] == "label"]
-    assert len(labels) == 4 and labels[0].startswith("glitches: ") and "glitches;" in labels[0]
-    assert [text.split(":")[0] for text in labels] == ["glitches", "jitter", "floor", "skate"]
+    assert len(labels) == 5 and labels[0].startswith("glitches: ") and "glitches;" in labels[0]
+    assert [text.split(":")[0] for text in labels] == ["glitches", "jitter", "floor", "skate", "physics"]
+    assert labels[4] == "physics: off"
 
 
 def test_operator_with_every_repair_off_but_glitches(cmu_rig):
     assert bpy.ops.humananim.clean_up_capture(jitter=False, floor=False, skate=False) == {"FINISHED"}
     report = cleanup.stored(cmu_rig)
-    assert [r["enabled"] for r in report["repairs"]] == [True, False, False, False]
+    assert [r["enabled"] for r in report["repairs"]] == [True, False, False, False, False]
     assert len(cmu_rig.animation_data.action.pose_markers) == 0  # no contacts without the skate repair
 
 
@@ -89,7 +90,7 @@ def test_cleanup_command_json(tmp_path):
     assert r.returncode == 0, r.stderr
     s = json.loads(r.stdout)
     assert s["command"] == "cleanup" and s["action"] == "cmu_131_01.clean" and out.exists()
-    assert [x["repair"] for x in s["report"]["repairs"]] == ["glitches", "jitter", "floor", "skate"]
+    assert [x["repair"] for x in s["report"]["repairs"]] == ["glitches", "jitter", "floor", "skate", "physics"]
     assert s["report"]["repairs"][1] == {"repair": "jitter", "enabled": False}
     assert s["qa"]["measures"]["source_untouched"]["value"] is True
     assert s["qa"]["measures"]["penetration"]["value"] < 1.0  # cm: no foot through the floor
@@ -162,3 +163,17 @@ def test_cleanup_command_on_a_ground_obj(tmp_path):
     r = run("cleanup", CMU_CLIPS[0], "--ground-mesh", str(bad), "--out", str(tmp_path / "x.blend"))
     assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "x.blend").exists()
+
+
+def test_operator_physical_pass_reports_balance(cmu_rig):
+    source = cmu_rig.animation_data.action
+    assert bpy.ops.humananim.clean_up_capture(jitter=False, physics=True) == {"FINISHED"}
+    assert cmu_rig.animation_data.action is not source
+    physics = cleanup.stored(cmu_rig)["repairs"][4]
+    assert physics["enabled"] and physics["balance_error_max_cm"] >= 0.0
+    from test_panels import RecordingLayout
+    from humananim.panels.cleanup import VIEW3D_PT_humananim_cleanup
+    log = []
+    VIEW3D_PT_humananim_cleanup.draw(type("P", (), {"layout": RecordingLayout(log)})(), bpy.context)
+    line = [entry[1] for entry in log if entry[0] == "label"][4]
+    assert line.startswith("physics: ") and "balance" in line

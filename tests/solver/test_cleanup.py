@@ -180,8 +180,9 @@ def test_skate_removed_under_2_mm():
 def test_report_lists_every_repair_with_qa():
     sk, tr = clip(4)
     _, report = clean_up(sk, tr, Options(jitter=False))
-    assert [r["repair"] for r in report["repairs"]] == ["glitches", "jitter", "floor", "skate"]
+    assert [r["repair"] for r in report["repairs"]] == ["glitches", "jitter", "floor", "skate", "physics"]
     assert report["repairs"][1] == {"repair": "jitter", "enabled": False}
+    assert report["repairs"][4] == {"repair": "physics", "enabled": False}  # optional: off by default
     for r in (report["repairs"][0], report["repairs"][2], report["repairs"][3]):
         assert {"frames", "bones", "max_change_deg", "qa_before", "qa_after"} <= set(r)
         assert "penetration" in r["qa_after"]
@@ -240,3 +241,19 @@ def test_no_knee_pop_when_feet_are_held_and_put_on_the_floor():
     assert step(out).max() <= 1.1 * step(tr).max()
     assert np.abs(np.diff(step(out), axis=0)).max() <= 1.6 * np.abs(np.diff(step(tr), axis=0)).max()
     assert report["repairs"][3]["pelvis_lowered_cm"] <= 100 * feet.MAX_PELVIS_DROP
+
+
+def test_physical_pass_tracks_the_cleaned_motion_and_reports_balance():
+    sk, tr = clip(4)
+    cleaned, _ = clean_up(sk, tr, Options())
+    out, report = clean_up(sk, tr, Options(physics=True))
+    entry = report["repairs"][4]
+    assert entry["repair"] == "physics" and entry["enabled"]
+    assert entry["balance_error_max_cm"] >= entry["balance_error_median_cm"] >= 0.0
+    assert entry["out_of_balance_frames"] <= len(tr.frames) and entry["ground_m"] == pytest.approx(0.0)
+    assert {"qa_before", "qa_after", "max_change_deg"} <= set(entry)
+    np.testing.assert_array_equal(out.frames, tr.frames)
+    # tracking only: the body follows the cleaned motion (no step, no fall, no reaction added)
+    path = lambda t: t.root_pose(sk)[0]
+    assert np.linalg.norm(path(out) - path(cleaned), axis=1).max() < 0.1
+    assert np.sqrt(np.mean(deg(out.rotations, cleaned.rotations) ** 2)) < 5.0
