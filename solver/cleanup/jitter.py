@@ -39,10 +39,49 @@ def noise_scale(residual, fps=None):
     second = np.linalg.norm(np.diff(residual, 2, axis=0), axis=-1)  # (F - 2, K)
     w = 0 if fps is None else int(round(NOISE_WINDOW_SECONDS * fps))
     if w < 3 or len(second) < 2 * w:
-        return np.median(second, axis=0)[None, :, None] / np.sqrt(6.0)
-    windows = np.lib.stride_tricks.sliding_window_view(second, w, axis=0)[::max(1, w // 2)]  # (n, K, w)
-    local = np.median(windows, axis=-1)
-    return np.percentile(local, NOISE_PERCENTILE, axis=0)[None, :, None] / np.sqrt(6.0)
+        size = np.median(second, axis=0) / np.sqrt(6.0)
+    else:
+        windows = np.lib.stride_tricks.sliding_window_view(second, w, axis=0)[::max(1, w // 2)]  # (n, K, w)
+        size = np.percentile(np.median(windows, axis=-1), NOISE_PERCENTILE, axis=0) / np.sqrt(6.0)
+    # jitter is white: it fills the top of the spectrum as much as the rest, where a body's
+    # motion (even a walk's heel strike at 30 fps) has next to nothing. Its size there, scaled
+    # to the whole band, caps the estimate: motion that never rests is not taken for noise
+    top = top_band_size(residual)
+    if top is not None:
+        size = np.minimum(size, top)
+    # and a capture's jitter is spread over the whole body, while fast motion (a wave, a kick) is
+    # in a few joints: no joint's noise is taken to be more than BODY_SPREAD times the body's median
+    if size.size >= 5:
+        size = np.minimum(size, BODY_SPREAD * np.median(size))
+    return size[None, :, None]
+
+
+BODY_SPREAD = 2.0
+
+
+TOP_BAND = 0.75  # the top of the spectrum: above this share of the Nyquist frequency
+
+
+def _top_pass(x):
+    b, a = butter(4, TOP_BAND, btype="high")
+    return filtfilt(b, a, x, axis=0)
+
+
+def _top_gain():
+    """The top-band statistic of white noise of size 1 (the size unit of noise_scale: the median
+    length of a 3-vector of unit normal components), from a fixed sample."""
+    noise = np.random.default_rng(0).standard_normal((20000, 1, 3))
+    return np.median(np.linalg.norm(_top_pass(noise), axis=-1)) / np.median(np.linalg.norm(noise, axis=-1))
+
+
+_TOP_GAIN = _top_gain()
+
+
+def top_band_size(residual):
+    """(K,) the residual's size as white noise, from the top of its spectrum; None if too short."""
+    if len(residual) < 40:
+        return None
+    return np.median(np.linalg.norm(_top_pass(residual), axis=-1), axis=0) / _TOP_GAIN
 
 
 def garrote(residual, sigmas=None, fps=None):
