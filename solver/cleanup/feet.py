@@ -168,8 +168,10 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
             low = heights_above(p, floor, d[:, :2]).min(axis=1)
             # a foot whose contacts all sit higher than the other's (a marker or a sole placed
             # higher) keeps its own level above the floor rather than being pushed to it
-            seen = low[on & np.isfinite(low)]
-            level = max(0.0, float(np.percentile(seen, FLOOR_PERCENTILE))) if len(seen) >= 3 else 0.0
+            # (seen over several contacts: a single one that hovers is lowered)
+            lows = [low[a:b].min() for a, b in contact_runs(on)]
+            lows = [x for x in lows if np.isfinite(x)]
+            level = max(0.0, float(np.percentile(lows, FLOOR_PERCENTILE))) if len(lows) >= 3 else 0.0
             for a, b in contact_runs(on):
                 gap = low[a:b].min() - level
                 # a contact far above the floor stands on something else: left where it is
