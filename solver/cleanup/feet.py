@@ -411,7 +411,8 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
             angle = np.arctan2(np.linalg.norm(axis, axis=1), np.einsum("fi,fi->f", _unit(now), _unit(want)))
             omega[a:b] = _unit(axis) * np.minimum(angle, np.radians(MAX_TOE_TURN_DEG))[:, None]
             end = min(F, b + ramp)
-            omega[b:end] = omega[b - 1] * (1.0 - np.arange(1, end - b + 1) / (ramp + 1))[:, None]
+            fade = np.arange(1, end - b + 1) / (ramp + 1)
+            omega[b:end] = omega[b - 1] * (1.0 - fade * fade * (3 - 2 * fade))[:, None]  # eased out
         frames = np.flatnonzero(np.linalg.norm(omega, axis=1) > 1e-9)
         if not len(frames):
             continue
