@@ -413,6 +413,9 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
             end = min(F, b + ramp)
             fade = np.arange(1, end - b + 1) / (ramp + 1)
             omega[b:end] = omega[b - 1] * (1.0 - fade * fade * (3 - 2 * fade))[:, None]  # eased out
+        if floor is not None:  # where a turn (e.g. fading out after the contact) would put the
+            # tip under the ground, the turn is cut back as far as needed
+            omega = _keep_tip_up(omega, p[:, 1] - head, head, floor)
         frames = np.flatnonzero(np.linalg.norm(omega, axis=1) > 1e-9)
         if not len(frames):
             continue
@@ -423,6 +426,30 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
         moved[side] = frames
     quats = rotations.make_continuous(quats)
     return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
+
+
+def _keep_tip_up(omega, tip, head, floor, shares=(1.0, 0.75, 0.5, 0.25, 0.0)):
+    """omega (F, 3) scaled down, frame by frame, to the largest share that keeps the toe tip
+    (head + turned tip) on or above the ground; frames already under it keep their turn."""
+    out = omega.copy()
+    angle = np.linalg.norm(omega, axis=1)
+    moving = np.flatnonzero(angle > 1e-9)
+    if not len(moving):
+        return out
+    def above(share):
+        turn = _axis_rotation(_unit(omega[moving]), share * angle[moving])
+        moved = head[moving] + np.einsum("fij,fj->fi", turn, tip[moving])
+        return heights_above(moved[:, None], floor)[:, 0] >= -1e-4
+    unturned = above(0.0)
+    chosen = np.zeros(len(moving))
+    done = ~unturned  # a tip under the ground without the turn: keep the turn (it lifts)
+    chosen[done] = 1.0
+    for share in shares:
+        ok = ~done & above(share)
+        chosen[ok] = share
+        done |= ok
+    out[moving] = omega[moving] * chosen[:, None]
+    return out
 
 
 def planted_slide(skeleton, traj, planted):
