@@ -20,9 +20,12 @@ each cleaned with only the repair it calls for (seeded per clip):
   against the original (RMS and max, deg) and the bone-tail position error (RMS, mm) before and
   after.
 - floor and skate: the root lifted 5 cm and drifting 5 cm (a sine of 0.3 Hz) over the ground.
-  The floor found against the original's plus 5 cm (mm), the lowest body point and the lowest foot point
+  The floor found against the original's plus 5 cm (mm), the lowest body point (the pelvis and the bones under it) and the lowest foot point
   after (mm, below 0 is through the floor; only feet are repaired), the slide of every planted foot point within its contact (mm; contacts of
   the corrupted clip) before and after.
+- ground mesh: the uncorrupted clip put on a bumpy height field (+-1.5 cm): its lowest foot point
+  above the ground (mm), the slide of its planted points (mm), and the contacts that the
+  flat-floor repair puts on a flat floor that this one puts on the bumps (within 2 mm).
 - clean: the uncorrupted clip through glitches and jitter: the change (RMS, deg).
 Aims (issue 26): every flip, spike and dropout within 2 deg; planted-foot slide under 2 mm; no
 point below the floor; the clean clip within 0.5 deg RMS.
@@ -43,7 +46,7 @@ sys.path.insert(0, str(ROOT.parent))
 
 from humananim.solver import bvh, rotations, units  # noqa: E402
 from humananim.solver.role_detection import detect_roles  # noqa: E402
-from humananim.solver.cleanup import Options, clean_up, feet, glitches  # noqa: E402
+from humananim.solver.cleanup import Options, clean_up, feet, glitches, ground  # noqa: E402
 from humananim.solver.trajectories import Trajectories  # noqa: E402
 from machine import numpy_add_us  # noqa: E402  (the contract's machine-speed indicator)
 
@@ -150,13 +153,42 @@ def feet_case(sk, tr):
     bad = tr.with_root_pose(sk, moved, orientation)
     planted = feet.planted_points(feet.foot_points(sk, bad.world_frames(sk)), tr.fps)
     out, report = clean_up(sk, bad, Options(glitches=False, jitter=False, ground=floor))
-    pts = np.concatenate((out.world_frames(sk)[..., :3, 3], tails(sk, out)), axis=1)
+    body = [sk.root] + sk.descendants(sk.root)  # not a ground-level root bone above the pelvis
+    pts = np.concatenate((out.world_frames(sk)[:, body][..., :3, 3], tails(sk, out)[:, body]), axis=1)
     foot = feet.foot_points(sk, out.world_frames(sk))
     return {"floor_error_mm": 1000 * abs(report["floor_m"] - (floor + 0.05)),
             "lowest_mm": 1000 * float(pts[..., 2].min() - floor),
             "lowest_foot_mm": 1000 * float(min(p[..., 2].min() for p in foot.values()) - floor),
             "slide_before_mm": slide_mm(sk, bad, planted), "slide_after_mm": slide_mm(sk, out, planted),
-            "hovering_frames": report["repairs"][2]["hovering_frames"]}
+            "hovering_contacts": report["repairs"][2]["hovering_contacts"],
+            "pelvis_lowered_cm": max(report["repairs"][2]["pelvis_lowered_cm"], report["repairs"][3]["pelvis_lowered_cm"])}
+
+
+def bumps(xy):
+    return 0.015 * np.sin(2.0 * xy[..., 0]) * np.cos(1.5 * xy[..., 1])
+
+
+def ground_case(sk, tr):
+    """The clip put on a bumpy height field (+-1.5 cm, 5 cm cells, 3 m waves): its lowest foot
+    point above the ground (mm), the slide of its planted points (mm), the contacts that the
+    flat-floor repair puts on the floor and this one on the bumps (within 2 mm)."""
+    x = np.arange(-15.0, 15.0, 0.05)
+    xx, yy = np.meshgrid(x, x)
+    field = ground.HeightField(bumps(np.stack((xx, yy), axis=-1)), (x[0], x[0]), 0.05)
+    planted = feet.planted_points(feet.foot_points(sk, tr.world_frames(sk)), tr.fps)
+    out, _ = clean_up(sk, tr, Options(glitches=False, jitter=False, ground=field))
+    flat, _ = clean_up(sk, tr, Options(glitches=False, jitter=False, ground=0.0))
+    above = {s: feet.heights_above(p, field).min(axis=1) for s, p in feet.foot_points(sk, out.world_frames(sk)).items()}
+    low = {s: p[..., 2].min(axis=1) for s, p in feet.foot_points(sk, flat.world_frames(sk)).items()}
+    on_floor = on_bumps = 0
+    for side, down in planted.items():
+        for a, b in feet.contact_runs(down.any(axis=1)):
+            if low[side][a:b].min() < 0.002:
+                on_floor += 1
+                on_bumps += abs(above[side][a:b].min()) < 0.002
+    finite = np.concatenate([h[np.isfinite(h)] for h in above.values()])
+    return {"lowest_foot_mm": 1000 * float(finite.min()), "slide_mm": slide_mm(sk, out, planted),
+            "contacts_on_floor": on_floor, "contacts_on_bumps": int(on_bumps)}
 
 
 def clean_case(sk, tr):
@@ -182,7 +214,7 @@ def main():
     spread = max(1, len(corpus) // max(args.clips, 1))
     paths = CMU + corpus[::spread] + [p for i, p in enumerate(corpus) if i % spread]  # evenly over the corpus first
     used = 0
-    kinds, jit, fl, clean, elsewhere, skipped = {}, [], [], [], [], []
+    kinds, jit, fl, gr, clean, elsewhere, skipped = {}, [], [], [], [], [], []
     t0 = time.perf_counter()
     for i, path in enumerate(paths):
         if used >= args.clips + len(CMU):
@@ -206,7 +238,8 @@ def main():
         elsewhere.append(rest)
         jit.append(jitter_case(sk, tr, rng))
         try:
-            fl.append(feet_case(sk, tr))
+            fl.append(dict(feet_case(sk, tr), clip=path.name))
+            gr.append(ground_case(sk, tr))
         except ValueError as error:  # a rig without a leg chain
             skipped.append(f"{path.name} (feet): {error}")
         clean.append(clean_case(sk, tr))
@@ -231,7 +264,16 @@ def main():
                  "slide_before_mm_median": float(np.median([f["slide_before_mm"] for f in fl])),
                  "slide_after_mm_median": float(np.median([f["slide_after_mm"] for f in fl])),
                  "slide_after_mm_max": max(f["slide_after_mm"] for f in fl),
-                 "slide_after_under_2mm_clips": sum(f["slide_after_mm"] < 2.0 for f in fl), "clips": len(fl)},
+                 "slide_after_under_2mm_clips": sum(f["slide_after_mm"] < 2.0 for f in fl), "clips": len(fl),
+                 "hovering_contacts": sum(f["hovering_contacts"] for f in fl),
+                 "pelvis_lowered_cm_median": float(np.median([f["pelvis_lowered_cm"] for f in fl])),
+                 "pelvis_lowered_cm_max": max(f["pelvis_lowered_cm"] for f in fl),
+                 "slide_worst_clip": max(fl, key=lambda f: f["slide_after_mm"])["clip"]},
+        "ground_mesh": {"lowest_foot_mm_min": min(g["lowest_foot_mm"] for g in gr),
+                        "slide_mm_median": float(np.median([g["slide_mm"] for g in gr])),
+                        "slide_mm_max": max(g["slide_mm"] for g in gr),
+                        "contacts_on_floor": sum(g["contacts_on_floor"] for g in gr),
+                        "contacts_on_bumps": sum(g["contacts_on_bumps"] for g in gr)},
         "clean_rms_deg_max": max(clean), "clean_rms_deg_median": float(np.median(clean)),
         "dropout_max_deg_by_fps": {f"{fps:g}": max(r["max_deg"] for r in rs) for fps, rs in _by_fps(kinds).items()},
     }
@@ -243,6 +285,15 @@ def main():
          "unit": "mm", "aim": "< 2 mm", "met": result["feet"]["slide_after_mm_max"] < 2.0},
         {"claim": "lowest body point after the floor repair, worst clip", "value": round(result["feet"]["lowest_mm_min"], 2),
          "unit": "mm", "aim": ">= 0 (nothing below the floor)", "met": result["feet"]["lowest_mm_min"] >= -0.5},
+        {"claim": "planted-foot slide after skate repair, median clip", "value": round(result["feet"]["slide_after_mm_median"], 2),
+         "unit": "mm", "aim": "< 2 mm", "met": result["feet"]["slide_after_mm_median"] < 2.0},
+        {"claim": "feet on a bumpy ground mesh: lowest foot point above it, worst clip",
+         "value": round(result["ground_mesh"]["lowest_foot_mm_min"], 2), "unit": "mm", "aim": ">= 0 (no sinking)",
+         "met": result["ground_mesh"]["lowest_foot_mm_min"] >= -0.5},
+        {"claim": "feet on a bumpy ground mesh: contacts on it (of those the flat repair puts on a flat floor)",
+         "value": round(result["ground_mesh"]["contacts_on_bumps"] / max(result["ground_mesh"]["contacts_on_floor"], 1), 4),
+         "unit": "fraction", "aim": "1.0 (no hovering)",
+         "met": result["ground_mesh"]["contacts_on_bumps"] == result["ground_mesh"]["contacts_on_floor"]},
         {"claim": "clean clip changed by glitches + jitter, worst clip", "value": round(result["clean_rms_deg_max"], 3),
          "unit": "deg RMS", "aim": "< 0.5 deg RMS", "met": result["clean_rms_deg_max"] < 0.5},
         {"claim": "jitter (1 deg) left after the filter, median clip", "value": round(result["jitter"]["after_rms_deg"], 3),
@@ -266,7 +317,12 @@ def main():
     f = result["feet"]
     print(f"floor: found within {f['floor_error_mm_max']:.1f} mm; lowest point {f['lowest_mm_min']:.1f} mm (feet {f['lowest_foot_mm_min']:.1f} mm); slide "
           f"{f['slide_before_mm_median']:.1f} -> {f['slide_after_mm_median']:.2f} mm median, worst {f['slide_after_mm_max']:.2f} mm, "
-          f"{f['slide_after_under_2mm_clips']}/{f['clips']} clips under 2 mm")
+          f"{f['slide_after_under_2mm_clips']}/{f['clips']} clips under 2 mm; "
+          f"hovering contacts {f['hovering_contacts']}; pelvis lowered {f['pelvis_lowered_cm_median']:.1f} cm median, "
+          f"{f['pelvis_lowered_cm_max']:.1f} cm worst")
+    g = result["ground_mesh"]
+    print(f"bumpy ground: lowest foot {g['lowest_foot_mm_min']:.2f} mm above it; {g['contacts_on_bumps']}/{g['contacts_on_floor']} "
+          f"contacts on it; slide {g['slide_mm_median']:.2f} mm median, {g['slide_mm_max']:.2f} mm worst")
     print(f"clean clip: change {result['clean_rms_deg_median']:.3f} deg RMS median, worst {result['clean_rms_deg_max']:.3f}")
     print("dropouts, largest error by frame rate: " + ", ".join(f"{k} fps {v:.1f} deg" for k, v in result["dropout_max_deg_by_fps"].items()))
     for c in result["claims"]:

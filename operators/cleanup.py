@@ -2,7 +2,7 @@
 into a NEW action, contacts as pose markers; the work lives in humananim_addon.cleanup."""
 
 import bpy
-from bpy.props import BoolProperty, FloatProperty
+from bpy.props import BoolProperty, FloatProperty, StringProperty
 
 from ..humananim_addon import cleanup
 from ..solver.cleanup import Options
@@ -26,7 +26,14 @@ class HUMANANIM_OT_clean_up_capture(bpy.types.Operator):
     jitter_strength: FloatProperty(name="Strength", default=1.0, min=0.0, max=1.0, subtype="FACTOR")
     floor: BoolProperty(name="Floor", default=True, description="Find the floor and put the planted feet on it")
     ground: FloatProperty(name="Ground", default=0.0, unit="LENGTH", description="Floor height the feet are put on")
+    ground_object: StringProperty(name="Ground Mesh", default="",
+                                  description="A mesh object the feet are put on (empty: a flat floor at Ground)",
+                                  search=lambda self, context, text: [o.name for o in bpy.data.objects
+                                                                      if o.type == "MESH" and text.lower() in o.name.lower()])
     skate: BoolProperty(name="Foot Skate", default=True, description="Hold planted feet where they land")
+    physics: BoolProperty(name="Physical Pass", default=False,
+                          description="Run the result through dynamic control (tracking only): the pelvis and centre of "
+                                      "mass obey gravity and the support; the balance error is reported")
 
     @classmethod
     def poll(cls, context):
@@ -39,13 +46,21 @@ class HUMANANIM_OT_clean_up_capture(bpy.types.Operator):
             action = cleanup.active_action(obj)
             if action is None:
                 raise MotionError("the active armature has no action to clean")
+            ground = self.ground
+            if self.floor and self.ground_object:
+                mesh = bpy.data.objects.get(self.ground_object)
+                if mesh is None:
+                    raise MotionError(f"no object named '{self.ground_object}' for the ground")
+                ground = cleanup.ground_from_object(mesh, context.evaluated_depsgraph_get())
             options = Options(glitches=self.glitches, jitter=self.jitter, floor=self.floor, skate=self.skate,
+                              physics=self.physics,
                               glitch_strength=self.glitch_strength, jitter_strength=self.jitter_strength,
-                              jitter_hz=self.jitter_hz, ground=self.ground)
+                              jitter_hz=self.jitter_hz, ground=ground)
             s = cleanup.clean_action(obj, context.scene, action, options)
             events = sum(len(r.get("events", [])) for r in s["report"]["repairs"])
             text = f"'{s['action']}': {events} glitches repaired, {s['markers']} contact markers"
-            return with_qa(self, context, obj, s, text, self.ground if self.floor else None)
+            flat = self.floor and not self.ground_object
+            return with_qa(self, context, obj, s, text, self.ground if flat else None)
         return run_reporting(self, work)
 
 

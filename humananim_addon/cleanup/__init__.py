@@ -28,13 +28,47 @@ def clean_action(obj, scene, action, options=None, name=None):
     if traj.frame_count < 3:
         raise MotionError(f"'{action.name}' has {traj.frame_count} frames: cleaning needs at least 3")
     cleaned, report = clean_up(skeleton, traj, options)
-    result = write_action(obj, skeleton, cleaned, name or f"{action.name}.clean", source=action)
+    result = write_result(obj, skeleton, cleaned, name or f"{action.name}.clean", action)
     markers = write_contact_markers(result, report.get("contacts", {}))
     summary = {"command": "cleanup", "armature": obj.name, "source_action": action.name, "action": result.name,
                "frame_range": [float(traj.frames[0]), float(traj.frames[-1])], "fps": traj.fps,
                "markers": markers, "report": report, "ms": round(1000 * (time.perf_counter() - t0), 1)}
     obj[PROPERTY] = json.dumps(report)
     return summary
+
+
+def write_result(obj, skeleton, traj, name, source):
+    """The cleaned motion written back as a NEW action on the deform skeleton: the one place the
+    clean-up writes to Blender, so a rig layer (write-back to a rig's controls) can hook it."""
+    return write_action(obj, skeleton, traj, name, source=source)
+
+
+def ground_from_object(ground_obj, depsgraph=None):
+    """A solver ground (solver.cleanup.ground.TriangleMesh) from a mesh object as it is evaluated
+    (modifiers applied), in world space."""
+    import numpy as np
+    from ...solver.cleanup.ground import TriangleMesh
+    if ground_obj is None or ground_obj.type != "MESH":
+        raise MotionError(f"the ground '{getattr(ground_obj, 'name', ground_obj)}' is not a mesh object")
+    depsgraph = depsgraph or bpy.context.evaluated_depsgraph_get()
+    evaluated = ground_obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        mesh.calc_loop_triangles()
+        co = np.empty(3 * len(mesh.vertices))
+        mesh.vertices.foreach_get("co", co)
+        tris = np.empty(3 * len(mesh.loop_triangles), dtype=np.int32)
+        mesh.loop_triangles.foreach_get("vertices", tris)
+    finally:
+        evaluated.to_mesh_clear()
+    if not len(tris):
+        raise MotionError(f"the ground '{ground_obj.name}' has no faces")
+    m = np.array(ground_obj.matrix_world)
+    world = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+    try:
+        return TriangleMesh(world, tris.reshape(-1, 3))
+    except ValueError as error:
+        raise MotionError(f"the ground '{ground_obj.name}': {error}") from None
 
 
 def write_contact_markers(action, contacts):
@@ -72,7 +106,17 @@ def lines(report):
         if r["repair"] == "glitches":
             head += f", {len(r['events'])} glitches"
         elif r["repair"] == "floor":
-            head += f", floor {100 * r['floor_m']:+.1f} cm moved to {100 * r['ground_m']:.1f} cm"
+            onto = (f"{100 * r['ground_m']:.1f} cm" if r.get("ground_m") is not None
+                    else f"the ground {r.get('ground', {}).get('kind', 'surface')}")
+            head += f", floor {100 * r['floor_m']:+.1f} cm moved to {onto}"
+            if r.get("pelvis_lowered_cm"):
+                head += f", pelvis lowered up to {r['pelvis_lowered_cm']:.1f} cm"
+            if r.get("hovering_contacts"):
+                head += f", {r['hovering_contacts']} contacts above it left"
+        elif r["repair"] == "physics":
+            head += (f", balance error up to {r['balance_error_max_cm']:.1f} cm (frame {r['balance_error_frame']:g}),"
+                     f" {r['out_of_balance_frames']} frames over 1 cm" if r.get("balance_error_frame") is not None
+                     else ", balanced throughout")
         qa = [f"{k} {r['qa_before'][k]['value']:g}->{r['qa_after'][k]['value']:g} {r['qa_after'][k]['unit']}"
               for k in ("slide", "penetration", "pop_velocity") if k in r.get("qa_after", {})
               and r["qa_before"][k]["value"] is not None and r["qa_after"][k]["value"] is not None]

@@ -12,12 +12,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import qa, rotations
+from ..errors import MotionError
 from ..trajectories import Trajectories
 from . import feet
 from . import glitches as glitch_repair
+from . import ground as ground_surface
 from . import jitter as jitter_filter
 
-REPAIRS = ("glitches", "jitter", "floor", "skate")
+REPAIRS = ("glitches", "jitter", "floor", "skate", "physics")
 QA_KEYS = ("slide", "penetration", "pop_velocity", "pop_acceleration")
 
 
@@ -27,10 +29,13 @@ class Options:
     jitter: bool = True
     floor: bool = True
     skate: bool = True
+    physics: bool = False  # the optional physical pass (dynamic control, tracking only)
     glitch_strength: float = 1.0  # detection: speed limits divided by it
     jitter_strength: float = 1.0  # 0..1: how much of the jitter is removed
     jitter_hz: float = jitter_filter.DEFAULT_CUTOFF_HZ
-    ground: float = 0.0  # floor height (m, world Z) the feet are put on; None keeps the found floor
+    # the ground the feet are put on: a height (m, world Z), a surface (solver.cleanup.ground: a
+    # height field or a mesh), or None to keep the floor found under the feet
+    ground: object = 0.0
 
 
 def motion(skeleton, traj):
@@ -60,7 +65,8 @@ def clean_up(skeleton, traj, options=None):
     last frame)]}, "floor_m": found floor, "ground_m": the floor it was put on}."""
     o = options or Options()
     report = {"repairs": []}
-    steps = (("glitches", _glitches), ("jitter", _jitter), ("floor", _floor), ("skate", _skate))
+    steps = (("glitches", _glitches), ("jitter", _jitter), ("floor", _floor), ("skate", _skate),
+             ("physics", _physics))
     ground = None
     for name, step in steps:
         entry = {"repair": name, "enabled": bool(getattr(o, name))}
@@ -74,6 +80,7 @@ def clean_up(skeleton, traj, options=None):
             entry["qa_after"] = qa_measures(skeleton, traj, ground)
         report["repairs"].append(entry)
     report.pop("planted", None)  # arrays: not part of the report
+    report.pop("surface", None)
     return traj, report
 
 
@@ -108,29 +115,42 @@ def _points(skeleton, traj):
 
 
 def _floor(skeleton, traj, o, report):
-    """The whole body moved up or down so the floor under the planted feet is at the ground; then
-    each planted foot put on it (no sinking, no hovering) by the legs' IK."""
+    """The whole body moved up or down so the feet's floor (found under the planted feet) is on
+    the ground (a height, or a surface: a height field or a mesh, solver.cleanup.ground); then
+    each contact put on it (no sinking, no hovering) by the legs' IK."""
     points = _points(skeleton, traj)
     # contacts found before the feet are put on the floor (which makes every planted frame
     # equally low and would merge them): the skate repair holds the same ones
     report["planted"] = feet.planted_points(points, traj.fps)
-    found = feet.find_floor(points, feet.find_contacts(points, traj.fps))
-    ground = found if o.ground is None else float(o.ground)
+    contacts = {s: d.any(axis=1) for s, d in report["planted"].items()}
+    found = feet.find_floor(points, contacts)  # world Z of the feet's floor
+    surface = ground_surface.as_ground(found if o.ground is None else o.ground)
+    # the body follows the ground's rise and fall under the planted feet (constant on a flat
+    # floor), then the feet's floor is put on it
+    terrain = feet.terrain_under(points, contacts, surface, traj.fps)
+    if not np.isfinite(terrain).all():
+        raise MotionError("no foot is over the ground: the ground mesh does not lie under the motion")
+    lifted = {s: p + np.stack((0 * terrain, 0 * terrain, terrain), axis=1)[:, None] for s, p in points.items()}
+    shift = terrain - feet.find_floor(lifted, contacts, surface)
     position, orientation = traj.root_pose(skeleton)
     position = position.copy()
-    position[:, 2] += ground - found
+    position[:, 2] += shift
     traj = traj.with_root_pose(skeleton, position, orientation)
-    report.update(floor_m=found, ground_m=ground)
+    flat = isinstance(surface, ground_surface.Flat)
+    report.update(floor_m=found, ground_m=surface.z if flat else None, surface=surface)
     points = _points(skeleton, traj)
-    offsets = feet.foot_offsets(points, traj.fps, floor=ground, skate=False)
+    offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=False, planted=report["planted"])
     traj, moved = feet.move_feet(skeleton, traj, offsets)
-    contacts = feet.find_contacts(points, traj.fps)
     after = _points(skeleton, traj)
-    # a hovering foot on a straight leg can't be lowered without moving the body off its path
-    hovering = sum(int((p[contacts[s]][..., 2].min(axis=1) > ground + 0.002).sum()) for s, p in after.items())
-    return traj, {"floor_m": found, "ground_m": ground, "shift_m": ground - found,
-                  "feet_moved_cm": {s: float(100 * np.abs(d[:, 2]).max()) for s, d in offsets.items()},
-                  "hovering_frames": hovering}
+    heights = {s: feet.heights_above(p, surface).min(axis=1) for s, p in after.items()}
+    # a contact hovers when even its lowest point stays above the floor
+    hovering = sum(int(h[a:b].min() > 0.002) for s, h in heights.items() for a, b in feet.contact_runs(contacts[s]))
+    deepest = min(float(np.min(h[np.isfinite(h)], initial=np.inf)) for h in heights.values())
+    return traj, {"floor_m": found, "ground_m": surface.z if flat else None, "ground": surface.describe(),
+                  "shift_m": float(np.median(shift)), "terrain_rise_m": float(np.ptp(terrain)), "feet_moved_cm": {s: float(100 * np.abs(d[:, 2]).max()) for s, d in offsets.items()},
+                  "pelvis_lowered_cm": round(float(100 * moved["pelvis_drop"].max()), 2),
+                  "hovering_contacts": hovering,
+                  "lowest_foot_cm": round(100 * deepest, 2) if np.isfinite(deepest) else None}
 
 
 def _skate(skeleton, traj, o, report):
@@ -139,11 +159,44 @@ def _skate(skeleton, traj, o, report):
     contacts = {side: down.any(axis=1) for side, down in planted.items()}
     report["contacts"] = {s: [[float(traj.frames[a]), float(traj.frames[b - 1])] for a, b in feet.contact_runs(c)]
                           for s, c in contacts.items()}
-    offsets = feet.foot_offsets(points, traj.fps, floor=report.get("ground_m"), skate=True, planted=planted)
+    surface = report.get("surface")
+    offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=True, planted=planted)
     traj, moved = feet.move_feet(skeleton, traj, offsets)
-    traj, _ = feet.pin_toes(skeleton, traj, report.get("ground_m"))
+    traj, _ = feet.pin_toes(skeleton, traj, surface, planted)
     slide = {s: float(100 * np.linalg.norm(d[:, :2], axis=1).max()) for s, d in offsets.items()}
-    return traj, {"contacts": report["contacts"], "largest_correction_cm": slide}
+    return traj, {"contacts": report["contacts"], "largest_correction_cm": slide,
+                  "pelvis_lowered_cm": round(float(100 * moved["pelvis_drop"].max()), 2)}
+
+
+def _physics(skeleton, traj, o, report):
+    """The optional physical pass: the cleaned motion run through dynamic control with tracking
+    only (solver.motion_control, its public entry `control`), so the pelvis and the centre of mass
+    obey gravity and the support, with no reaction added (no comfort, balance or falling). The
+    contacts found here are the controller's support; the balance error (how far the ZMP leaves the
+    support polygon, beyond the input's own excursion) is reported."""
+    from ..motion_control.contacts import Contact
+    from ..motion_control.controller import ControlSettings, control
+    contacts = report.get("contacts")
+    if contacts is None:  # the skate repair was off: the contacts of this motion
+        planted = feet.planted_points(_points(skeleton, traj), traj.fps)
+        contacts = {s: [[float(traj.frames[a]), float(traj.frames[b - 1])] for a, b in feet.contact_runs(d.any(axis=1))]
+                    for s, d in planted.items()}
+    overrides = tuple(Contact(side, first, last, True) for side, runs in contacts.items() for first, last in runs)
+    ground = report.get("ground_m")
+    settings = ControlSettings(tracking_only=True, ground_height=ground, support_overrides=overrides,
+                               remove_foot_skate=False)
+    result = control(skeleton, traj, settings)
+    balance = np.asarray(result.balance_error, float)
+    finite = balance[np.isfinite(balance)]
+    worst = int(np.nanargmax(balance)) if finite.size else None
+    slide = np.asarray(result.foot_slide, float)
+    return result.trajectories, {
+        "balance_error_max_cm": round(float(100 * finite.max()), 2) if finite.size else 0.0,
+        "balance_error_median_cm": round(float(100 * np.median(finite)), 2) if finite.size else 0.0,
+        "balance_error_frame": float(traj.frames[worst]) if worst is not None else None,
+        "out_of_balance_frames": int(np.count_nonzero(finite > 0.01)),
+        "foot_slide_max_mm": round(float(1000 * np.nanmax(slide)), 2) if np.isfinite(slide).any() else 0.0,
+        "ground_m": result.ground_height}
 
 
 def _changes(skeleton, before, after):

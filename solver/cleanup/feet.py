@@ -54,16 +54,76 @@ def contact_runs(mask):
     return [(a, b) for on, a, b in runs(mask) if on]  # b exclusive
 
 
-def find_floor(points, contacts=None):
-    """The floor height: a low percentile, over the frames, of the lowest foot point (over the
-    contact frames when given), so a few toe dips or a foot through the floor do not set it, and
-    few planted frames hover above it (lowering a foot needs a leg that can still stretch)."""
-    low = np.min([p[..., 2].min(axis=1) for p in points.values()], axis=0)
-    if contacts:
-        on = np.any([c for c in contacts.values()], axis=0)
-        if on.sum() >= 3:
-            return float(np.percentile(low[on], FLOOR_PERCENTILE))
+def heights_above(points, ground=None, shift=None):
+    """(F, k) height of each foot point above the ground under it (`ground`: a height, a surface
+    from solver.cleanup.ground, or None for Z = 0), the points first moved by shift (F, 2) over
+    the ground; +inf where there is no ground under a point (off a mesh)."""
+    from .ground import as_ground
+    g = as_ground(0.0 if ground is None else ground)
+    xy = points[..., :2] if shift is None else points[..., :2] + shift[:, None, :]
+    under = g.height(xy)
+    return np.where(np.isfinite(under), points[..., 2] - under, np.inf)
+
+
+TERRAIN_SECONDS = 0.5  # the body follows a ground's rise and fall smoothed over this time
+
+
+def terrain_under(points, contacts, ground, fps):
+    """(F,) the height of the ground under the planted feet, smoothed over TERRAIN_SECONDS and
+    eased between contacts: how far the body rises or falls with a ground that is not flat
+    (constant on a flat floor)."""
+    from scipy.ndimage import uniform_filter1d
+    from .ground import as_ground
+    g = as_ground(ground)
+    F = len(next(iter(points.values())))
+    total, count = np.zeros(F), np.zeros(F)
+    for side, p in points.items():
+        lowest = p[np.arange(F), p[..., 2].argmin(axis=1)]
+        h = g.height(lowest[:, :2])
+        use = contacts[side] & np.isfinite(h)
+        total[use] += h[use]
+        count[use] += 1
+    known = count > 0
+    if not known.any():
+        return np.full(F, np.nan)
+    idx = np.arange(F)
+    under = np.zeros(F)
+    under[known] = total[known] / count[known]
+    if not known.all():
+        under[~known] = _ease(idx[~known], idx[known], under[known])
+    return uniform_filter1d(under, max(1, int(round(TERRAIN_SECONDS * fps))), mode="nearest")
+
+
+def find_floor(points, contacts=None, ground=None):
+    """The floor: a low percentile, over the frames, of the lowest foot point's height (above
+    `ground` when given, see heights_above; else its world Z), over the contact frames when
+    given, so a few toe dips or a foot through the floor do not set it, and few planted frames
+    hover above it (lowering a foot needs a leg that can still stretch)."""
+    low = np.min([heights_above(p, ground).min(axis=1) for p in points.values()], axis=0)
+    on = np.any([c for c in contacts.values()], axis=0) if contacts else np.ones(len(low), bool)
+    if on.sum() < 3:
+        on = np.ones(len(low), bool)
+    low = low[on & np.isfinite(low)]
+    if not len(low):
+        from ..errors import MotionError
+        raise MotionError("no foot is over the ground: the ground mesh does not lie under the motion")
     return float(np.percentile(low, FLOOR_PERCENTILE))
+
+
+def _segments(values):
+    """Runs (first, end exclusive) of equal consecutive values."""
+    cuts = np.flatnonzero(np.diff(values)) + 1
+    return list(zip(np.r_[0, cuts], np.r_[cuts, len(values)]))
+
+
+def _ease(x, xp, fp):
+    """Like np.interp, but eased (smoothstep) between known values, so a correction fades in and
+    out with no jump in speed."""
+    right = np.clip(np.searchsorted(xp, x), 1, len(xp) - 1)
+    left = right - 1
+    s = np.clip((x - xp[left]) / np.maximum(xp[right] - xp[left], 1e-12), 0.0, 1.0)
+    w = s * s * (3 - 2 * s)
+    return fp[left] + w * (fp[right] - fp[left])
 
 
 def _heading(v):
@@ -75,8 +135,10 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
     and the point it turns about (4:7). Horizontally (skate): while a point of the foot is
     planted, back to where that point landed (the ball while it is down, else the toe tip, so the
     heel can rise and the foot roll); while both are down, the foot turned back to its heading at
-    landing. Vertically (with `floor`): a planted foot's lowest point on the floor, a foot in the
-    air never below it. Faded in and out around each contact. `planted`: the contacts
+    landing. Vertically (with `floor`, a height or a surface from solver.cleanup.ground): each contact moved so its lowest point is on the floor
+    (or at the foot's own level, the low percentile of its contacts, where that is higher); a
+    contact more than HEIGHT_ON above that stands on something else and is left; a contact
+    through the floor is lifted whole. No frame's foot goes below the floor. Faded in and out around each contact. `planted`: the contacts
     (planted_points) when already known, e.g. found before the floor repair flattened them."""
     ramp = max(1, int(round(RAMP_SECONDS * fps)))
     planted = planted_points(points, fps) if planted is None else planted
@@ -90,27 +152,40 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
         d[:, 4:7] = p[np.arange(F), pick]
         flat = down.all(axis=1) if k > 1 else np.zeros(F, bool)
         if skate:
-            slip = np.zeros((F, k, 2))
-            for i in range(k):
-                for a, b in contact_runs(down[:, i]):
-                    slip[a:b, i] = p[a, i, :2] - p[a:b, i, :2]
-            d[:, :2] = np.where(on[:, None], slip[np.arange(F), pick], 0.0)
+            # the held point is held from where it is when it is picked (with the correction then
+            # in force), so the foot does not jump when the hold passes from the ball to the toe
+            for a, b in contact_runs(on):
+                for s, e in _segments(pick[a:b]):
+                    s, e = a + s, a + e
+                    anchor = p[s, pick[s], :2] + (d[s - 1, :2] if s > a else 0.0)
+                    d[s:e, :2] = anchor - p[s:e, pick[s], :2]
             for a, b in contact_runs(flat):
                 h = _heading(p[a:b, 1, :2] - p[a:b, 0, :2])
                 d[a:b, 3] = np.angle(np.exp(1j * (h[0] - h)))
-        if floor is not None:  # planted: on the floor; in the air: never below it
-            low = p[..., 2].min(axis=1)
-            d[on, 2] = floor - low[on]
-            d[~on, 2] = np.maximum(floor - low[~on], 0.0)
+        if floor is not None:  # planted: each contact's lowest point on the floor (the foot
+            # rolls as captured); in the air: never below it. Heights above the ground under
+            # each point where the hold puts it.
+            low = heights_above(p, floor, d[:, :2]).min(axis=1)
+            # a foot whose contacts all sit higher than the other's (a marker or a sole placed
+            # higher) keeps its own level above the floor rather than being pushed to it
+            # (seen over several contacts: a single one that hovers is lowered)
+            lows = [low[a:b].min() for a, b in contact_runs(on)]
+            lows = [x for x in lows if np.isfinite(x)]
+            level = max(0.0, float(np.percentile(lows, FLOOR_PERCENTILE))) if len(lows) >= 3 else 0.0
+            for a, b in contact_runs(on):
+                gap = low[a:b].min() - level
+                # a contact far above the floor stands on something else: left where it is
+                d[a:b, 2] = -gap if 0.0 < gap <= HEIGHT_ON else max(-low[a:b].min(), 0.0)
+            d[~on, 2] = np.maximum(-low[~on], 0.0)
         moved = on | (d[:, 2] > 0)
         far = np.convolve(moved.astype(float), np.ones(2 * ramp + 1), "same") == 0
         idx = np.arange(F)
         for c, known in ((0, moved), (1, moved), (2, moved), (3, flat if skate else moved)):
             known = known | far
             if known.any() and not known.all():
-                d[~known, c] = np.interp(idx[~known], idx[known], d[known, c])
+                d[~known, c] = _ease(idx[~known], idx[known], d[known, c])
         if floor is not None:  # a fade that lowers a hovering foot stops at the floor
-            d[:, 2] = np.maximum(d[:, 2], floor - p[..., 2].min(axis=1))
+            d[:, 2] = np.maximum(d[:, 2], -heights_above(p, floor, d[:, :2]).min(axis=1))
         out[side] = d
     return out
 
@@ -139,46 +214,123 @@ def knee_hinge(skeleton, quats, side):
     return axis if (r @ axis).mean() >= 0 else -axis
 
 
-def reach(skeleton, traj, side, offset, frames):
-    """Local rotations (n, 3, 4) of thigh, shin and foot on `frames` that move the foot by
-    offset[frames] ((F, 3), or (F, 7) from foot_offsets: with a turn about a pivot), changing the
-    leg least: the knee bends
-    about its own current axis to give the hip-ankle distance, then the thigh swings (no twist)
-    to point the ankle at its target. The thigh keeps its twist and the knee its off-hinge
-    rotation, which a hinge-and-swivel solve (motion_control.limb_ik.LimbIK) would re-derive:
-    on CMU's three-axis knees that moved the thighs' twist by up to 90 deg for a 0.1 mm target."""
+MIN_KNEE_BEND_DEG = 8.0  # a solved stance knee is never straighter than this, or than in the capture
+ROOT_EASE_SECONDS = 0.2  # the pelvis is lowered and raised back over about this time
+MAX_PELVIS_DROP = 0.03  # m: a foot further out of reach is left hovering (and reported)
+
+
+def _leg(skeleton, side):
     sk = skeleton
     thigh, shin, foot = (sk.role_index(f"{r}.{side}") for r in ("thigh", "shin", "foot"))
     if None in (thigh, shin, foot) or sk.parents[shin] != thigh or sk.parents[foot] != shin:
         raise ValueError(f"leg {side}: thigh, shin and foot must be a parent-child chain")
-    basis = traj.basis()[frames]
-    world = sk.world_frames(basis, traj.armature_to_world)
-    R = world[..., :3, :3]
-    hip, knee, ankle = (world[:, j, :3, 3] for j in (thigh, shin, foot))
-    off = np.asarray(offset, float)[frames]
+    return thigh, shin, foot
+
+
+def foot_targets(skeleton, world, side, offset):
+    """World ankle targets (F, 3) and foot orientations (F, 3, 3) that move the foot by `offset`
+    ((F, 3), or (F, 7) from foot_offsets: with a turn about a pivot)."""
+    thigh, shin, foot = _leg(skeleton, side)
+    ankle = world[:, foot, :3, 3]
+    off = np.asarray(offset, float)
     if off.shape[1] < 7:
         off = np.concatenate((off[:, :3], np.zeros((len(off), 1)), ankle), axis=1)
     turn = _axis_rotation(np.broadcast_to([0.0, 0.0, 1.0], (len(off), 3)), off[:, 3])
     pivot = off[:, 4:7]
-    target = pivot + off[:, :3] + np.einsum("fij,fj->fi", turn, ankle - pivot)
-    r_foot = turn @ R[:, foot]
+    return pivot + off[:, :3] + np.einsum("fij,fj->fi", turn, ankle - pivot), turn @ world[:, foot, :3, :3]
+
+
+def _knee_terms(skeleton, world, side, hinge):
+    """Per frame the knee's reach about its hinge: the thigh's and shin's lengths a, b, the
+    distance hip-ankle c(t)^2 = a^2 + b^2 + 2 (A + R cos(t - psi)) for a turn t of the shin about
+    the hinge (psi: the turn that straightens the leg), and the hinge in the world."""
+    thigh, shin, foot = _leg(skeleton, side)
+    hip, knee, ankle = (world[:, j, :3, 3] for j in (thigh, shin, foot))
     u, v = knee - hip, ankle - knee
+    n = _unit(np.einsum("fij,j->fi", world[:, shin, :3, :3], hinge))
+    v_par = np.einsum("fi,fi->f", n, v)[:, None] * n
+    A = np.einsum("fi,fi->f", u, v_par)
+    B = np.einsum("fi,fi->f", u, v - v_par)
+    C = np.einsum("fi,fi->f", u, np.cross(n, v))
     a, b = np.linalg.norm(u, axis=1), np.linalg.norm(v, axis=1)
-    c = np.linalg.norm(ankle - hip, axis=1)
-    c_new = np.clip(np.linalg.norm(target - hip, axis=1), np.abs(a - b) + 1e-6, a + b - 1e-6)
-    inner = lambda d: np.arccos(np.clip((a * a + b * b - d * d) / (2 * a * b), -1.0, 1.0))
-    delta = inner(c) - inner(c_new)  # more bend: a smaller angle at the knee
-    # the knee bends about its own axis in this motion (not u x v, which turns over as the leg
-    # straightens), towards the side it bends to
+    return a, b, A, np.hypot(B, C), np.arctan2(C, B), n
+
+
+def allowed_reach(skeleton, world, side, hinge):
+    """(F,) the longest hip-ankle distance a solve may ask of each leg: the knee bent at least
+    MIN_KNEE_BEND_DEG, or as much as in the capture where it is straighter (a straight stance leg
+    asked to stretch further would snap straight: a knee pop)."""
+    a, b, A, R, psi, _ = _knee_terms(skeleton, world, side, hinge)
+    bend = np.abs(np.angle(np.exp(-1j * psi)))
+    least = np.minimum(bend, np.radians(MIN_KNEE_BEND_DEG))
+    return np.sqrt(np.maximum(a * a + b * b + 2 * (A + R * np.cos(least)), 0.0))
+
+
+def pelvis_drop(skeleton, traj, targets, ease_frames):
+    """(F,) how far (m) to lower the pelvis so every leg reaches its ankle target (targets {side:
+    (F, 3)}, NaN where the foot is left alone) with its knee bent as allowed_reach says: the
+    least drop per frame, widened and smoothed over `ease_frames` so the body eases down and up
+    (never below what a frame needs), at most MAX_PELVIS_DROP."""
+    world = traj.world_frames(skeleton)
+    need = np.zeros(traj.frame_count)
+    for side, target in targets.items():
+        hip = world[:, _leg(skeleton, side)[0], :3, 3]
+        reach_max = allowed_reach(skeleton, world, side, knee_hinge(skeleton, traj.rotations, side))
+        d = target - hip
+        flat2 = np.sum(d[:, :2] ** 2, axis=1)
+        height = np.sqrt(np.maximum(reach_max ** 2 - flat2, 0.0))  # the hip's height over the target
+        drop = np.where(np.isfinite(d[:, 2]), -d[:, 2] - height, 0.0)
+        need = np.maximum(need, np.nan_to_num(drop, nan=0.0))
+    need = np.minimum(need, MAX_PELVIS_DROP)
+    if not need.any():
+        return need
+    r = max(1, int(ease_frames))
+    from scipy.ndimage import maximum_filter1d, uniform_filter1d
+    wide = maximum_filter1d(need, 4 * r + 1, mode="nearest")
+    return uniform_filter1d(uniform_filter1d(wide, 2 * r + 1, mode="nearest"), 2 * r + 1, mode="nearest")
+
+
+def reach(skeleton, traj, side, target, foot_rotation, frames):
+    """Local rotations (n, 3, 4) of thigh, shin and foot on `frames` that put the ankle at
+    target[frames] (world) with the foot's world rotation foot_rotation[frames], changing the leg
+    least: the shin turns about the knee's own hinge in this motion (knee_hinge) by the turn that
+    gives the hip-ankle distance (exactly, for a hinge at any angle to the bones, on the side the
+    knee bends to over each run of frames), then the thigh swings (no twist) to point the ankle at
+    its target. The thigh keeps its twist and the knee its off-hinge rotation, which a
+    hinge-and-swivel solve (motion_control.limb_ik.LimbIK) would re-derive: on CMU's three-axis
+    knees that moved the thighs' twist by up to 90 deg for a 0.1 mm target."""
+    sk = skeleton
+    thigh, shin, foot = _leg(sk, side)
+    world = sk.world_frames(traj.basis()[frames], traj.armature_to_world)
+    R = world[..., :3, :3]
+    hip, knee, ankle = (world[:, j, :3, 3] for j in (thigh, shin, foot))
+    target = np.asarray(target, float)[frames]
     hinge = knee_hinge(sk, traj.rotations, side)
-    n = np.einsum("fij,j->fi", R[:, shin], hinge)
-    bend = _axis_rotation(_unit(n), delta)
-    ankle1 = knee + np.einsum("fij,fj->fi", bend, v)
+    a, b, A, Rk, psi, n = _knee_terms(sk, world, side, hinge)
+    # a target beyond the allowed reach (the pelvis lowered only so far) is reached from above:
+    # the foot hovers rather than slides, and the knee keeps its bend
+    longest = allowed_reach(sk, world, side, hinge)
+    d = target - hip
+    far = np.linalg.norm(d, axis=1) > longest
+    flat2 = np.sum(d[far, :2] ** 2, axis=1)
+    target = target.copy()
+    target[far, 2] = hip[far, 2] - np.sqrt(np.maximum(longest[far] ** 2 - flat2, 0.0))
+    c_new = np.linalg.norm(target - hip, axis=1)
+    cos_alpha = np.clip(((c_new ** 2 - a * a - b * b) / 2 - A) / np.maximum(Rk, 1e-12), -1.0, 1.0)
+    alpha = np.arccos(cos_alpha)  # the bend from straight that gives c_new
+    bent = np.angle(np.exp(-1j * psi))  # the bend now (positive: the way this knee bends)
+    sign = np.ones(len(frames))
+    for run in np.split(np.arange(len(frames)), np.flatnonzero(np.diff(frames) > 1) + 1):
+        sign[run] = 1.0 if np.median(bent[run]) >= 0 else -1.0  # one side per run: no flip through straight
+    turn = np.angle(np.exp(1j * (psi + sign * alpha)))
+    bend = _axis_rotation(n, turn)
+    ankle1 = knee + np.einsum("fij,fj->fi", bend, ankle - knee)
     p, q = _unit(ankle1 - hip), _unit(target - hip)
     axis = np.cross(p, q)
     swing = _axis_rotation(_unit(axis), np.arctan2(np.linalg.norm(axis, axis=1), np.einsum("fi,fi->f", p, q)))
     r_thigh = swing @ R[:, thigh]
     r_shin = swing @ bend @ R[:, shin]
+    r_foot = np.asarray(foot_rotation, float)[frames]
     rest = sk.rest_local[:, :3, :3]
     parent = sk.parents[thigh]
     r_parent = R[:, parent] if parent >= 0 else traj.armature_to_world[:3, :3]
@@ -189,19 +341,31 @@ def reach(skeleton, traj, side, offset, frames):
 
 
 def move_feet(skeleton, traj, offsets, tolerance=1e-5):
-    """Trajectories with each leg solved (`reach`) so its foot moves by offsets[side] (F, 3)
-    and keeps its world orientation; the body is untouched. Returns (trajectories, {side:
-    frames moved})."""
+    """Trajectories with each leg solved (`reach`) so its foot moves by offsets[side] (F, 3 or 7)
+    and keeps its world orientation (turned by the offset's turn). Where a leg would have to
+    stretch straighter than allowed_reach, the pelvis is lowered (eased in and out; its path over
+    the ground is kept). Returns (trajectories, {side: frames moved, "pelvis_drop": (F,) m})."""
     from ..trajectories import Trajectories
+    world = traj.world_frames(skeleton)
+    goals, chosen = {}, {}
+    for side, d in offsets.items():
+        goals[side] = foot_targets(skeleton, world, side, d)
+        chosen[side] = np.linalg.norm(d[:, :4], axis=1) > tolerance
+    drop = pelvis_drop(skeleton, traj, {s: np.where(chosen[s][:, None], g[0], np.nan) for s, g in goals.items()},
+                       ROOT_EASE_SECONDS * traj.fps) if goals else np.zeros(traj.frame_count)
+    if drop.any():
+        position, orientation = traj.root_pose(skeleton)
+        traj = traj.with_root_pose(skeleton, position - drop[:, None] * [0.0, 0.0, 1.0], orientation)
+    chosen = {s: np.flatnonzero(c | (drop > 1e-9)) for s, c in chosen.items()}  # a lowered body: every leg
     quats = traj.rotations.copy()
     moved = {}
-    for side, d in offsets.items():
-        frames = np.flatnonzero(np.linalg.norm(d[:, :4], axis=1) > tolerance)
-        if not len(frames):
+    for side, (target, r_foot) in goals.items():
+        if not len(chosen[side]):
             continue
-        q, joints = reach(skeleton, traj, side, d, frames)
-        quats[np.ix_(frames, joints)] = q
-        moved[side] = frames
+        q, joints = reach(skeleton, traj, side, target, r_foot, chosen[side])
+        quats[np.ix_(chosen[side], joints)] = q
+        moved[side] = chosen[side]
+    moved["pelvis_drop"] = drop
     quats = rotations.make_continuous(quats)
     return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
 
@@ -210,9 +374,10 @@ MAX_TOE_TURN_DEG = 60.0
 
 
 def pin_toes(skeleton, traj, floor=None, planted=None):
-    """Trajectories whose toe tips stay where they landed while the ball is down too (a flat
-    foot): each toe bone turned about its head (the ball) to put its tip back, faded out over
-    RAMP_SECONDS after the contact, by at most MAX_TOE_TURN_DEG. Returns (trajectories, {side: frames moved})."""
+    """Trajectories whose toe tips stay where they landed while they are down (the foot's hold,
+    foot_offsets, keeps the ball, or the toe from where the hold passed to it): each toe bone
+    turned about its head (the ball) to put its tip back, faded out over RAMP_SECONDS after the
+    contact, by at most MAX_TOE_TURN_DEG. Returns (trajectories, {side: frames moved})."""
     from ..trajectories import Trajectories
     sk, fps = skeleton, traj.fps
     world = traj.world_frames(sk)
@@ -228,20 +393,29 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
         F = len(p)
         omega = np.zeros((F, 3))
         head = world[:, toe, :3, 3]
-        for a, b in contact_runs(planted[side].all(axis=1)):
+        for a, b in contact_runs(planted[side][:, 1]):  # while the tip is down
             now = p[a:b, 1] - head[a:b]
             reach = np.linalg.norm(now, axis=1)
             want = np.zeros_like(now)
             want[:, :2] = p[a, 1, :2] - head[a:b, :2]
             flat = np.linalg.norm(want[:, :2], axis=1)
             want[:, 2] = (1.0 if now[0, 2] >= 0 else -1.0) * np.sqrt(np.maximum(reach ** 2 - flat ** 2, 0.0))
-            if floor is not None:  # the tip stays on or above the floor
-                want[:, 2] = np.maximum(want[:, 2], floor - head[a:b, 2])
+            if floor is not None:  # the tip stays on or above the floor: then as near as it reaches
+                tip = head[a:b] + want
+                low = want[:, 2] - heights_above(tip[:, None], floor)[:, 0]  # the tip's lowest offset
+                lifted = want[:, 2] < low
+                want[lifted, 2] = np.minimum(low[lifted], reach[lifted])
+                side_room = np.sqrt(np.maximum(reach[lifted] ** 2 - want[lifted, 2] ** 2, 0.0))
+                want[lifted, :2] = _unit(want[lifted, :2]) * side_room[:, None]
             axis = np.cross(_unit(now), _unit(want))
             angle = np.arctan2(np.linalg.norm(axis, axis=1), np.einsum("fi,fi->f", _unit(now), _unit(want)))
             omega[a:b] = _unit(axis) * np.minimum(angle, np.radians(MAX_TOE_TURN_DEG))[:, None]
             end = min(F, b + ramp)
-            omega[b:end] = omega[b - 1] * (1.0 - np.arange(1, end - b + 1) / (ramp + 1))[:, None]
+            fade = np.arange(1, end - b + 1) / (ramp + 1)
+            omega[b:end] = omega[b - 1] * (1.0 - fade * fade * (3 - 2 * fade))[:, None]  # eased out
+        if floor is not None:  # where a turn (e.g. fading out after the contact) would put the
+            # tip under the ground, the turn is cut back as far as needed
+            omega = _keep_tip_up(omega, p[:, 1] - head, head, floor)
         frames = np.flatnonzero(np.linalg.norm(omega, axis=1) > 1e-9)
         if not len(frames):
             continue
@@ -252,6 +426,30 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
         moved[side] = frames
     quats = rotations.make_continuous(quats)
     return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
+
+
+def _keep_tip_up(omega, tip, head, floor, shares=(1.0, 0.75, 0.5, 0.25, 0.0)):
+    """omega (F, 3) scaled down, frame by frame, to the largest share that keeps the toe tip
+    (head + turned tip) on or above the ground; frames already under it keep their turn."""
+    out = omega.copy()
+    angle = np.linalg.norm(omega, axis=1)
+    moving = np.flatnonzero(angle > 1e-9)
+    if not len(moving):
+        return out
+    def above(share):
+        turn = _axis_rotation(_unit(omega[moving]), share * angle[moving])
+        moved = head[moving] + np.einsum("fij,fj->fi", turn, tip[moving])
+        return heights_above(moved[:, None], floor)[:, 0] >= -1e-4
+    unturned = above(0.0)
+    chosen = np.zeros(len(moving))
+    done = ~unturned  # a tip under the ground without the turn: keep the turn (it lifts)
+    chosen[done] = 1.0
+    for share in shares:
+        ok = ~done & above(share)
+        chosen[ok] = share
+        done |= ok
+    out[moving] = omega[moving] * chosen[:, None]
+    return out
 
 
 def planted_slide(skeleton, traj, planted):

@@ -55,23 +55,107 @@ def _runs(mask):
 
 
 def fill(values, bad, kind="rotation"):
-    """Frames `bad` of values (F, K, 4 or 3) refilled by a cubic spline through the good frames
-    (quaternions on the hemisphere of their good neighbours, normalised)."""
+    """Frames `bad` of values (F, K, 4 or 3) refilled from their neighbours, per channel and per
+    run of bad frames by whichever of two fillers predicts that channel's own known frames better
+    (cross-validated on runs of the same length beside the gap): a cubic spline through the good
+    frames (smooth motion), or the best-matching stretch of the channel elsewhere in the clip,
+    warped onto the gap's ends (repeated motion: a wave, a gait cycle). Quaternions are filled on
+    the hemisphere of their good neighbours and normalised."""
     out = np.array(values, float)
+    bad = np.asarray(bad, bool)
     good = np.flatnonzero(~bad)
     if len(good) < 2 or not bad.any():
         return out
-    v = out[good]
     if kind == "rotation":
-        v = rotations.make_continuous(v)
-    spline = CubicSpline(good, v, axis=0)
-    idx = np.flatnonzero(bad)
-    inside = (idx > good[0]) & (idx < good[-1])
-    out[idx[inside]] = spline(idx[inside])
-    out[idx[~inside]] = out[good[np.abs(good[:, None] - idx[~inside][None]).argmin(axis=0)]]
+        out[good] = rotations.make_continuous(out[good])
+    out = _spline_fill(out, bad)
+    channels = out if out.ndim == 3 else out[:, None]  # a view: one channel (F, d) as (F, 1, d)
+    for a, b in _runs(bad):
+        for k in range(channels.shape[1]):
+            patch = _best_fill(channels[:, k], bad, a, b, kind == "rotation")
+            if patch is not None:
+                channels[a:b, k] = patch
     if kind == "rotation":
         out = rotations.make_continuous(rotations.normalize(out))
     return out
+
+
+def _spline_fill(values, bad):
+    """Bad frames of values (F, ...) from a cubic spline through the others (held at the ends)."""
+    out = values.copy()
+    good = np.flatnonzero(~bad)
+    if len(good) < 2:
+        return out
+    spline = CubicSpline(good, values[good], axis=0)
+    idx = np.flatnonzero(bad)
+    inside = (idx > good[0]) & (idx < good[-1])
+    out[idx[inside]] = spline(idx[inside])
+    out[idx[~inside]] = values[good[np.abs(good[:, None] - idx[~inside][None]).argmin(axis=0)]]
+    return out
+
+
+def _context(n):
+    return max(3, min(n, 10))
+
+
+def _exemplar(v, usable, a, b, rotation):
+    """Frames a..b-1 of one channel v (F, d) from the stretch elsewhere (all `usable`) whose
+    context (the frames just before and after) best matches the gap's, offset by the mismatch at
+    the gap's two ends, blended linearly across it (motion warping); None if none fits."""
+    F, n, c = len(v), b - a, _context(b - a)
+    if a - c < 0 or b + c > F:
+        return None
+    span = n + 2 * c
+    starts = np.arange(0, F - span + 1)
+    ok = np.array([usable[s:s + span].all() for s in starts]) & ((starts + span <= a - c) | (starts >= b + c))
+    if not ok.any():
+        return None
+    starts = starts[ok]
+    ctx = np.r_[np.arange(c), np.arange(c + n, span)]
+    windows = v[starts[:, None] + np.arange(span)]  # (S, span, d)
+    target = np.concatenate((v[a - c:a], v[b:b + c]))
+    if rotation:  # a quaternion stretch on the far hemisphere is the same rotation
+        windows = windows * np.sign(np.sum(windows[:, c - 1] * v[a - 1], axis=-1) + 1e-12)[:, None, None]
+    diff = target[None] - windows[:, ctx]
+    if not rotation:  # a position stretch may be anywhere: compare its shape
+        diff -= diff.mean(axis=1, keepdims=True)
+    cost = np.sum(diff ** 2, axis=(1, 2))
+    # a stretch with a jump far beyond the steps around the gap (another glitch) is no model
+    calm = 3 * max(np.linalg.norm(np.diff(target[:c], axis=0), axis=-1).max(initial=0.0),
+                   np.linalg.norm(np.diff(target[c:], axis=0), axis=-1).max(initial=0.0)) + 1e-9
+    cost[np.linalg.norm(np.diff(windows, axis=1), axis=-1).max(axis=1) > calm] = np.inf
+    if not np.isfinite(cost).any():
+        return None
+    best = np.argmin(cost)
+    window = windows[best]
+    w = (np.arange(1, n + 1) / (n + 1))[:, None]
+    left, right = v[a - 1] - window[c - 1], v[b] - window[c + n]
+    return window[c:c + n] + (1 - w) * left + w * right
+
+
+def _best_fill(v, bad, a, b, rotation):
+    """The exemplar filling of gap a..b-1 of channel v (F, d) if it predicts known runs of the same
+    length beside the gap better than the spline does (None: keep the spline)."""
+    n, F = b - a, len(v)
+    errors = np.zeros(2)
+    tested = 0
+    for shift in (-(n + _context(n)), n + _context(n), -2 * (n + _context(n)), 2 * (n + _context(n))):
+        ta, tb = a + shift, b + shift
+        if ta - 1 < 0 or tb + 1 > F or bad[max(ta - 1, 0):tb + 1].any():
+            continue
+        hidden = bad.copy()
+        hidden[ta:tb] = True
+        ex = _exemplar(v, ~hidden, ta, tb, rotation)
+        if ex is None:
+            continue
+        sp = _spline_fill(v, hidden)[ta:tb]
+        errors += [np.sum((sp - v[ta:tb]) ** 2), np.sum((ex - v[ta:tb]) ** 2)]
+        tested += 1
+        if tested == 2:
+            break
+    if not tested or errors[1] >= 0.5 * errors[0]:  # clearly better, or the spline
+        return None
+    return _exemplar(v, ~bad, a, b, rotation)
 
 
 def _bursts(step, limit, low):

@@ -17,6 +17,8 @@ from ..dynamics.spatial import quat_exp, quat_log
 
 DEFAULT_CUTOFF_HZ = 6.0
 NOISE_SIGMAS = 3.0
+NOISE_WINDOW_SECONDS = 1.0
+NOISE_PERCENTILE = 25.0
 
 
 def low_pass(x, fps, cutoff_hz, axis=0):
@@ -28,18 +30,64 @@ def low_pass(x, fps, cutoff_hz, axis=0):
     return filtfilt(b, a, x, axis=axis)
 
 
-def noise_scale(residual):
+def noise_scale(residual, fps=None):
     """Per channel (1, K, 1) the jitter's size, from the residual's second differences (white
-    noise of size s has second differences of size s * sqrt(6); smooth motion has almost none):
-    a clean clip's fast motion is not mistaken for noise."""
-    second = np.linalg.norm(np.diff(residual, 2, axis=0), axis=-1, keepdims=True)
-    return np.median(second, axis=0, keepdims=True) / np.sqrt(6.0)
+    noise of size s has second differences of size s * sqrt(6); smooth motion has almost none).
+    Jitter is there all the time, fast motion only at times: with `fps`, the size is the 25th
+    percentile over the clip of its median over windows of NOISE_WINDOW_SECONDS, so a clean clip's
+    fast moments are not taken for noise."""
+    second = np.linalg.norm(np.diff(residual, 2, axis=0), axis=-1)  # (F - 2, K)
+    w = 0 if fps is None else int(round(NOISE_WINDOW_SECONDS * fps))
+    if w < 3 or len(second) < 2 * w:
+        size = np.median(second, axis=0) / np.sqrt(6.0)
+    else:
+        windows = np.lib.stride_tricks.sliding_window_view(second, w, axis=0)[::max(1, w // 2)]  # (n, K, w)
+        size = np.percentile(np.median(windows, axis=-1), NOISE_PERCENTILE, axis=0) / np.sqrt(6.0)
+    # jitter is white: it fills the top of the spectrum as much as the rest, where a body's
+    # motion (even a walk's heel strike at 30 fps) has next to nothing. Its size there, scaled
+    # to the whole band, caps the estimate: motion that never rests is not taken for noise
+    top = top_band_size(residual)
+    if top is not None:
+        size = np.minimum(size, top)
+    # and a capture's jitter is spread over the whole body, while fast motion (a wave, a kick) is
+    # in a few joints: no joint's noise is taken to be more than BODY_SPREAD times the body's median
+    if size.size >= 5:
+        size = np.minimum(size, BODY_SPREAD * np.median(size))
+    return size[None, :, None]
 
 
-def garrote(residual, sigmas=None):
+BODY_SPREAD = 2.0
+
+
+TOP_BAND = 0.75  # the top of the spectrum: above this share of the Nyquist frequency
+
+
+def _top_pass(x):
+    b, a = butter(4, TOP_BAND, btype="high")
+    return filtfilt(b, a, x, axis=0)
+
+
+def _top_gain():
+    """The top-band statistic of white noise of size 1 (the size unit of noise_scale: the median
+    length of a 3-vector of unit normal components), from a fixed sample."""
+    noise = np.random.default_rng(0).standard_normal((20000, 1, 3))
+    return np.median(np.linalg.norm(_top_pass(noise), axis=-1)) / np.median(np.linalg.norm(noise, axis=-1))
+
+
+_TOP_GAIN = _top_gain()
+
+
+def top_band_size(residual):
+    """(K,) the residual's size as white noise, from the top of its spectrum; None if too short."""
+    if len(residual) < 40:
+        return None
+    return np.median(np.linalg.norm(_top_pass(residual), axis=-1), axis=0) / _TOP_GAIN
+
+
+def garrote(residual, sigmas=None, fps=None):
     """Shrink residual vectors (F, K, d): small ones (noise) to zero, large ones kept."""
     size = np.linalg.norm(residual, axis=-1, keepdims=True)
-    t = (NOISE_SIGMAS if sigmas is None else sigmas) * noise_scale(residual)
+    t = (NOISE_SIGMAS if sigmas is None else sigmas) * noise_scale(residual, fps)
     keep = np.clip(1.0 - (t / np.maximum(size, 1e-12)) ** 2, 0.0, 1.0)
     return residual * keep
 
@@ -49,7 +97,7 @@ def smooth_rotations(quats, fps, cutoff_hz=DEFAULT_CUTOFF_HZ, strength=1.0):
     q = rotations.make_continuous(rotations.normalize(np.asarray(quats, float)))
     smooth = rotations.normalize(low_pass(q, fps, cutoff_hz))
     residual = quat_log(rotations.multiply(rotations.conjugate(smooth), q))  # smooth * exp(r) = q
-    kept = residual - strength * (residual - garrote(residual))
+    kept = residual - strength * (residual - garrote(residual, fps=fps))
     return rotations.make_continuous(rotations.multiply(smooth, quat_exp(kept)))
 
 
@@ -57,4 +105,4 @@ def smooth_positions(positions, fps, cutoff_hz=DEFAULT_CUTOFF_HZ, strength=1.0):
     p = np.asarray(positions, float)
     smooth = low_pass(p, fps, cutoff_hz)
     residual = p - smooth
-    return smooth + residual - strength * (residual - garrote(residual))
+    return smooth + residual - strength * (residual - garrote(residual, fps=fps))

@@ -67,14 +67,15 @@ def test_operator_repairs_the_wrist_and_thumb_and_writes_markers(cmu_rig):
     log = []
     VIEW3D_PT_humananim_cleanup.draw(type("P", (), {"layout": RecordingLayout(log)})(), bpy.context)
     labels = [entry[1] for entry in log if entry[0] == "label"]
-    assert len(labels) == 4 and labels[0].startswith("glitches: ") and "glitches;" in labels[0]
-    assert [text.split(":")[0] for text in labels] == ["glitches", "jitter", "floor", "skate"]
+    assert len(labels) == 5 and labels[0].startswith("glitches: ") and "glitches;" in labels[0]
+    assert [text.split(":")[0] for text in labels] == ["glitches", "jitter", "floor", "skate", "physics"]
+    assert labels[4] == "physics: off"
 
 
 def test_operator_with_every_repair_off_but_glitches(cmu_rig):
     assert bpy.ops.humananim.clean_up_capture(jitter=False, floor=False, skate=False) == {"FINISHED"}
     report = cleanup.stored(cmu_rig)
-    assert [r["enabled"] for r in report["repairs"]] == [True, False, False, False]
+    assert [r["enabled"] for r in report["repairs"]] == [True, False, False, False, False]
     assert len(cmu_rig.animation_data.action.pose_markers) == 0  # no contacts without the skate repair
 
 
@@ -90,7 +91,7 @@ def test_cleanup_command_json(tmp_path):
     assert r.returncode == 0, r.stderr
     s = json.loads(r.stdout)
     assert s["command"] == "cleanup" and s["action"] == "cmu_131_01.clean" and out.exists()
-    assert [x["repair"] for x in s["report"]["repairs"]] == ["glitches", "jitter", "floor", "skate"]
+    assert [x["repair"] for x in s["report"]["repairs"]] == ["glitches", "jitter", "floor", "skate", "physics"]
     assert s["report"]["repairs"][1] == {"repair": "jitter", "enabled": False}
     assert s["qa"]["measures"]["source_untouched"]["value"] is True
     assert s["qa"]["measures"]["penetration"]["value"] < 1.0  # cm: no foot through the floor
@@ -102,3 +103,78 @@ def test_cleanup_command_refuses_bad_options(tmp_path):
     r = run("cleanup", CMU_CLIPS[0], "--jitter-hz", "nan", "--out", str(tmp_path / "x.blend"))
     assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "x.blend").exists()
+
+
+def _ramp(x, y):
+    return 0.1 + 0.03 * x  # a ramp rising 3 cm a metre, 10 cm up at x = 0
+
+
+def _ramp_mesh(half=6.0, n=12):
+    """A ramp as a grid of quads, (vertices, faces)."""
+    xs = np.linspace(-half, half, n + 1)
+    verts = [(x, y, _ramp(x, y)) for y in xs for x in xs]
+    faces = [(j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i)
+             for j in range(n) for i in range(n)]
+    return verts, faces
+
+
+def test_operator_puts_the_feet_on_a_ground_mesh(cmu_rig):
+    scene = bpy.context.scene
+    verts, faces = _ramp_mesh()
+    mesh = bpy.data.meshes.new("Ramp")
+    mesh.from_pydata(verts, [], faces)
+    ground = bpy.data.objects.new("Ramp", mesh)
+    scene.collection.objects.link(ground)
+    bpy.context.view_layer.objects.active = cmu_rig
+    source = cmu_rig.animation_data.action
+    names = [pb.name for pb in cmu_rig.pose.bones]
+    feet_bones = [names.index(n) for n in ("LeftAnkle", "RightAnkle", "LeftToe", "RightToe")]
+    lengths = np.array([cmu_rig.data.bones[names[j]].length for j in feet_bones])
+
+    def heights(surface):
+        """Per frame the lowest foot point above `surface`, as Blender evaluates the action."""
+        m = world_pose(cmu_rig, scene, list(range(1, 996, 3)))[:, feet_bones]
+        tails = m[..., :3, 3] + m[..., :3, 1] / np.linalg.norm(m[..., :3, 1], axis=-1, keepdims=True) * lengths[:, None]
+        return (tails[..., 2] - surface(tails[..., 0], tails[..., 1])).min(axis=1)
+
+    assert bpy.ops.humananim.clean_up_capture(jitter=False, ground_object="Ramp") == {"FINISHED"}
+    floor = cleanup.stored(cmu_rig)["repairs"][2]
+    assert floor["ground"]["kind"] == "mesh" and floor["lowest_foot_cm"] > -0.1
+    on_ramp = heights(_ramp)
+    assert on_ramp.min() > -0.002  # no foot through the ramp
+    cleanup.assign(cmu_rig, source)  # the same clean-up onto a flat floor 10 cm up
+    assert bpy.ops.humananim.clean_up_capture(jitter=False, ground=0.1) == {"FINISHED"}
+    on_floor = heights(lambda x, y: 0.1 + 0 * x)
+    # standing on the ramp as on the flat floor (CMU 131_01's feet keep their own level above it)
+    assert np.percentile(on_ramp, 10) < np.percentile(on_floor, 10) + 0.005
+
+
+def test_cleanup_command_on_a_ground_obj(tmp_path):
+    verts, faces = _ramp_mesh()
+    obj = tmp_path / "ramp.obj"  # written Y up, as Blender's OBJ exporter does
+    obj.write_text("\n".join([f"v {x} {z} {-y}" for x, y, z in verts] +
+                             ["f " + " ".join(str(i + 1) for i in f) for f in faces]))
+    out = tmp_path / "clean.blend"
+    r = run("cleanup", CMU_CLIPS[0], "--no-jitter", "--ground-mesh", str(obj), "--out", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    floor = json.loads(r.stdout)["report"]["repairs"][2]
+    assert floor["ground"]["kind"] == "mesh" and floor["lowest_foot_cm"] > -0.1
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nv 1 0 0\n")
+    r = run("cleanup", CMU_CLIPS[0], "--ground-mesh", str(bad), "--out", str(tmp_path / "x.blend"))
+    assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "x.blend").exists()
+
+
+def test_operator_physical_pass_reports_balance(cmu_rig):
+    source = cmu_rig.animation_data.action
+    assert bpy.ops.humananim.clean_up_capture(jitter=False, physics=True) == {"FINISHED"}
+    assert cmu_rig.animation_data.action is not source
+    physics = cleanup.stored(cmu_rig)["repairs"][4]
+    assert physics["enabled"] and physics["balance_error_max_cm"] >= 0.0
+    from test_panels import RecordingLayout
+    from humananim.panels.cleanup import VIEW3D_PT_humananim_cleanup
+    log = []
+    VIEW3D_PT_humananim_cleanup.draw(type("P", (), {"layout": RecordingLayout(log)})(), bpy.context)
+    line = [entry[1] for entry in log if entry[0] == "label"][4]
+    assert line.startswith("physics: ") and "balance" in line
