@@ -146,5 +146,5 @@ def oscillations(rv, ht, style=Style(), running=False):
         arm=deg(min(25.0, 6.0 + 7.0 * rv)) * style.arm_swing,
         elbow=deg(15.0 + 5.0 * rv),
         heel=deg(min(20.0, 8.0 + 6.0 * rv)) * style.heel_strike,
-        toe_off=deg(min(35.0, 15.0 + 12.0 * rv)),
+        toe_off=deg(min(60.0, 30.0 + 15.0 * rv)),
         clearance=0.04 * ht)

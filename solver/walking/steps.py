@@ -139,7 +139,9 @@ def _plan_pass(body, path, progress, style, ground, first_side, fps, offsets):
         prev.t_off = t_strike - db if not np.isfinite(prev.t_on) else \
             prev.t_on + support_of_cycle(t_strike - prev.t_on, prev.rv, ht, style)
         prev.toe_off = osc.toe_off
-        prev.toe_roll = TOE_ROLL * (prev.t_off - prev.t_on if np.isfinite(prev.t_on) else ds)
+        # standing, the heel rises no earlier than a quarter second before the body moves
+        prev.toe_roll = TOE_ROLL * (prev.t_off - prev.t_on) if np.isfinite(prev.t_on) else \
+            min(TOE_ROLL * ds, max(prev.t_off + 0.25, 0.1 * ds))
 
     n, top = 0, 0.0
     while True:

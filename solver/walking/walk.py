@@ -229,9 +229,9 @@ def _swing_frame(body, foot, a, b, tau, ground):
     m = np.eye(4)
     m[:3, :3] = rot_z(psi) @ foot.rest_sole[:3, :3] @ rot_x(pitch) @ foot.rel_foot[:3, :3]
     m[:3, 3] = p
-    # the toe relaxes over the first 40 % of the swing, leaving at the rate it bent at toe off
-    x = min(tau / 0.4, 1.0)
-    toe = float(_quintic(a.toe_off, -pitch_rate * 0.4 * duration, 0.0, x))
+    # the toe relaxes over the first 70 % of the swing, leaving at the rate it bent at toe off
+    x = min(tau / 0.7, 1.0)
+    toe = float(_quintic(a.toe_off, -pitch_rate * 0.7 * duration, 0.0, x))
     return m, toe
 
 
@@ -315,6 +315,10 @@ def _knee_plan(body, gait, track):
     # flexion beyond the neutral walk's is held (a sneak walks low)
     held = 0.5 * amp + np.maximum(amp - gait["weight"] * NEUTRAL_KNEE, 0.0)
     knee = KNEE_STAND + held + (amp - held).clip(0.0) * loading + early * np.maximum(strike - KNEE_STAND - held, 0.0)
+    # the trailing leg in pre-swing only has to reach (its knee folds as the heel rises and the
+    # hip moves on): planning its toe-off flexion here would pull the pelvis down on the loading leg
+    late = np.where(np.isfinite(x), _smoothstep((np.nan_to_num(x) - 0.5) / 0.5), 0.0)
+    knee = knee + late * (KNEE_STAND - knee)
     swing = ~track["support"]
     tau = track["swing"][swing]
     end = np.where(tau < 0.5, KNEE_STAND, strike[swing])
