@@ -7,15 +7,18 @@ import numpy as np
 
 from .. import bvh, units
 from ..motion_control.contacts import runs, support_intervals
+from ..role_detection import detect_roles
 
 
 def load_bvh(path):
-    """(skeleton, trajectories) of a BVH file, its unit guessed as the importer does."""
+    """(skeleton, trajectories) of a BVH file, its unit guessed as the importer does, its body
+    roles detected as the add-on detects them (names, hierarchy, geometry)."""
     with open(path) as f:
         text = f.read()
     scale, _ = units.guess_length_scale(units.bvh_rest_extent(text))
     clip = bvh.parse(text, scale)
-    sk = bvh.skeleton(clip)
+    roles = detect_roles(clip.names, clip.parents, bvh.rest_heads(clip), bvh.rest_tails(clip)).roles
+    sk = bvh.skeleton(clip, roles=roles)
     return sk, bvh.trajectories(clip, sk)
 
 

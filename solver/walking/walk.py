@@ -17,7 +17,7 @@ from ..progress import run_to_end
 from ..skeleton import decompose
 from ..trajectories import Trajectories
 from . import model
-from .body import KNEE_MIN, KNEE_STAND, UP, WalkerBody, axis_angle_matrix, rot_x, rot_z, rotation_between, unit
+from .body import KNEE_MIN, KNEE_STAND, UP, WalkerBody, standing_reference, axis_angle_matrix, rot_x, rot_z, rotation_between, unit
 from .path import Path, progress_from_speed, speed_profile
 from .steps import plan as plan_steps
 
@@ -44,6 +44,11 @@ class WalkResult:
     running: np.ndarray  # (F,) bool
     reached: np.ndarray  # (F, 2) the leg IK reached its foot (L, R)
     info: dict = field(default_factory=dict)
+    skeleton: object = None  # the rig (its own rest pose); body.skeleton may stand in another
+
+    def __post_init__(self):
+        if self.skeleton is None:
+            self.skeleton = self.body.skeleton
 
     @property
     def frames(self):
@@ -51,22 +56,28 @@ class WalkResult:
 
 
 def walk(skeleton, path, speed=None, speed_keys=None, segment_speeds=None, progress=None,
-         style=model.Style(), ground=None, fps=24.0, frame_start=1, armature_to_world=None, first_side="R"):
+         style=model.Style(), ground=None, fps=24.0, frame_start=1, armature_to_world=None, first_side="R",
+         reference=None):
     """Generate the walk (see `iter_walk`)."""
     return run_to_end(iter_walk(skeleton, path, speed, speed_keys, segment_speeds, progress, style, ground,
-                                fps, frame_start, armature_to_world, first_side))
+                                fps, frame_start, armature_to_world, first_side, reference))
 
 
 def iter_walk(skeleton, path, speed=None, speed_keys=None, segment_speeds=None, progress=None,
-              style=model.Style(), ground=None, fps=24.0, frame_start=1, armature_to_world=None, first_side="R"):
+              style=model.Style(), ground=None, fps=24.0, frame_start=1, armature_to_world=None, first_side="R",
+              reference=None):
     """Steps of the walk: yields progress in [0, 1], returns a WalkResult.
 
     path: a Path (metres, world); speed (m/s), speed_keys ((arc length, speed) pairs) or
     segment_speeds (one per stretch between the path's corners), or `progress` (keyed root
-    positions: path.from_keys); ground(x, y) -> z (arrays), flat at z = 0 by default."""
+    positions: path.from_keys); ground(x, y) -> z (arrays), flat at z = 0 by default.
+    reference: a motion of the rig (Trajectories), needed when its rest pose does not stand: the
+    walk is made on its best standing frame and returned on the rig's own rest pose."""
     ground = ground or flat_ground(0.0)
     a2w = np.eye(4) if armature_to_world is None else np.asarray(armature_to_world, float)
-    body = WalkerBody(skeleton)
+    own = skeleton
+    standing, b0, hinges = standing_reference(skeleton, reference)
+    body = WalkerBody(standing, hinges)
     skeleton = body.skeleton
     if progress is None:
         asked = [speed] if speed is not None else [v for _, v in np.reshape(speed_keys, (-1, 2))] \
@@ -84,6 +95,8 @@ def iter_walk(skeleton, path, speed=None, speed_keys=None, segment_speeds=None, 
     yield 0.3
     pelvis = _pelvis(body, path, progress, gait, feet, times, fps)
     traj, reached = yield from _pose(body, skeleton, pelvis, gait, feet, times, fps, frame_start, a2w)
+    if b0 is not None:
+        traj = _on_rest(traj, b0)
     support = {s: feet[s]["support"] for s in "LR"}
     frames = traj.frames
     constraints = []
@@ -99,7 +112,14 @@ def iter_walk(skeleton, path, speed=None, speed_keys=None, segment_speeds=None, 
             "path_length_m": path.length, "running_frames": int(gait["running"].sum()),
             "unreached_frames": int((~reached).any(axis=1).sum())}
     return WalkResult(traj, support, constraints, steps, body, times, progress, path, style,
-                      gait["running"], reached, info)
+                      gait["running"], reached, info, own)
+
+
+def _on_rest(traj, b0):
+    """Trajectories on the standing skeleton turned into bases on the rig's own rest pose:
+    basis = B0 @ basis' (the same world frames)."""
+    t, q = decompose(b0[None] @ traj.basis())
+    return Trajectories(traj.frames, traj.fps, rotations.make_continuous(q), t, traj.armature_to_world)
 
 
 def _smoothstep(x):
