@@ -201,16 +201,22 @@ def _toes_ahead(sk):
 
 
 def standing_frame(sk, world):
-    """Index of the frame of a motion (world frames (F, J, 4, 4)) in which the figure best stands:
-    both ankles down at their lowest, legs long and hanging, feet side by side."""
+    """Index of the frame of a motion (world frames (F, J, 4, 4)) in which the figure best stands,
+    by a cost in metres: both ankles down at their lowest (weighted 4: a raised foot is not
+    standing) with the foot bone pitched as it is when down, legs long and hanging, feet side by
+    side under the hips."""
     heads = world[:, :, :3, 3]
     cost = np.zeros(len(world))
     ankles = {}
     for s in SIDES:
-        hip, ankle = heads[:, sk.role_index(sided("thigh", s))], heads[:, sk.role_index(sided("foot", s))]
+        foot = sk.role_index(sided("foot", s))
+        hip, ankle = heads[:, sk.role_index(sided("thigh", s))], heads[:, foot]
         leg = hip - ankle
         d = np.linalg.norm(leg, axis=1)
-        cost += (ankle[:, 2] - ankle[:, 2].min()) + (d.max() - d) + (d - leg[:, 2])
+        down = ankle[:, 2] < ankle[:, 2].min() + 0.01
+        pitch = world[:, foot, 2, 1]  # the foot bone's direction, up component
+        flat = np.median(pitch[down])
+        cost += 4 * (ankle[:, 2] - ankle[:, 2].min()) + 0.1 * np.abs(pitch - flat) + (d.max() - d) + (d - leg[:, 2])
         ankles[s] = ankle
     hips = heads[:, sk.role_index("thigh.L")] - heads[:, sk.role_index("thigh.R")]
     feet = ankles["L"] - ankles["R"]

@@ -12,8 +12,8 @@ from .body import rot_x, rot_z
 STEP_WIDTH = 0.6  # share of the hip width between the feet while walking (they come closer)
 PLACED = 0.5  # share of a support at which the body is over the ankle (0.4 lowered the strike's snap
 # but raised the loading one)
-TOE_ROLL = 0.55  # share of a support from heel rise to toe off: the trailing heel is up by the other's
-# strike (a heel flat on the ground until then holds the pelvis down)
+TOE_ROLL = 0.4  # share of a support from heel rise to toe off (a slower rise moved an ankle 2 cm
+# over the ground while it was still down)
 
 
 @dataclass
