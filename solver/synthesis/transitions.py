@@ -305,7 +305,9 @@ def _hold_supporting_feet(a1, end1, a2, start, n, raw, targets, s, first_hold, j
 
 def _solve_limbs(sk, out, raw, targets):
     """Rotations of each limb with a target frame (NaN where none) by the analytic limb IK,
-    keeping the raw motion's swivel."""
+    keeping the raw motion's swivel.
+
+    A target beyond the limb's reach is brought within it, short of straight by NEAR_STRAIGHT."""
     if not targets:
         return raw
     basis, world = raw.basis(), raw.world_frames(sk)
@@ -318,11 +320,30 @@ def _solve_limbs(sk, out, raw, targets):
             continue
         side, kind = LIMBS[limb]
         ik = LimbIK(sk, side, kind, basis=basis[0], hinge=_bend_axis(sk, side, kind, world, basis[0]))
+        reach = np.linalg.norm(ik._ankle_in_upper(ik.knee_angle(np.inf)[0] + NEAR_STRAIGHT))
         for f in np.flatnonzero(np.isfinite(tgt[:, 0, 0])):
-            q, _, _ = ik.solve(ik.parent_frame(world[f]), tgt[f], ik.swivel(world[f]))
+            parent = ik.parent_frame(world[f])
+            q, _, _ = ik.solve(parent, _within(tgt[f], ik._upper_zero(parent)[:3, 3], reach), ik.swivel(world[f]))
             rot[f, [ik.upper, ik.lower, ik.end]] = q
     return Trajectories(raw.frames, raw.fps, rotations.make_continuous(rot), raw.translations,
                         raw.armature_to_world)
+
+
+# the straightest a limb is solved: at dead straight the IK's bend plane comes from the knee's
+# offset along the hinge (a captured knee is no perfect hinge; Bandai Namco's legs) and the thigh
+# turned 90 deg about itself between a frame it reached and one it did not
+NEAR_STRAIGHT = np.radians(1.0)
+
+
+def _within(target, hip, reach):
+    """The target frame moved along the line from the hip to within `reach` of it."""
+    d = target[:3, 3] - hip
+    r = np.linalg.norm(d)
+    if r <= reach:
+        return target
+    out = np.array(target, float)
+    out[:3, 3] = hip + d * (reach / r)
+    return out
 
 
 def _bend_axis(sk, side, kind, world, basis):

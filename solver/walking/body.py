@@ -162,7 +162,10 @@ def _leg_vectors(sk, rest=None):
 
 def stands(sk):
     """Whether the rest pose is a standing figure: both legs hang from the hips (hip to ankle
-    within 35 deg of straight down) and the hips are side by side."""
+    within 35 deg of straight down) and the hips are side by side. A rig without both legs' thigh
+    and foot roles is taken as it is."""
+    if any(sk.role_index(sided(r, s)) is None for r in ("thigh", "foot") for s in SIDES):
+        return True
     legs = _leg_vectors(sk)
     hang = all(v[2] < -np.cos(np.radians(35.0)) * np.linalg.norm(v) for v in legs.values())
     return bool(hang and _hip_side(sk) is not None)
