@@ -20,6 +20,7 @@ from ..motion_control.limb_ik import LimbIK
 KNEE_MIN = np.radians(2.0)  # the least knee flexion allowed: no hyperextension
 KNEE_STAND = np.radians(5.0)  # knee flexion when standing
 UP = np.array([0.0, 0.0, 1.0])
+TOE_ALONG_GROUND = 0.03  # m: a toe's tip this near its base's height lies along the ground
 
 
 def unit(v):
@@ -77,8 +78,16 @@ class Foot:
         rest = sk.rest
         ankle = rest[self.foot, :3, 3]
         ends = [ankle, rest[self.foot, :3, 3] + rest[self.foot, :3, 1] * sk.lengths[self.foot]]
+        toe_flat = True
         if self.toe is not None:
-            ends += [rest[self.toe, :3, 3], rest[self.toe, :3, 3] + rest[self.toe, :3, 1] * sk.lengths[self.toe]]
+            ball, toe_tip = rest[self.toe, :3, 3], rest[self.toe, :3, 3] + rest[self.toe, :3, 1] * sk.lengths[self.toe]
+            ends.append(ball)
+            # a toe that stands up or dips into the floor is a made-up tail (a BVH's zero-length toe
+            # continuing the foot's line, as Blender makes it): the sole is then at the ball, and
+            # the toe is laid along the ground (below)
+            toe_flat = abs(toe_tip[2] - ball[2]) < TOE_ALONG_GROUND
+            if toe_flat:
+                ends.append(toe_tip)
         ends = np.array(ends)
         self.leg_length = None  # set by the body
         sole_z = ends[:, 2].min()
@@ -96,6 +105,11 @@ class Foot:
         inv = np.linalg.inv(self.rest_sole)
         self.rel_foot = inv @ rest[self.foot]
         self.rel_toe = inv @ rest[self.toe] if self.toe is not None else None
+        if not toe_flat:  # the toe turned about its head to lie along the sole
+            along = self.rel_toe[:3, 1].copy()
+            along[2] = 0.0
+            along = unit(along) if np.linalg.norm(along) > 1e-3 else np.array([0.0, 1.0, 0.0])
+            self.rel_toe[:3, :3] = rotation_between(self.rel_toe[:3, 1], along) @ self.rel_toe[:3, :3]
         self.ankle_local = (inv @ np.r_[ankle, 1.0])[:3]  # in sole coordinates
         self.ball_local = (inv @ np.r_[self.ball_joint, 1.0])[:3]  # the toe joint, pivot of toe roll
         ball_sole = self.ball_joint.copy()
@@ -106,7 +120,7 @@ class Foot:
         self.tip_local = (inv @ np.r_[tip_sole, 1.0])[:3]
         # the sole points in the frames of the bones that carry them (the ball and tip go with the toe)
         self.heel_in_foot = (np.linalg.inv(rest[self.foot]) @ np.r_[heel, 1.0])[:3]
-        carrier = rest[self.toe] if self.toe is not None else rest[self.foot]
+        carrier = self.rest_sole @ self.rel_toe if self.toe is not None else rest[self.foot]
         self.ball_in_toe = (np.linalg.inv(carrier) @ np.r_[ball_sole, 1.0])[:3]
         self.tip_in_toe = (np.linalg.inv(carrier) @ np.r_[tip_sole, 1.0])[:3]
 

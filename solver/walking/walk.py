@@ -249,9 +249,10 @@ def _swing_frame(body, foot, a, b, tau, ground):
     m = np.eye(4)
     m[:3, :3] = rot_z(psi) @ foot.rest_sole[:3, :3] @ rot_x(pitch) @ foot.rel_foot[:3, :3]
     m[:3, 3] = p
-    # the toe relaxes over the first 70 % of the swing, leaving at the rate it bent at toe off
-    x = min(tau / 0.7, 1.0)
-    toe = float(_quintic(a.toe_off, -pitch_rate * 0.7 * duration, 0.0, x))
+    # the toe stays as flat as the foot is pitched heel up (a smooth max(0, -pitch), 5 deg wide),
+    # so its tip never points into the floor; it follows the foot's rate from toe off
+    heel_up = -(pitch - ((1 - sig) * a.ground_pitch + sig * b.ground_pitch))
+    toe = 0.5 * (heel_up + np.sqrt(heel_up ** 2 + np.radians(5.0) ** 2))
     return m, toe
 
 
