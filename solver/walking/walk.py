@@ -318,7 +318,7 @@ def _pelvis(body, path, progress, gait, feet, times, fps):
 
 NEUTRAL_KNEE = np.radians(12.0)  # the neutral style's stance knee flexion (model.oscillations)
 SWING_KNEE = np.radians(60.0)  # the knee flexion a swinging leg allows the pelvis at mid-swing
-STRIKE_KNEE = np.radians(15.0)  # the knee flexion a leg lands with: near straight, a millimetre of
+STRIKE_KNEE = np.radians(20.0)  # the knee flexion a leg lands with: near straight, a millimetre of
 # hip-ankle distance is a degree of knee, so a leg landing straight snaps as the hip passes over it
 
 
