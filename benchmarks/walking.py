@@ -15,9 +15,16 @@ pelvis vertical and lateral oscillation (peak to peak). The generated walk of th
 the clip's measured speed is measured by the same code (solver/walking/clip.gait) and set beside
 it, with eq. 2-5's cycle length for the clip's own relative velocity.
 
+Against Bandai Namco's corpus (../shared/data/mocap/bandai-namco-1 beside the repository, when it
+is there): every `walk_*` clip measured by clip.measure_gait (Zeni's gait events, no floor
+threshold), the median of its cycles within 0.15 m/s of 1.0 and 1.3 m/s; the generated walk on
+Bandai's skeleton (from walk_normal_001's standing frame) at those speeds, measured by the same
+function: pelvis sway and double support over the corpus's, and the cycle length's error against
+eq. 2-5 at the asked speed.
+
 `--json` prints one object and writes benchmarks/results/walking.json (machine.py's contract):
-the speed figures, and the generated walk's cycle length, duration and double-support share over
-the clip's, measured side by side.
+the speed figures, the generated walk's cycle length, duration and double-support share over
+the clip's, measured side by side, and the corpus ratios.
 """
 
 import argparse
@@ -35,6 +42,7 @@ from humananim.solver.walking import Path, clip, metrics, model, walk  # noqa: E
 from machine import claim, emit, result  # noqa: E402
 
 CMU = ROOT / "humananim_addon" / "data" / "mocap" / "cmu_131_01.bvh"
+CORPUS = ROOT.parent / "shared" / "data" / "mocap" / "bandai-namco-1"
 
 
 def s_curve(length=10.0, amplitude=1.0, n=200):
@@ -65,6 +73,31 @@ def comparison(sk, tr):
     return ref, gen, ht, v
 
 
+def corpus(speeds=(1.0, 1.3)):
+    """{speed: (sway ratio, double-support ratio, cycle-law error)} of the generated walk against
+    the corpus's walking cycles at the same speed; {} without the corpus."""
+    walks = sorted(CORPUS.glob("dataset-1_walk_*_00[12].bvh"))
+    if not walks:
+        return {}
+    cycles = []
+    for f in walks:
+        sk, tr = clip.load_bvh(str(f))
+        cycles += clip.measure_gait(sk, tr)["per_cycle"]
+    sk, tr = clip.load_bvh(str(CORPUS / "dataset-1_walk_normal_001.bvh"))
+    out = {}
+    for v in speeds:
+        near = [c for c in cycles if abs(c["speed_m_s"] - v) < 0.15]
+        r = walk(sk, Path.from_points([[0, 0, 0], [8, 0, 0]]), speed=v, fps=30.0, reference=tr)
+        g = [c for c in clip.measure_gait(sk, r.trajectories, min_speed=0.8 * v)["per_cycle"]
+             if abs(c["speed_m_s"] / v - 1) < 0.1]
+        mean = {k: float(np.mean([c[k] for c in g])) for k in ("pelvis_lateral_m", "double_support_share", "length_m")}
+        ref = {k: float(np.median([c[k] for c in near])) for k in ("pelvis_lateral_m", "double_support_share")}
+        law = float(model.relative_cycle_length(v / r.body.ht) * r.body.ht)
+        out[v] = (mean["pelvis_lateral_m"] / ref["pelvis_lateral_m"],
+                  mean["double_support_share"] / ref["double_support_share"], abs(mean["length_m"] / law - 1))
+    return out
+
+
 def claims(out):
     found = [claim(f"{'Rigify metarig (159 bones)' if name == 'metarig' else 'CMU skeleton (31 bones)'} "
                    f"at {fps} fps: time per generated second of walk", out[f"{name}_{fps}fps_ms_per_walk_second"],
@@ -80,6 +113,15 @@ def claims(out):
         claim(f"generated walk {at}: pelvis vertical oscillation over CMU 131_01's",
               out["generated_pelvis_vertical_m"] / out["cmu_pelvis_vertical_m"], "ratio"),
     ]
+    for v, (sway, ds, law) in out.get("corpus", {}).items():
+        found += [
+            claim(f"Bandai skeleton at {v} m/s: pelvis sway over the corpus's walks'", sway, "ratio",
+                  "within 25 %", abs(sway - 1) <= 0.25),
+            claim(f"Bandai skeleton at {v} m/s: double support (Zeni's events) over the corpus's walks'", ds,
+                  "ratio", "within 25 %", abs(ds - 1) <= 0.25),
+            claim(f"Bandai skeleton at {v} m/s: cycle length's error against eq. 2-5", law, "share",
+                  "within 5 %", law <= 0.05),
+        ]
     return found
 
 
@@ -108,6 +150,7 @@ def main(argv=None):
         "cmu_pelvis_vertical_m": ref["pelvis_vertical_m"], "generated_pelvis_vertical_m": gen["pelvis_vertical_m"],
         "cmu_pelvis_lateral_m": ref["pelvis_lateral_m"], "generated_pelvis_lateral_m": gen["pelvis_lateral_m"],
     })
+    out["corpus"] = corpus()
     if args.json:
         emit(result("walking", claims(out), **{k: (round(v, 4) if isinstance(v, float) else v)
                                                for k, v in out.items()}))
@@ -127,6 +170,9 @@ def main(argv=None):
     print(f"  {'  (exact, from the supports)':28s} {'':11s} {gen['exact_double_support_share']:11.3f}")
     print(f"  {'pelvis vertical p-p (m)':28s} {ref['pelvis_vertical_m']:11.3f} {gen['pelvis_vertical_m']:11.3f}")
     print(f"  {'pelvis lateral p-p (m)':28s} {ref['pelvis_lateral_m']:11.3f} {gen['pelvis_lateral_m']:11.3f}")
+    for v, (sway, ds, law) in out["corpus"].items():
+        print(f"Bandai skeleton at {v} m/s against the corpus's walks: sway {sway:.2f}x, double support "
+              f"{ds:.2f}x (Zeni), cycle {100 * law:.1f} % off eq. 2-5")
 
 
 if __name__ == "__main__":

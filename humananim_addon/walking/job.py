@@ -202,7 +202,8 @@ def run(obj, scene):
     ground = ground_function(props.ground, scene, props.ground_height)
     t0 = time.perf_counter()
     result = yield from iter_walk(skeleton, path, style=style_of(props), ground=ground, fps=fps,
-                                  frame_start=frame_start, armature_to_world=armature_to_world(obj, scene), **kwargs)
+                                  frame_start=frame_start, armature_to_world=armature_to_world(obj, scene),
+                                  reference=standing_motion(obj, scene, skeleton), **kwargs)
     seconds = time.perf_counter() - t0
     action = write_walk(obj, skeleton, result, f"{obj.name}.walk")
     CACHE[(obj.name, action.name)] = result
@@ -213,6 +214,17 @@ def run(obj, scene):
                    ms_per_walk_second=round(1000 * seconds / max(summary["walk_seconds"], 1e-9), 2))
     action["humananim_walk"] = json.dumps({k: v for k, v in summary.items() if k != "style"})
     return summary
+
+
+def standing_motion(obj, scene, skeleton):
+    """The rig's action as a motion to take a standing pose from, when its rest pose does not stand
+    (a BVH whose bones all lie along one axis); None otherwise or when it has no action (the
+    solver then says what it needs)."""
+    from ..solver.walking.body import stands
+    ad = obj.animation_data
+    if stands(skeleton) or ad is None or ad.action is None:
+        return None
+    return actions.read_action(obj, scene, skeleton, ad.action)
 
 
 def write_walk(obj, skeleton, result, name):

@@ -21,8 +21,8 @@ from ..motion_control.contacts import runs
 from ..motion_control.limb_ik import LimbIK
 from ..skeleton import compose, decompose
 from ..trajectories import Trajectories
-from .action import (ANGULAR, CONSTRAINT_NAMES, LIMBS, SPATIAL, SUPPORT, blend_frames, rigid_2d, slerp,
-                     transformed, yaw_of)
+from .action import (ANGULAR, CONSTRAINT_NAMES, LIMBS, SPATIAL, SUPPORT, blend_frames, rigid_2d,
+                     slerp, transformed, yaw_of)
 
 MODES = ("blend", "connect", "inertialize")
 LEGS = ("foot.L", "foot.R")
@@ -190,23 +190,27 @@ class _Pose:
         return tr.with_root_pose(self.sk, self.pos, rotations.make_continuous(self.ori))
 
 
-def _align(a1, end1, a2, start2, base=None):
+def _align(a1, end1, a2, start2, base=None, fit="headings"):
     """a2's trajectories moved on the floor plan onto a1 at the join (feet that support in both,
-    or only `base`; the root when none)."""
+    or only `base`; the root when none). Two feet are fitted by their headings and mean place, or
+    with fit="line" by the line between them (which foot of a connection steps is chosen so)."""
     sk = a1.skeleton
     w1 = a1.trajectories.world_frames(sk)[end1]
     w2 = a2.trajectories.world_frames(sk)[start2]
     feet = [base] if base else [k for k in LEGS if k in a1.constraints and a1.constraints[k][end1] == SUPPORT
                                 and a2.constraints.get(k, [ANGULAR])[start2] == SUPPORT]
-    if feet:
+    if len(feet) == 2 and fit == "line":
         idx = [sk.role_index(k) for k in feet]
-        if len(feet) == 1:  # one foot: its heading too
-            yaw = float(yaw_of(decompose(w1[idx[0]])[1]) - yaw_of(decompose(w2[idx[0]])[1]))
-            c, s_ = np.cos(yaw), np.sin(yaw)
-            p2 = np.array([[c, -s_], [s_, c]]) @ w2[idx[0]][:2, 3]
-            shift = w1[idx[0]][:2, 3] - p2
-        else:
-            yaw, shift = rigid_2d(w2[idx][:, :2, 3], w1[idx][:, :2, 3])
+        yaw, shift = rigid_2d(w2[idx][:, :2, 3], w1[idx][:, :2, 3])
+    elif feet:
+        # the feet's headings set the turn (their mean, on the circle) and their places the shift:
+        # fitting the line between two feet instead turned a2 by 60-75 deg where its feet stand
+        # staggered and a1's side by side, and the held feet's ankles twisted 18 deg a frame
+        idx = [sk.role_index(k) for k in feet]
+        turns = [float(yaw_of(decompose(w1[j])[1]) - yaw_of(decompose(w2[j])[1])) for j in idx]
+        yaw = float(np.arctan2(np.mean(np.sin(turns)), np.mean(np.cos(turns))))
+        c, s_ = np.cos(yaw), np.sin(yaw)
+        shift = np.mean([w1[j][:2, 3] - np.array([[c, -s_], [s_, c]]) @ w2[j][:2, 3] for j in idx], axis=0)
     else:
         r = sk.root
         yaw = float(yaw_of(decompose(w1[r])[1]) - yaw_of(decompose(w2[r])[1]))
@@ -305,7 +309,9 @@ def _hold_supporting_feet(a1, end1, a2, start, n, raw, targets, s, first_hold, j
 
 def _solve_limbs(sk, out, raw, targets):
     """Rotations of each limb with a target frame (NaN where none) by the analytic limb IK,
-    keeping the raw motion's swivel."""
+    keeping the raw motion's swivel.
+
+    A target beyond the limb's reach is brought within it, short of straight by NEAR_STRAIGHT."""
     if not targets:
         return raw
     basis, world = raw.basis(), raw.world_frames(sk)
@@ -318,11 +324,30 @@ def _solve_limbs(sk, out, raw, targets):
             continue
         side, kind = LIMBS[limb]
         ik = LimbIK(sk, side, kind, basis=basis[0], hinge=_bend_axis(sk, side, kind, world, basis[0]))
+        reach = np.linalg.norm(ik._ankle_in_upper(ik.knee_angle(np.inf)[0] + NEAR_STRAIGHT))
         for f in np.flatnonzero(np.isfinite(tgt[:, 0, 0])):
-            q, _, _ = ik.solve(ik.parent_frame(world[f]), tgt[f], ik.swivel(world[f]))
+            parent = ik.parent_frame(world[f])
+            q, _, _ = ik.solve(parent, _within(tgt[f], ik._upper_zero(parent)[:3, 3], reach), ik.swivel(world[f]))
             rot[f, [ik.upper, ik.lower, ik.end]] = q
     return Trajectories(raw.frames, raw.fps, rotations.make_continuous(rot), raw.translations,
                         raw.armature_to_world)
+
+
+# the straightest a limb is solved: at dead straight the IK's bend plane comes from the knee's
+# offset along the hinge (a captured knee is no perfect hinge; Bandai Namco's legs) and the thigh
+# turned 90 deg about itself between a frame it reached and one it did not
+NEAR_STRAIGHT = np.radians(1.0)
+
+
+def _within(target, hip, reach):
+    """The target frame moved along the line from the hip to within `reach` of it."""
+    d = target[:3, 3] - hip
+    r = np.linalg.norm(d)
+    if r <= reach:
+        return target
+    out = np.array(target, float)
+    out[:3, 3] = hip + d * (reach / r)
+    return out
 
 
 def _bend_axis(sk, side, kind, world, basis):
@@ -441,7 +466,7 @@ def _connect(a1, end1, a2, s, base=None):
     w1all = a1.trajectories.world_frames(sk)
     w1 = w1all[end1]
     if len(shared) == 2:  # base: the foot the next action has closest to where it is now
-        t2 = _align(a1, end1, a2, 0)
+        t2 = _align(a1, end1, a2, 0, fit="line")
         w2 = t2.world_frames(sk)[0]
         d = [np.linalg.norm(w1[sk.role_index(k)][:2, 3] - w2[sk.role_index(k)][:2, 3]) for k in shared]
         base = shared[int(np.argmin(d))]

@@ -10,7 +10,7 @@ from .steps import support_of_cycle
 
 
 def world(result):
-    return result.trajectories.world_frames(result.body.skeleton)
+    return result.trajectories.world_frames(result.skeleton)
 
 
 def _point(w, joint, local):
@@ -158,3 +158,24 @@ def summary(result, w=None):
             "double_support_share": double_support_share(result), "flight_frames": flight_frames(result),
             "unreached_frames": int((~result.reached).any(axis=1).sum()),
             "knee_min_allowed_deg": float(np.degrees(KNEE_MIN))}
+
+
+def qa_motion(result, w=None):
+    """The walk as the motion QA's Motion (bone heads and tails in the world, local rotations),
+    measured as the add-on measures the action it writes."""
+    from ..qa import Motion
+    sk = result.skeleton
+    w = world(result) if w is None else w
+    heads = w[..., :3, 3]
+    tails = heads + w[..., :3, 1] * sk.lengths[:, None]
+    tr = result.trajectories
+    return Motion(heads, tr.rotations, sk.names, tr.fps, sk.parents, tails, tr.frames)
+
+
+def qa_report(result, w=None):
+    """The motion QA's report of a walk (no input motion: the absolute caps), on a flat ground
+    at the height of its first footprint."""
+    from ..qa import feet_from_roles, measure
+    sk = result.skeleton
+    ground = float(result.plan.footprints["L"][0].sole[2, 3])
+    return measure(qa_motion(result, w), None, feet_from_roles(sk.roles, sk.names), ground)

@@ -17,7 +17,7 @@ from ..progress import run_to_end
 from ..skeleton import decompose
 from ..trajectories import Trajectories
 from . import model
-from .body import KNEE_MIN, KNEE_STAND, UP, WalkerBody, axis_angle_matrix, rot_x, rot_z, rotation_between, unit
+from .body import KNEE_MIN, KNEE_STAND, UP, WalkerBody, standing_reference, axis_angle_matrix, rot_x, rot_z, rotation_between, unit
 from .path import Path, progress_from_speed, speed_profile
 from .steps import plan as plan_steps
 
@@ -44,6 +44,11 @@ class WalkResult:
     running: np.ndarray  # (F,) bool
     reached: np.ndarray  # (F, 2) the leg IK reached its foot (L, R)
     info: dict = field(default_factory=dict)
+    skeleton: object = None  # the rig (its own rest pose); body.skeleton may stand in another
+
+    def __post_init__(self):
+        if self.skeleton is None:
+            self.skeleton = self.body.skeleton
 
     @property
     def frames(self):
@@ -51,22 +56,28 @@ class WalkResult:
 
 
 def walk(skeleton, path, speed=None, speed_keys=None, segment_speeds=None, progress=None,
-         style=model.Style(), ground=None, fps=24.0, frame_start=1, armature_to_world=None, first_side="R"):
+         style=model.Style(), ground=None, fps=24.0, frame_start=1, armature_to_world=None, first_side="R",
+         reference=None):
     """Generate the walk (see `iter_walk`)."""
     return run_to_end(iter_walk(skeleton, path, speed, speed_keys, segment_speeds, progress, style, ground,
-                                fps, frame_start, armature_to_world, first_side))
+                                fps, frame_start, armature_to_world, first_side, reference))
 
 
 def iter_walk(skeleton, path, speed=None, speed_keys=None, segment_speeds=None, progress=None,
-              style=model.Style(), ground=None, fps=24.0, frame_start=1, armature_to_world=None, first_side="R"):
+              style=model.Style(), ground=None, fps=24.0, frame_start=1, armature_to_world=None, first_side="R",
+              reference=None):
     """Steps of the walk: yields progress in [0, 1], returns a WalkResult.
 
     path: a Path (metres, world); speed (m/s), speed_keys ((arc length, speed) pairs) or
     segment_speeds (one per stretch between the path's corners), or `progress` (keyed root
-    positions: path.from_keys); ground(x, y) -> z (arrays), flat at z = 0 by default."""
+    positions: path.from_keys); ground(x, y) -> z (arrays), flat at z = 0 by default.
+    reference: a motion of the rig (Trajectories), needed when its rest pose does not stand: the
+    walk is made on its best standing frame and returned on the rig's own rest pose."""
     ground = ground or flat_ground(0.0)
     a2w = np.eye(4) if armature_to_world is None else np.asarray(armature_to_world, float)
-    body = WalkerBody(skeleton)
+    own = skeleton
+    standing, b0, hinges = standing_reference(skeleton, reference)
+    body = WalkerBody(standing, hinges)
     skeleton = body.skeleton
     if progress is None:
         asked = [speed] if speed is not None else [v for _, v in np.reshape(speed_keys, (-1, 2))] \
@@ -84,6 +95,8 @@ def iter_walk(skeleton, path, speed=None, speed_keys=None, segment_speeds=None, 
     yield 0.3
     pelvis = _pelvis(body, path, progress, gait, feet, times, fps)
     traj, reached = yield from _pose(body, skeleton, pelvis, gait, feet, times, fps, frame_start, a2w)
+    if b0 is not None:
+        traj = _on_rest(traj, b0)
     support = {s: feet[s]["support"] for s in "LR"}
     frames = traj.frames
     constraints = []
@@ -99,7 +112,14 @@ def iter_walk(skeleton, path, speed=None, speed_keys=None, segment_speeds=None, 
             "path_length_m": path.length, "running_frames": int(gait["running"].sum()),
             "unreached_frames": int((~reached).any(axis=1).sum())}
     return WalkResult(traj, support, constraints, steps, body, times, progress, path, style,
-                      gait["running"], reached, info)
+                      gait["running"], reached, info, own)
+
+
+def _on_rest(traj, b0):
+    """Trajectories on the standing skeleton turned into bases on the rig's own rest pose:
+    basis = B0 @ basis' (the same world frames)."""
+    t, q = decompose(b0[None] @ traj.basis())
+    return Trajectories(traj.frames, traj.fps, rotations.make_continuous(q), t, traj.armature_to_world)
 
 
 def _smoothstep(x):
@@ -161,48 +181,78 @@ def _stance_frame(foot, fp, t):
 
 def _foot_tracks(body, prints, times, ground):
     """Per frame: the foot bone's world frame (F, 4, 4), the toe's pitch relative to the foot,
-    support (bool), the sole's height under the body."""
+    support (bool), the sole's height under the body, the progress through the swing."""
     foot = body.feet[prints[0].side]
     n = len(times)
     frames, toe, support, sole_z = np.empty((n, 4, 4)), np.zeros(n), np.zeros(n, bool), np.zeros(n)
+    swing = np.zeros(n)  # progress through the swing (0 at toe off, 1 at heel strike; 0 in support)
+    stance = np.full(n, np.nan)  # progress through a stance (NaN standing)
     for i, t in enumerate(times):
         k = next((k for k, fp in enumerate(prints) if fp.t_on <= t <= fp.t_off), None)
         if k is not None:
             fp = prints[k]
             frames[i], toe[i] = _stance_frame(foot, fp, t)
             support[i], sole_z[i] = True, fp.sole[2, 3]
+            if np.isfinite(fp.t_on) and np.isfinite(fp.t_off):
+                stance[i] = (t - fp.t_on) / max(fp.t_off - fp.t_on, 1e-9)
             continue
         k = max(j for j, fp in enumerate(prints) if fp.t_off < t)
         a, b = prints[k], prints[k + 1]
-        tau = (t - a.t_off) / (b.t_on - a.t_off)
-        fa, _ = _stance_frame(foot, a, a.t_off)
-        fb, _ = _stance_frame(foot, b, b.t_on)
-        frames[i], toe[i] = _swing_frame(body, foot, a, b, fa, fb, tau, ground)
+        tau = swing[i] = (t - a.t_off) / (b.t_on - a.t_off)
+        frames[i], toe[i] = _swing_frame(body, foot, a, b, tau, ground)
         sole_z[i] = (1 - tau) * a.sole[2, 3] + tau * b.sole[2, 3]
-    return {"frames": frames, "toe": toe, "support": support, "sole_z": sole_z}
+    return {"frames": frames, "toe": toe, "support": support, "sole_z": sole_z, "swing": swing,
+            "stance": stance}
 
 
-def _swing_frame(body, foot, a, b, fa, fb, tau, ground):
+def _quintic(x0, rate0, x1, tau):
+    """Quintic Hermite from x0 leaving at rate0 (per unit tau) with no acceleration to x1
+    arriving at rest: min-jerk when rate0 = 0. Carries the foot's motion at toe off into its
+    swing, so velocity and acceleration stay continuous (the swing starting from rest while the
+    foot was rolling over its toes jerked the knee 20-60 deg/frame^2)."""
+    t = np.clip(tau, 0.0, 1.0)
+    h5 = t ** 3 * (10 - 15 * t + 6 * t * t)
+    h1 = t - 6 * t ** 3 + 8 * t ** 4 - 3 * t ** 5
+    return (1 - h5) * np.asarray(x0) + h1 * np.asarray(rate0) + h5 * np.asarray(x1)
+
+
+def _toe_off_rates(foot, a, h=1e-3):
+    """Ankle velocity (m/s) and pitch rate (rad/s) of the foot rolling over its toes at toe off."""
+    f1, _ = _stance_frame(foot, a, a.t_off)
+    f0, _ = _stance_frame(foot, a, a.t_off - h)
+    pitch_rate = -2.0 * a.toe_off / a.toe_roll if a.toe_roll > 0 and np.isfinite(a.t_on) else 0.0
+    return (f1[:3, 3] - f0[:3, 3]) / h, pitch_rate
+
+
+def _swing_frame(body, foot, a, b, tau, ground):
+    fa, _ = _stance_frame(foot, a, a.t_off)
+    fb, _ = _stance_frame(foot, b, b.t_on)
+    duration = b.t_on - a.t_off
+    velocity, pitch_rate = _toe_off_rates(foot, a)
     sig = _min_jerk(tau)
     pa, pb = fa[:3, 3], fb[:3, 3]
-    p = (1 - sig) * pa + sig * pb
-    z_lin = (1 - tau) * pa[2] + tau * pb[2]
+    p = _quintic(pa, velocity * duration, pb, tau)
     clearance = model.oscillations(max(b.rv, model.RV_MIN), body.ht, running=b.running).clearance
-    bump = np.sin(np.pi * tau)
+    # the lift over the straight path: sin^2 leaves and lands with no vertical jerk (the toe
+    # roll's own rise carries into the swing through the quintic)
+    bump = np.sin(np.pi * tau) ** 2
     # keep the sole above the ground under the swing (uneven ground)
     grid = np.linspace(0, 1, 9)
-    path = (1 - _min_jerk(grid))[:, None] * pa + _min_jerk(grid)[:, None] * pb
+    path = np.array([_quintic(pa, velocity * duration, pb, g) for g in grid])
     need = ground(path[:, 0], path[:, 1]) + foot.ankle_height + 0.5 * clearance - \
-        ((1 - grid) * pa[2] + grid * pb[2] + clearance * np.sin(np.pi * grid))
-    p[2] = z_lin + clearance * bump + max(0.0, float(need.max())) * np.sqrt(bump)
+        (path[:, 2] + clearance * np.sin(np.pi * grid) ** 2)
+    p[2] += clearance * bump + max(0.0, float(need.max())) * bump
     pitch_a, pitch_b = a.ground_pitch - a.toe_off, b.ground_pitch + b.heel
-    pitch = (1 - sig) * pitch_a + sig * pitch_b
+    pitch = float(_quintic(pitch_a, pitch_rate * duration, pitch_b, tau))
     dpsi = (b.heading - a.heading + np.pi) % (2 * np.pi) - np.pi
     psi = a.heading + sig * dpsi
     m = np.eye(4)
     m[:3, :3] = rot_z(psi) @ foot.rest_sole[:3, :3] @ rot_x(pitch) @ foot.rel_foot[:3, :3]
     m[:3, 3] = p
-    toe = a.toe_off * (1 - _smoothstep(tau / 0.4))
+    # the toe stays as flat as the foot is pitched heel up (a smooth max(0, -pitch), 5 deg wide),
+    # so its tip never points into the floor; it follows the foot's rate from toe off
+    heel_up = -(pitch - ((1 - sig) * a.ground_pitch + sig * b.ground_pitch))
+    toe = 0.5 * (heel_up + np.sqrt(heel_up ** 2 + np.radians(5.0) ** 2))
     return m, toe
 
 
@@ -221,13 +271,20 @@ def _erode(x, width):
 
 
 def _draw_in(track, hip, d_max):
-    """Softly bring swinging ankles within d_max of the hip (radially, a smooth saturation)."""
+    """Softly bring swinging ankles within d_max of the hip (radially, a smooth saturation).
+
+    The pull fades in and out over the swing (sin(pi tau)^2, zero with its rate at toe off and
+    heel strike), so the foot leaves and meets its footprints without a jump: a pull applied
+    from the first swing frame at full strength moved the ankle by centimetres in one frame and
+    snapped thigh and knee 20-60 deg. At the swing's ends the pelvis drops instead (_pelvis)."""
     swing = ~track["support"]
     v = track["frames"][:, :3, 3] - hip
     r = np.linalg.norm(v, axis=1)
     r0 = 0.9 * d_max
     over = swing & (r > r0)
     scale = (r0 + (d_max - r0) * np.tanh((r[over] - r0) / (d_max - r0))) / r[over]
+    fade = np.sin(np.pi * np.clip(track["swing"][over], 0.0, 1.0)) ** 2
+    scale = 1.0 + fade * (scale - 1.0)
     track["frames"][over, :3, 3] = hip[over] + v[over] * scale[:, None]
 
 
@@ -243,36 +300,80 @@ def _pelvis(body, path, progress, gait, feet, times, fps):
     dds_mid = np.where(gait["running"], centre, 0.5 * (gait["ds_share"] - 0.5))
     lateral = w * amp["lateral"] * np.cos(2 * np.pi * (phase - centre))
     surge = w * amp["forward"] * np.sin(4 * np.pi * (phase - dds_mid))
-    bounce = -w * amp["vertical"] * np.cos(4 * np.pi * (phase - dds_mid))
     p = path.at(s)
     p[:, :2] += lateral[:, None] * right[:, :2] + surge[:, None] * fwd[:, :2]
-    ground_z = _box(0.5 * (feet["L"]["sole_z"] + feet["R"]["sole_z"]), int(0.3 * fps))
-    knee = KNEE_STAND + w * amp["knee"]
-    reach = np.mean([[body.reach(sd, k) for k in np.linspace(0, np.radians(90), 91)] for sd in "LR"], axis=0)
-    d = np.interp(knee, np.linspace(0, np.radians(90), 91), reach)
-    p[:, 2] = ground_z + body.ankle_height + d + bounce
     psi = np.arctan2(h[:, 1], h[:, 0]) - np.arctan2(body.forward[1], body.forward[0])
     yaw = w * amp["rotation"] * np.cos(2 * np.pi * phase)
     tilt = -w * amp["list"] * np.cos(2 * np.pi * (phase - centre))
     rot = rot_z(psi + yaw) @ axis_angle_matrix(body.forward, tilt)
     # a swinging foot that trails (or reaches) further than the leg does is drawn in towards
     # the hip: in early swing the knee folds and lifts it
+    p[:, 2] = _pelvis_height(body, p, rot, gait, feet, fps)[0]
     for sd in "LR":
         hip = p + np.einsum("fij,j->fi", rot, body.hips[sd] - body.hip_centre)
         _draw_in(feet[sd], hip, 0.97 * body.reach(sd, KNEE_MIN + np.radians(1.0)))
-    # lower the pelvis where a leg would have to straighten beyond KNEE_MIN to reach its foot
-    drop = np.zeros(len(times))
-    for sd in "LR":
-        hip = p + np.einsum("fij,j->fi", rot, body.hips[sd] - body.hip_centre)
-        ankle = feet[sd]["frames"][:, :3, 3]
-        d_max = body.reach(sd, KNEE_MIN + np.radians(1.0))
-        horiz = np.linalg.norm(hip[:, :2] - ankle[:, :2], axis=1)
-        top = ankle[:, 2] + np.sqrt(np.maximum(d_max ** 2 - horiz ** 2, 0.0))
-        drop = np.minimum(drop, top - hip[:, 2])
-    win = max(3, int(0.2 * fps) | 1)
-    drop = _box(_erode(drop, win), win)
-    p[:, 2] += drop
+    p[:, 2], drop = _pelvis_height(body, p, rot, gait, feet, fps)
     return {"position": p, "rotation": rot, "yaw": yaw, "tilt": tilt, "heading": h, "drop": drop}
+
+
+NEUTRAL_KNEE = np.radians(12.0)  # the neutral style's stance knee flexion (model.oscillations)
+SWING_KNEE = np.radians(60.0)  # the knee flexion a swinging leg allows the pelvis at mid-swing
+STRIKE_KNEE = np.radians(20.0)  # the knee flexion a leg lands with: near straight, a millimetre of
+# hip-ankle distance is a degree of knee, so a leg landing straight snaps as the hip passes over it
+
+
+def _knee_plan(body, gait, track):
+    """The knee flexion each leg would have (F,): in stance half the model's knee flexion, the
+    other half a loading bump over the first 45 % (peak at 22 %), at least STRIKE_KNEE as it lands;
+    in swing a bound that is
+    the stance value at its ends and SWING_KNEE in between, so it only binds near strike and toe off."""
+    amp = gait["weight"] * gait["amp"]["knee"]
+    x = track["stance"]
+    loading = np.where(np.isfinite(x) & (x < 0.45), np.sin(np.pi * np.nan_to_num(x) / 0.45) ** 2, 0.0)
+    strike = KNEE_STAND + gait["weight"] * (STRIKE_KNEE - KNEE_STAND)
+    early = np.where(np.isfinite(x), 1.0 - _smoothstep(np.nan_to_num(x) / 0.3), 0.0)  # from strike to loading
+    # the model's knee flexion: half held through the stance and half in the loading bump; a style's
+    # flexion beyond the neutral walk's is held (a sneak walks low)
+    held = 0.5 * amp + np.maximum(amp - gait["weight"] * NEUTRAL_KNEE, 0.0)
+    knee = KNEE_STAND + held + (amp - held).clip(0.0) * loading + early * np.maximum(strike - KNEE_STAND - held, 0.0)
+    # the trailing leg in pre-swing only has to reach (its knee folds as the heel rises and the
+    # hip moves on): planning its toe-off flexion here would pull the pelvis down on the loading leg
+    late = np.where(np.isfinite(x), _smoothstep((np.nan_to_num(x) - 0.5) / 0.5), 0.0)
+    knee = knee + late * (KNEE_STAND - knee)
+    swing = ~track["support"]
+    tau = track["swing"][swing]
+    end = np.where(tau < 0.5, KNEE_STAND, strike[swing])
+    knee[swing] = end + (SWING_KNEE - end) * np.sin(np.pi * tau) ** 2
+    return knee
+
+
+def _soft_min(a, b, k):
+    """A smooth minimum (within k of the true one where a and b meet): no kink at the change of leg."""
+    m = np.minimum(a, b)
+    return m - k * np.log(np.exp((m - a) / k) + np.exp((m - b) / k))
+
+
+def _pelvis_height(body, p, rot, gait, feet, fps):
+    """Hip-centre heights (F,) from the legs: each leg, with the knee flexion it plans
+    (_knee_plan), puts its hip at most this high over its ankle; the pelvis takes the lower of the
+    two (a smooth minimum), so it vaults over the supporting leg and the knees follow smooth
+    plans. Deriving the knee from a height fixed beforehand made it jump: near straight a
+    centimetre of hip-ankle distance is 20 deg of knee. Also returns the height below standing."""
+    grid = np.linspace(0, np.radians(120), 241)
+    tops = []
+    for sd in "LR":
+        reach = np.array([body.reach(sd, k) for k in grid])
+        d = np.interp(_knee_plan(body, gait, feet[sd]), grid, reach)
+        offset = np.einsum("fij,j->fi", rot, body.hips[sd] - body.hip_centre)
+        hip_xy = p[:, :2] + offset[:, :2]
+        ankle = feet[sd]["frames"][:, :3, 3]
+        horiz = np.linalg.norm(hip_xy - ankle[:, :2], axis=1)
+        tops.append(ankle[:, 2] + np.sqrt(np.maximum(d ** 2 - horiz ** 2, 0.0)) - offset[:, 2])
+    z = _soft_min(tops[0], tops[1], 0.01)
+    win = max(3, int(0.1 * fps) | 1)
+    z = _box(_box(_erode(z, 2 * win - 1), win), win)  # smoothed below the legs' bounds: they reach
+    standing = max(t[0] for t in tops)
+    return z, z - standing
 
 
 def _trunk_rotations(body, sk, pelvis, gait):

@@ -91,10 +91,11 @@ def test_walk_along_a_curve_object(request, rig):
             np.testing.assert_array_equal(values > 0.5, result.support[side])
     # what Blender shows is the walk, the feet stay planted, the root follows the curve
     frames, w = _evaluated(obj, result, every=2)
-    fk = result.trajectories.world_frames(result.body.skeleton)[::2]
+    fk = result.trajectories.world_frames(result.skeleton)[::2]
     assert_same_pose(w, fk, pos_tol=1e-4, rot_tol=1e-3)
     assert _planted(result, w, frames) < 0.002
-    assert result.path.distance_to(_hip_centre(result, w)).max() < 0.03
+    # the hips sway about the path by Boulic's 0.032 Ht (as captured walks do, issue 23): no further
+    assert result.path.distance_to(_hip_centre(result, w)).max() < 0.032 * result.body.ht + 0.01
     assert summary["cycle_length_error_max"] < 0.05 and summary["min_knee_flexion_deg"] >= 2.0 - 1e-6
     # the path came from the curve object, in the world
     assert np.allclose(result.path.points[0, :2], np.array(path.matrix_world.translation)[:2], atol=1e-6)
@@ -251,7 +252,8 @@ def test_speed_ramp_and_per_segment_speeds_on_a_curve(metarig):
     assert all(abs(c["rlc"] / c["rlc_model"] - 1) < 0.05 for c in cyc)
     frames, w = _evaluated(metarig, result, every=2)
     assert _planted(result, w, frames) < 0.002
-    assert result.path.distance_to(_hip_centre(result, w)).max() < 0.03
+    # the hips sway about the path by Boulic's 0.032 Ht (as captured walks do, issue 23): no further
+    assert result.path.distance_to(_hip_centre(result, w)).max() < 0.032 * result.body.ht + 0.01
     # per segment: the curve's control points split the path
     from humananim.humananim_addon.walking.cli import _curve
     bent = _curve(scene, "Bent", [(0, 3, 0), (6, 3, 0), (13, 7, 0)])

@@ -51,6 +51,25 @@ def test_walk_a_bvh_skeleton_without_a_blend(tmp_path):
     assert "strip 'cmu_131_01.gen.cmu_131_01.arm.R'" in text and "influence 0.50" in text
 
 
+def test_walk_a_bvh_whose_rest_pose_lies_along_x(tmp_path):
+    """Issue 23: Bandai Namco's skeleton (every bone along X in its rest pose) was refused ("the
+    foot bones are vertical"); it walks from a standing frame of its own clip, its feet planted,
+    no joint faster than the QA's cap, no point below the ground."""
+    from pathlib import Path
+    clip = Path(__file__).resolve().parents[3] / "shared" / "data" / "mocap" / "bandai-namco-1" / \
+        "dataset-1_walk_normal_001.bvh"
+    if not clip.exists():
+        pytest.skip(f"the Bandai Namco corpus is not at {clip.parent}")
+    out = tmp_path / "bandai_walk.blend"
+    r = run("walk", str(clip), "--line", "3", "--out", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert s["max_foot_slip_mm"] < 2.0 and s["cycle_length_error_max"] < 0.05 and s["unreached_frames"] == 0
+    qa = s["qa"]["measures"]
+    for measure in ("slide", "penetration", "pop_velocity", "bone_length", "nonfinite"):
+        assert qa[measure]["passed"] is not False, (measure, qa[measure])
+
+
 @pytest.mark.parametrize("args,needle", [
     (("--path", "Nothing"), "no curve object named"),
     (("--style", "moonwalk"), "unknown style"),
