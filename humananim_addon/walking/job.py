@@ -220,7 +220,7 @@ def standing_motion(obj, scene, skeleton):
     """The rig's action as a motion to take a standing pose from, when its rest pose does not stand
     (a BVH whose bones all lie along one axis); None otherwise or when it has no action (the
     solver then says what it needs)."""
-    from ..solver.walking.body import stands
+    from ...solver.walking.body import stands
     ad = obj.animation_data
     if stands(skeleton) or ad is None or ad.action is None:
         return None
