@@ -215,3 +215,14 @@ PROBE = """<script>window.addEventListener("load", () => {
     errors: rows.map(r => (r.querySelector(".err") || {}).textContent || ""),
     images: [...document.images].map(i => [i.naturalWidth, i.naturalHeight])}));
 });</script>"""
+
+
+def test_the_longest_takes_start_first(tmp_path):
+    """Takes given shortest first start longest first (by file size), so a batch does not end
+    waiting on one long take that started last."""
+    names = ["dash_normal_001", "run_normal_001", "walk-back_normal_001", "byebye_angry_001"]  # growing sizes
+    status, summary, stderr = run_batch(*[bandai(n) for n in names], "--pipeline", "info",
+                                        "--out-dir", str(tmp_path / "out"), "--workers", "1", "--no-progress")
+    assert status == 0, stderr
+    started = [r["name"] for r in sorted(summary["results"], key=lambda r: r["started_at"])]
+    assert started == [f"dataset-1_{n}" for n in reversed(names)]
