@@ -26,8 +26,6 @@ from . import controls as rc
 from .bones import classify
 from .physical import evaluated_pose
 
-import os
-_DEBUG = os.environ.get("WB_DEBUG")
 _LIMBS = (("thigh", "shin", "foot"), ("upper_arm", "forearm", "hand"))
 
 
@@ -288,9 +286,22 @@ class _Secant:
         return self.turn
 
 
-def solve_bases(obj, scene, skeleton, plan, frames, solved, progress=None):
+def solve_bases(obj, scene, skeleton, plan, frames, solved):
     """{control: (F, 4, 4) basis (Blender units)} showing the solved frames `solved` (F, J, 4, 4,
     armature space, metres) on `frames`, with the plan's switch values set while solving."""
+    return finish(iter_solve_bases(obj, scene, skeleton, plan, frames, solved))
+
+
+def finish(gen):
+    try:
+        while True:
+            next(gen)
+    except StopIteration as stop:
+        return stop.value
+
+
+def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
+    """solve_bases as a job step: yields the share of frames done."""
     pbs = obj.pose.bones
     view_layer = bpy.context.view_layer
     units = solved.copy()
@@ -327,12 +338,9 @@ def solve_bases(obj, scene, skeleton, plan, frames, solved, progress=None):
                     secant[h.control].step(err[2])
                 if change < 1e-6:
                     break
-            if _DEBUG:
-                print(k, _, [(h.control, _plane_error(obj, skeleton, h.chain, units[k, list(h.chain), :3, 3])) for h in turning if h.control.endswith("R") and "arm" in h.control], [(c, s.turn, s.last) for c, s in secant.items() if c.endswith("R") and "arm" in c])
             for h in plan.handles:
                 out[h.control][k] = np.array(pbs[h.control].matrix_basis, dtype=float)
-            if progress is not None:
-                progress(k / len(frames))
+            yield (k + 1) / len(frames)
     finally:
         for (b, p), v in saved_switch.items():
             pbs[b][p] = v
@@ -383,12 +391,17 @@ def mismatch(obj, scene, skeleton, frames, solved, action=None):
     return out
 
 
-def write_pose(obj, scene, skeleton, frames, solved, name, fk=False, plan=None, progress=None):
+def write_pose(obj, scene, skeleton, frames, solved, name, fk=False, plan=None):
     """The NEW action keying the controls of `obj` so that its deform bones show `solved` (F, J,
     4, 4: the physical skeleton's frames in armature space, metres) on `frames`; and the report
     {"controls", "modes", "switches", "mismatch": {role: (mm, deg)}}. The source action is
-    copied (its other keys kept), never changed. Raises HumanAnimError when some role bone the
-    solve moves has no control."""
+    copied (its other keys kept), never changed; the scene's output setting (new action or NLA
+    track) applies. Raises HumanAnimError when some role bone the solve moves has no control."""
+    return finish(write_pose_steps(obj, scene, skeleton, frames, solved, name, fk, plan))
+
+
+def write_pose_steps(obj, scene, skeleton, frames, solved, name, fk=False, plan=None):
+    """write_pose as a job step: yields progress (0-1) while solving the controls frame by frame."""
     from .posing import write_controls
     frames = np.asarray(frames)
     solved = np.asarray(solved, dtype=float)
@@ -398,7 +411,7 @@ def write_pose(obj, scene, skeleton, frames, solved, name, fk=False, plan=None, 
     if lost:
         raise HumanAnimError(f"no control of '{obj.name}' moves {', '.join(lost[:4])}"
                              f"{' ...' if len(lost) > 4 else ''}: the result can't be keyed on this rig")
-    bases = solve_bases(obj, scene, skeleton, plan, frames, solved, progress)
+    bases = yield from iter_solve_bases(obj, scene, skeleton, plan, frames, solved)
     keys = write_controls(obj, scene, _Switches(plan.changed), frames, bases, name)
     action = keys.action
     report = {"controls": plan.controls, "modes": dict(plan.modes),
@@ -410,10 +423,3 @@ def write_pose(obj, scene, skeleton, frames, solved, name, fk=False, plan=None, 
 @dataclass
 class _Switches:
     switches: dict
-
-
-def worst(report, kinds=("foot", "hand")):
-    """(largest mm at feet and hands, largest degrees anywhere) of a write_pose report."""
-    mm = max((v[0] for r, v in report["mismatch"].items() if r.split(".")[0] in kinds), default=0.0)
-    deg = max((v[1] for v in report["mismatch"].values()), default=0.0)
-    return mm, deg
