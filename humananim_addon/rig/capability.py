@@ -8,6 +8,8 @@ in the body's hierarchy: rig/physical.py) and writes through the controls (rig/w
 compares Blender's evaluation with the solved pose; a result Blender can't show (more than
 REFUSE_M off at a hand or foot) is removed and refused, never reported as done."""
 
+from dataclasses import replace
+
 import bpy
 import numpy as np
 
@@ -36,7 +38,7 @@ class RigView:
     def __init__(self, obj, scene, fk=False, total_mass=None):
         self.obj, self.scene, self.fk = obj, scene, fk
         self.control_rig = is_control_rig(obj)
-        self.skeleton = (physical_skeleton(obj, scene, total_mass) if self.control_rig
+        self.skeleton = (_role_joints_only(physical_skeleton(obj, scene, total_mass)) if self.control_rig
                          else skeleton_from_armature(obj, scene, total_mass))
         self.report = None
 
@@ -92,6 +94,14 @@ class RigView:
         return {"controls_keyed": len(self.report["controls"]), "limbs": self.report["modes"],
                 "switches": self.report["switches"], "mismatch_mm": mm, "mismatch_deg": deg,
                 "mismatch_per_role": self.report["mismatch"]}
+
+
+def _role_joints_only(skeleton):
+    """The skeleton with the deform bones no body role names (twist segments, face, breasts)
+    kept still on their parents: the rig moves them itself, from the role bones."""
+    dof = skeleton.dof.copy()
+    dof[[skeleton.roles.role_of(n) is None for n in skeleton.names]] = False
+    return replace(skeleton, dof=dof)
 
 
 def worst_of(report):

@@ -26,6 +26,7 @@ from . import controls as rc
 from .bones import classify
 from .physical import evaluated_pose
 
+REACH_M = 0.01  # how far an IK target may be put beyond the hand or foot for the chain to reach it
 _LIMBS = (("thigh", "shin", "foot"), ("upper_arm", "forearm", "hand"))
 
 
@@ -181,7 +182,9 @@ def plan_controls(obj, skeleton, fk=False):
     plan.changed = {k: v for k, v in plan.switches.items() if float(v) != float(saved[k])}
     order = {b.name: i for i, b in enumerate(obj.data.bones)}  # parents come before children
     rank = {"carry": 0, "pole": 1, "twist": 2}
-    plan.handles.sort(key=lambda h: (rank[h.kind], order[h.control]))
+    # the pelvis's control last among the carried: a spine control that also turns the pelvis
+    # (Rigify's FK spine) is undone by it, so the pelvis ends each pass where the solve puts it
+    plan.handles.sort(key=lambda h: (rank[h.kind], h.kind == "carry" and h.joint == pelvis, order[h.control]))
     return plan
 
 
@@ -311,6 +314,7 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
     saved_switch = {k: pbs[k[0]][k[1]] for k in plan.switches}
     turning = [h for h in plan.handles if h.kind != "carry"]
     secant = {h.control: _Secant() for h in turning}
+    targets = [h for h in plan.handles if h.kind == "carry" and h.chain]  # IK targets
     keep = scene.frame_current
     try:
         for k, f in enumerate(frames):
@@ -320,12 +324,16 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
             for sec in secant.values():
                 sec.next_frame()
             start = {}  # a twist control's evaluated frame before any turn
+            reach = {h.control: np.zeros(3) for h in targets}
+            missed, last_shift, stuck = {}, {}, set()
             for _ in range(24):
                 change = 0.0
                 for h in plan.handles:
                     if h.kind == "carry":
-                        change = max(change, _set_world(obj, h.control, units[k, h.joint] @ h.offset,
-                                                        rest_local[h.control]))
+                        t = units[k, h.joint] @ h.offset
+                        if h.control in reach:
+                            t[:3, 3] += reach[h.control]
+                        change = max(change, _set_world(obj, h.control, t, rest_local[h.control]))
                     else:
                         change = max(change, _turn(obj, h, units[k], secant[h.control].turn, start,
                                                    rest_local[h.control]))
@@ -336,6 +344,20 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                         continue
                     change = max(change, abs(err[2]))
                     secant[h.control].step(err[2])
+                for h in targets:  # an IK chain that falls short of its target: the target a little further
+                    miss = units[k, h.joint, :3, 3] - np.array(pbs[skeleton.names[h.joint]].head, dtype=float)
+                    c, dist = h.control, float(np.linalg.norm(miss))
+                    if c in stuck or dist < 1e-5:
+                        continue
+                    if dist > 0.7 * missed.get(c, np.inf):  # the chain doesn't follow: back to the best shift
+                        reach[c] -= last_shift[c]
+                        stuck.add(c)
+                        change = max(change, float(np.abs(last_shift[c]).max()))
+                        continue
+                    if np.linalg.norm(reach[c] + miss) < REACH_M / skeleton.unit_scale:
+                        reach[c] += miss
+                        missed[c], last_shift[c] = dist, miss
+                        change = max(change, float(np.abs(miss).max()))
                 if change < 1e-6:
                     break
             for h in plan.handles:
