@@ -14,11 +14,12 @@ import bpy
 import numpy as np
 
 from ...solver.errors import HumanAnimError
+from ...solver.progress import run_to_end
 from .. import action_api, actions
 from ..armature import skeleton_from_armature
 from .bones import classify
 from .physical import physical_skeleton, physical_trajectories
-from .writeback import finish, plan_controls, write_pose_steps
+from .writeback import plan_controls, write_pose_steps
 
 REFUSE_M = 0.02  # a hand or foot this far from the solved pose: the rig can't show the result
 
@@ -56,7 +57,7 @@ class RigView:
                                                     frame_range=frame_range))
 
     def write(self, traj, name, output="ACTION", source=None, extra_channels=None):
-        return finish(self.iter_write(traj, name, output, source, extra_channels))
+        return run_to_end(self.iter_write(traj, name, output, source, extra_channels))
 
     def iter_write(self, traj, name, output="ACTION", source=None, extra_channels=None):
         """The new action showing `traj` (on this view's skeleton): the bones keyed on a plain rig,

@@ -22,6 +22,7 @@ import bpy
 import numpy as np
 
 from ...solver.errors import HumanAnimError
+from ...solver.progress import run_to_end
 from . import controls as rc
 from .bones import classify
 from .physical import evaluated_pose
@@ -292,15 +293,7 @@ class _Secant:
 def solve_bases(obj, scene, skeleton, plan, frames, solved):
     """{control: (F, 4, 4) basis (Blender units)} showing the solved frames `solved` (F, J, 4, 4,
     armature space, metres) on `frames`, with the plan's switch values set while solving."""
-    return finish(iter_solve_bases(obj, scene, skeleton, plan, frames, solved))
-
-
-def finish(gen):
-    try:
-        while True:
-            next(gen)
-    except StopIteration as stop:
-        return stop.value
+    return run_to_end(iter_solve_bases(obj, scene, skeleton, plan, frames, solved))
 
 
 def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
@@ -419,7 +412,7 @@ def write_pose(obj, scene, skeleton, frames, solved, name, fk=False, plan=None):
     {"controls", "modes", "switches", "mismatch": {role: (mm, deg)}}. The source action is
     copied (its other keys kept), never changed; the scene's output setting (new action or NLA
     track) applies. Raises HumanAnimError when some role bone the solve moves has no control."""
-    return finish(write_pose_steps(obj, scene, skeleton, frames, solved, name, fk, plan))
+    return run_to_end(write_pose_steps(obj, scene, skeleton, frames, solved, name, fk, plan))
 
 
 def write_pose_steps(obj, scene, skeleton, frames, solved, name, fk=False, plan=None):

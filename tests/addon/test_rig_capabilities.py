@@ -80,3 +80,45 @@ def test_simulate_on_a_control_rig_keys_its_controls_and_shows_the_solve(puppet)
     assert rig_drop.max() > 0.1  # the loads really lower the hands
     np.testing.assert_allclose(rig_drop, copy_drop, atol=0.005)
     np.testing.assert_allclose(rig_after[:, 2:], copy_after[:, 2:], atol=0.005)  # pelvis and foot too
+
+
+def test_walk_along_a_path_moves_the_control_rig(puppet):
+    """A 4 m walk: the pelvis and both feet of the deform skeleton, as Blender shows it (the walk's
+    NLA strip of control keys), go along the path and match the solved walk within the aim."""
+    from humananim.humananim_addon import walking
+    from humananim.humananim_addon.rig import capability
+    from humananim.humananim_addon.walking_cli import line_object
+    from humananim.solver.progress import run_to_end
+    scene = bpy.context.scene
+    props = scene.humananim_walk
+    props.armature, props.path = puppet, line_object(scene, 4.0)
+    props.speed, props.speed_mode, props.path_mode = 1.2, "CONSTANT", "CURVE"
+    reports = []
+    summary_of = capability.RigView.summary
+    capability.RigView.summary = lambda self: reports.append(summary_of(self)) or reports[-1]
+    write = capability.RigView.iter_write
+
+    def iter_write(self, *a, **k):
+        out = yield from write(self, *a, **k)
+        reports.append(self.summary())
+        return out
+    capability.RigView.iter_write = iter_write
+    try:
+        summary = run_to_end(walking.run(puppet, scene))
+    finally:
+        capability.RigView.summary, capability.RigView.iter_write = summary_of, write
+    action = bpy.data.actions[summary["action"]]
+    result = walking.CACHE[(puppet.name, action.name)]
+    assert _keyed_bones(action, puppet) <= classify(puppet).control
+    assert reports[-1]["mismatch_mm"] < FEET_HANDS_MM and reports[-1]["mismatch_deg"] < JOINT_DEG, reports[-1]
+    frames = result.frames[::2]
+    puppet.animation_data.action = None  # what the NLA stack shows
+    skeleton = physical_skeleton(puppet, scene)
+    roles = ("pelvis", "foot.L", "foot.R")
+    shown = np.array(puppet.matrix_world) @ evaluated_pose(puppet, scene, skeleton, frames)
+    shown = shown[:, [skeleton.role_index(r) for r in roles]][..., :3, 3]
+    solved = result.trajectories.world_frames(result.body.skeleton)[::2]
+    solved = solved[:, [result.body.skeleton.role_index(r) for r in roles]][..., :3, 3]
+    assert np.abs(shown - solved).max() < 0.002
+    travelled = shown[-1] - shown[0]
+    assert np.all(travelled[:, 0] > 3.0), travelled  # pelvis and both feet along the 4 m line
