@@ -12,7 +12,6 @@ from ..solver.dynamics.closed_loop import Push, Settings, iter_simulate
 from ..solver.motion_control.contacts import contact_floor
 from ..solver.dynamics.ground_contact import GroundModel
 from ..solver.errors import MotionError
-from . import actions
 from .actions import bone_path
 from .arrows import arrow_forces, place_arrow
 from .properties import settings_registration
