@@ -129,3 +129,26 @@ def refuse_unless_moved(before, after, what="the character"):
     """Raises when a capability's written result leaves the pelvis and both feet where they were."""
     if np.abs(np.asarray(after) - np.asarray(before)).max() < 1e-4:
         raise HumanAnimError(f"{what} does not move in the result: nothing was reached on this rig")
+
+
+def with_control_channels(obj, scene, skeleton, traj, controls):
+    """`traj` with the local poses of the `controls` taken from their own channels (pose-bone
+    bases) as the action and NLA give them on each frame, not from their evaluated matrices: the
+    top of an IK chain is turned by its IK, but its key is where that IK starts from."""
+    from ...solver import rotations
+    pick = [j for j, n in enumerate(skeleton.names) if n in controls]
+    rot, trans = traj.rotations.copy(), traj.translations.copy()
+    pbs = obj.pose.bones
+    keep = scene.frame_current, scene.frame_subframe
+    try:
+        for k, f in enumerate(traj.frames):
+            scene.frame_set(int(np.floor(f)), subframe=float(f - np.floor(f)))
+            for j in pick:
+                m = np.array(pbs[skeleton.names[j]].matrix_basis, dtype=float)
+                r = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
+                rot[k, j] = rotations.from_matrix(r)
+                trans[k, j] = m[:3, 3] * skeleton.unit_scale
+    finally:
+        scene.frame_set(keep[0], subframe=keep[1])
+    rot[:, pick] = rotations.make_continuous(rot[:, pick])
+    return replace(traj, rotations=rot, translations=trans)

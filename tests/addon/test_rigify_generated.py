@@ -44,14 +44,62 @@ def test_constrained_pose_is_read_exactly(rig):
     assert (moved > 0.05).sum() >= 10
 
 
-def test_simulating_a_control_rig_is_refused_with_the_reason(rig):
-    """Its deform legs follow control bones through constraints: refused, nothing written."""
-    n_actions = len(bpy.data.actions)
+def _keyed_bones(action, obj):
+    from humananim.humananim_addon.action_api import fcurves_of
+    return {actions.bone_channel(fc.data_path)[0] for fc in fcurves_of(action, obj)
+            if actions.bone_channel(fc.data_path)}
+
+
+def _deform_pose(rig, action, frames):
+    from humananim.humananim_addon.rig.physical import evaluated_pose, physical_skeleton
+    skeleton = physical_skeleton(rig, bpy.context.scene)
+    return skeleton, evaluated_pose(rig, bpy.context.scene, skeleton, frames, action)
+
+
+def test_simulating_a_control_rig_keys_its_controls(rig):
+    """Formerly refused ("not children of the pelvis"): Simulate reads the deform bones as Blender
+    evaluates them and keys the controls (torso, IK feet and hands, FK spine): 8 kg per hand on a
+    squat; the feet and the pelvis Blender shows are the solve's within 1 mm."""
+    from humananim.humananim_addon.rig import capability
+    from humananim.humananim_addon.rig.bones import classify
+    from test_rig_layer import _squat_rigify
+    source = _squat_rigify(rig, 0.3)
     settings = bpy.context.scene.humananim_simulation
-    settings.frame_start, settings.frame_end = 1, 12
-    with pytest.raises(RuntimeError, match="not children of the pelvis"):
-        bpy.ops.humananim.simulate()
-    assert len(bpy.data.actions) == n_actions
+    settings.frame_start, settings.frame_end = 1, 30
+    settings.load_left = settings.load_right = 8.0
+    reports = []
+    summary = capability.RigView.summary
+    capability.RigView.summary = lambda self: reports.append(summary(self)) or reports[-1]
+    try:
+        assert bpy.ops.humananim.simulate() == {"FINISHED"}
+    finally:
+        capability.RigView.summary = summary
+    result = rig.animation_data.action
+    assert result != source
+    assert _keyed_bones(result, rig) <= classify(rig).control
+    mismatch = reports[-1]["mismatch_per_role"]
+    for role in ("pelvis", "foot.L", "foot.R", "spine", "chest", "head"):
+        assert mismatch[role][0] < 1.0 and mismatch[role][1] < 0.5, (role, mismatch[role])
+    for role in ("hand.L", "hand.R"):  # IK arms the simulation straightens: see docs/rigs.md
+        assert mismatch[role][0] < 10.0, (role, mismatch[role])
+    assert reports[-1]["limbs"] == {"thigh.L": "IK", "thigh.R": "IK", "upper_arm.L": "IK", "upper_arm.R": "IK"}
+
+
+def test_bake_keys_only_the_controls_and_shows_the_same_pose(rig):
+    """Bake to New Action on a control rig keys its controls, never a constraint-driven bone, and
+    Blender shows the deform bones as the source did."""
+    from humananim.humananim_addon.rig.bones import classify
+    source = rig.animation_data.action
+    assert bpy.ops.humananim.bake_action() == {"FINISHED"}
+    baked = rig.animation_data.action
+    assert baked != source
+    keyed = _keyed_bones(baked, rig)
+    assert keyed and keyed <= classify(rig).control
+    frames = np.arange(1, 25)
+    _, before = _deform_pose(rig, source, frames)
+    _, after = _deform_pose(rig, baked, frames)
+    assert np.abs(after[..., :3, 3] - before[..., :3, 3]).max() < 1e-4
+    assert np.abs(after[..., :3, :3] - before[..., :3, :3]).max() < 1e-4
 
 
 def test_deform_bone_to_its_fk_control_by_following_constraints(rig):
