@@ -23,7 +23,8 @@ def puppet(empty_scene):
 
 
 def _shown(obj, action, roles, frames):
-    """World positions (F, len(roles), 3) of the deform role bones as Blender evaluates `action`."""
+    """World positions (F, len(roles), 3) of the deform role bones as Blender evaluates `action`
+    (None: what the object shows, its NLA stack)."""
     scene = bpy.context.scene
     skeleton = physical_skeleton(obj, scene)
     pose = np.array(obj.matrix_world) @ evaluated_pose(obj, scene, skeleton, frames, action)
@@ -136,3 +137,38 @@ def test_walk_along_a_path_moves_the_control_rig(puppet):
     assert np.abs(shown - solved).max() < 0.002
     travelled = shown[-1] - shown[0]
     assert np.all(travelled[:, 0] > 3.0), travelled  # pelvis and both feet along the 4 m line
+
+
+@pytest.fixture
+def mixamo(empty_scene, tmp_path):
+    """A Mixamo-style rig exported and re-imported with Blender's own FBX exporter and importer."""
+    from control_rig import build_mixamo_style, export_fbx
+    from humananim.humananim_addon.rig.load import import_fbx
+    path = export_fbx(build_mixamo_style(fingers=True), tmp_path / "mixamo.fbx")
+    bpy.ops.wm.read_homefile(use_empty=True)
+    return import_fbx(path)
+
+
+def test_capabilities_on_a_reimported_mixamo_rig(mixamo):
+    """A plain FK rig after Blender's FBX round trip: Simulate (8 kg per hand) and a 4 m walk key its
+    bones, and Blender shows the hands sinking and the body walking."""
+    from humananim.humananim_addon import walking
+    from humananim.humananim_addon.rig.capability import is_control_rig
+    from humananim.humananim_addon.walking_cli import line_object
+    from humananim.solver.progress import run_to_end
+    assert not is_control_rig(mixamo)
+    scene = bpy.context.scene
+    start, end = (int(round(f)) for f in mixamo.animation_data.action.frame_range)
+    frames = np.arange(start, end + 1)
+    source, result = _simulate(mixamo, load_left=8.0, load_right=8.0, strength_scale=0.6,
+                               frame_start=start, frame_end=end)
+    before, after = (_shown(mixamo, a, ("hand.L", "hand.R"), frames) for a in (source, result))
+    assert (before[..., 2] - after[..., 2]).max() > 0.05
+    props = scene.humananim_walk
+    props.armature, props.path = mixamo, line_object(scene, 4.0)
+    props.speed, props.speed_mode, props.path_mode = 1.2, "CONSTANT", "CURVE"
+    summary = run_to_end(walking.run(mixamo, scene))
+    walk = walking.CACHE[(mixamo.name, summary["action"])]
+    mixamo.animation_data.action = None
+    shown = _shown(mixamo, None, ("pelvis", "foot.L", "foot.R"), walk.frames[[0, -1]])
+    assert np.all(shown[-1, :, 0] - shown[0, :, 0] > 3.0), shown  # pelvis and both feet along the line
