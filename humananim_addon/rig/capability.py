@@ -152,3 +152,14 @@ def with_control_channels(obj, scene, skeleton, traj, controls):
         scene.frame_set(keep[0], subframe=keep[1])
     rot[:, pick] = rotations.make_continuous(rot[:, pick])
     return replace(traj, rotations=rot, translations=trans)
+
+
+def refuse_control_rig(obj, capability, advice):
+    """Raises before a capability that can't key a control rig's controls yet runs on one: keys on
+    its deform bones would be overridden by their constraints, the character would not move."""
+    c = classify(obj)
+    moved = sorted(c.deform - c.control)
+    if moved:
+        raise HumanAnimError(f"{capability} can't drive '{obj.name}' yet: its deform bones ({', '.join(moved[:3])}"
+                             f"{' ...' if len(moved) > 3 else ''}) follow its controls through constraints, so "
+                             f"keys on them would not move the character; {advice}")

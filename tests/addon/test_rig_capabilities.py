@@ -208,3 +208,15 @@ def test_motion_queue_with_a_push_reaction_keys_the_controls(puppet):
     assert max(deg for r, (_, deg) in mismatch.items() if r not in ik_legs) < JOINT_DEG, str(mismatch)
     assert max(deg for r, (_, deg) in mismatch.items() if r in ik_legs) < 3.0, str(mismatch)
     assert reports and reports[-1]["controls_keyed"] >= 10
+
+
+def test_live_capture_refuses_a_control_rig_before_connecting(puppet):
+    """Live Capture can't key a control rig's controls yet: it says so before any device opens,
+    naming the constraint-driven deform bones, rather than stream into keys that move nothing."""
+    from humananim.humananim_addon import capture
+    from humananim.solver.errors import HumanAnimError
+    scene = bpy.context.scene
+    capture.add_device(scene, "CYBERGLOVE", name="glove", simulate=True, rate=100.0, sensors="22", hand="R")
+    with pytest.raises(HumanAnimError, match="Live Capture can't drive 'Puppet' yet.*bind_"):
+        capture.connect(puppet, scene)
+    assert capture.LIVE is None
