@@ -183,9 +183,7 @@ def plan_controls(obj, skeleton, fk=False):
     plan.changed = {k: v for k, v in plan.switches.items() if float(v) != float(saved[k])}
     order = {b.name: i for i, b in enumerate(obj.data.bones)}  # parents come before children
     rank = {"carry": 0, "pole": 1, "twist": 2}
-    # the pelvis's control last among the carried: a spine control that also turns the pelvis
-    # (Rigify's FK spine) is undone by it, so the pelvis ends each pass where the solve puts it
-    plan.handles.sort(key=lambda h: (rank[h.kind], h.kind == "carry" and h.joint == pelvis, order[h.control]))
+    plan.handles.sort(key=lambda h: (rank[h.kind], order[h.control]))
     return plan
 
 
@@ -231,16 +229,14 @@ def _matrix(pb):
     return m
 
 
-def _set_world(obj, name, target, rest_local):
-    """Sets the bone's basis so that (its parent as evaluated now) it shows `target` (units)."""
+def _set_world(obj, name, target, rest_local=None):
+    """Sets the bone's basis so that (its parent as evaluated now) it shows `target` (units), by
+    Blender's own conversion (which honours local location and the inherit options)."""
     from mathutils import Matrix
     pb = obj.pose.bones[name]
-    parent = _matrix(pb.parent) if pb.parent is not None else np.eye(4)
-    b = np.linalg.solve(parent @ rest_local, target)
-    b[:3, :3] /= np.linalg.norm(b[:3, :3], axis=0)
     old = np.array(pb.matrix_basis, dtype=float)
-    pb.matrix_basis = Matrix(b.tolist())
-    return float(np.abs(b - old).max())
+    pb.matrix = Matrix(target.tolist())
+    return float(np.abs(np.array(pb.matrix_basis, dtype=float) - old).max())
 
 
 def _plane_error(obj, skeleton, chain, solved_heads):
@@ -308,6 +304,7 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
     turning = [h for h in plan.handles if h.kind != "carry"]
     secant = {h.control: _Secant() for h in turning}
     targets = [h for h in plan.handles if h.kind == "carry" and h.chain]  # IK targets
+    pelvis = next((h for h in plan.handles if h.kind == "carry" and h.joint == skeleton.role_index("pelvis")), None)
     keep = scene.frame_current
     try:
         for k, f in enumerate(frames):
@@ -330,6 +327,10 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                     else:
                         change = max(change, _turn(obj, h, units[k], secant[h.control].turn, start,
                                                    rest_local[h.control]))
+                if pelvis is not None:  # again: a spine control that also turns the pelvis (Rigify's FK
+                    view_layer.update()  # spine) is undone, the pelvis ends each pass where the solve puts it
+                    change = max(change, _set_world(obj, pelvis.control, units[k, pelvis.joint] @ pelvis.offset,
+                                                    rest_local[pelvis.control]))
                 view_layer.update()
                 for h in turning:
                     err = _plane_error(obj, skeleton, h.chain, units[k, list(h.chain), :3, 3])
@@ -379,6 +380,7 @@ def _turn(obj, h, units, turn, start, rest_local):
     b0 = start.setdefault(h.control, np.array(pb.matrix_basis, dtype=float))
     parent = _matrix(pb.parent) if pb.parent is not None else np.eye(4)
     pre = parent @ rest_local @ b0  # where the chain's top is before the IK turns it
+    spin = _rotation_about(pre[:3, 3], x, turn)  # about its own head: the top turns, never moves
     r = np.linalg.solve(pre, spin @ pre)
     b = b0 @ r
     old = np.array(pb.matrix_basis, dtype=float)
