@@ -125,12 +125,6 @@ def _undo(obj, action, keep):
     bpy.data.actions.remove(action)
 
 
-def refuse_unless_moved(before, after, what="the character"):
-    """Raises when a capability's written result leaves the pelvis and both feet where they were."""
-    if np.abs(np.asarray(after) - np.asarray(before)).max() < 1e-4:
-        raise HumanAnimError(f"{what} does not move in the result: nothing was reached on this rig")
-
-
 def with_control_channels(obj, scene, skeleton, traj, controls):
     """`traj` with the local poses of the `controls` taken from their own channels (pose-bone
     bases) as the action and NLA give them on each frame, not from their evaluated matrices: the
