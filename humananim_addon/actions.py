@@ -153,12 +153,13 @@ def rigid_basis(matrices, skeleton):
     return np.linalg.solve(parent @ skeleton.rest_local, matrices)
 
 
-def write_action(obj, skeleton, traj, name, output="ACTION", source=None, extra_channels=None):
+def write_action(obj, skeleton, traj, name, output="ACTION", source=None, extra_channels=None, bones=None):
     """A new action from trajectories; `output` 'ACTION' makes it active, 'NLA' adds a track.
 
     `extra_channels` maps (data path, group) to (F, k) values keyed on the same frames (e.g.
-    custom-property curves of joint torques). The source action is never changed; it gets a
-    fake user so it can't be lost."""
+    custom-property curves of joint torques). `bones`: only these are keyed (a control rig's
+    controls, rig/bones.py: its constraint-driven bones are never keyed). The source action is
+    never changed; it gets a fake user so it can't be lost."""
     action = bpy.data.actions.new(name)
     writer = action_api.ChannelWriter(action, obj)
     frames = traj.frames
@@ -166,7 +167,7 @@ def write_action(obj, skeleton, traj, name, output="ACTION", source=None, extra_
     for j, bone in enumerate(skeleton.names):
         trans = traj.translations[:, j] / skeleton.unit_scale
         path = bone_path(bone)
-        if j not in channels:
+        if j not in channels or (bones is not None and bone not in bones):
             continue  # rest pose throughout: no channel needed
         if not skeleton.connected[j] and not np.allclose(trans, 0.0, atol=1e-9):
             writer.key_columns(f"{path}.location", bone, frames, trans)

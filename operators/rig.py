@@ -86,8 +86,13 @@ class HUMANANIM_OT_bake_action(JobOperator, bpy.types.Operator):
         exact = {"AUTO": None, "FCURVES": False, "DEPSGRAPH": True}[settings.exact]
         traj = yield from actions.iter_read_action(obj, scene, skeleton, source, exact=exact)
         output = settings.output if self.output == "SCENE" else self.output
-        result = actions.write_action(obj, skeleton, traj, f"{source.name}.baked", output, source)
-        return f"'{result.name}': {traj.frame_count} frames of {skeleton.joint_count} bones"
+        from ..humananim_addon.rig.bones import classify
+        from ..humananim_addon.rig.capability import with_control_channels
+        controls = classify(obj).control  # a control rig's mechanism and deform bones follow its controls
+        if set(skeleton.names) - controls:
+            traj = with_control_channels(obj, context.scene, skeleton, traj, controls)
+        result = actions.write_action(obj, skeleton, traj, f"{source.name}.baked", output, source, bones=controls)
+        return f"'{result.name}': {traj.frame_count} frames of {len(controls)} control bones"
 
 
 CLASSES = (HUMANANIM_OT_detect_roles, HUMANANIM_OT_compute_mass_model, HUMANANIM_OT_bake_action)

@@ -141,6 +141,8 @@ class LiveCapture:
     """A session on one armature: devices, converter, glove calibrations, grasping, recording."""
 
     def __init__(self, obj, scene, settings):
+        from ..rig.capability import refuse_control_rig
+        refuse_control_rig(obj, "Live Capture", "capture onto a plain FK armature (a BVH import, the metarig)")
         self.obj_name = obj.name
         self.skeleton = sk = skeleton_from_armature(obj, scene, require=False)
         self.sims, devices, self.attach, self.gloves = [], [], {}, {}

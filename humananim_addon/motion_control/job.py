@@ -16,6 +16,7 @@ from ..actions import bone_path
 from ..armature import skeleton_from_armature
 from ..arrows import arrow_forces
 from ..forces import add_arrow, gravity_of, hand_loads
+from ..rig.capability import RigView
 
 STRESS = "humananim_stress"  # N m: torque beyond the muscles' strength, magnitude over the axes
 BALANCE_ERROR = "humananim_balance_error"  # m: ZMP outside the support polygon
@@ -258,9 +259,9 @@ def run(obj, scene):
     source = props.action or (obj.animation_data.action if obj.animation_data else None)
     if source is None:
         raise MotionError(f"'{obj.name}' has no action to control: choose a source action")
-    skeleton = skeleton_from_armature(obj, scene)
-    traj = yield from actions.iter_read_action(obj, scene, skeleton, source,
-                                                frame_range=frame_range(props, source))
+    rig = RigView(obj, scene)  # a control rig: the deform bones as Blender shows them, keyed through the controls
+    skeleton = rig.skeleton
+    traj = yield from rig.iter_read(source, frame_range=frame_range(props, source))
     if traj.frame_count < 3:
         raise MotionError(f"'{source.name}' has {traj.frame_count} frames in the range: at least 3 are needed")
     settings = replace(solver_settings(scene, props, obj, skeleton, traj),
@@ -268,8 +269,8 @@ def run(obj, scene):
     t0 = time.perf_counter()
     result = yield from iter_control(skeleton, traj, settings)
     seconds = time.perf_counter() - t0
-    out = actions.write_action(obj, skeleton, result.trajectories, f"{source.name}.control",
-                               scene.humananim.output, source, stress_channels(obj, skeleton, result))
+    out = yield from rig.iter_write(result.trajectories, f"{source.name}.control", scene.humananim.output, source,
+                                    stress_channels(obj, skeleton, result))
     unit = scene.unit_settings.scale_length
     stress = np.linalg.norm(np.asarray(result.stress, float), axis=-1)
     CACHE[(obj.name, out.name)] = OverlayData(
@@ -299,7 +300,7 @@ def run(obj, scene):
             "loads_kg": {load.bone: load.mass for load in settings.loads},
             "impulses": len(settings.impulses), "colliders": [props.collider.name] if settings.colliders else [],
             "ground_height_m": ground_of(settings, skeleton, traj) if settings.ground_height is None
-            else settings.ground_height}
+            else settings.ground_height, **rig.summary()}
 
 
 def add_impulse(obj, scene, bone_name, frame, direction=None, magnitude=30.0, duration=0.0):

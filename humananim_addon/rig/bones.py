@@ -2,7 +2,8 @@
 
 - deform bones are what the mesh follows (`use_deform`);
 - control bones are what the animator keys: no active constraint, no driver and no IK chain
-  moves them, some channel is free, they are shown (not hidden, in a visible collection or in
+  moves them (an IK chain's top may: the IK starts from its rotation), some channel is free,
+  they are shown (not hidden, in a visible collection or in
   none), and a deform bone follows them (through parents, constraint targets, IK poles,
   Armature constraint targets or the bones a driver reads);
 - mechanism bones are everything else (Rigify's ORG-/MCH-, a studio's helpers).
@@ -69,15 +70,18 @@ def _driver_links(obj):
 
 
 def _ik_chains(obj):
-    """Bones an IK constraint turns without owning it (the chain above its owner)."""
+    """Bones an IK constraint turns without owning it (the chain above its owner), but the chain's
+    top: its own rotation is where the IK starts from, how an animator turns a pole-less limb
+    (Rigify's thigh_ik)."""
     out = set()
     for pb in obj.pose.bones:
         for con in pb.constraints:
             if con.type == "IK" and _active(con):
-                n, p = con.chain_count, pb.parent
+                n, p, chain = con.chain_count, pb.parent, []
                 while p is not None and (n == 0 or n > 1):
-                    out.add(p.name)
+                    chain.append(p.name)
                     p, n = p.parent, n - 1 if n else 0
+                out.update(chain[:-1] if con.chain_count else chain)
     return out
 
 

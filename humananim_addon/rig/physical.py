@@ -37,7 +37,7 @@ def physical_skeleton(obj, scene, total_mass=None, require=True):
     heads = rest[:, :3, 3]
     tails = heads + rest[:, :3, 1] * lengths[:, None]
     body = body_parents(names, parents, heads, tails, deform, roles)
-    order = parents_first(body, np.flatnonzero(deform))
+    order = _depth_first(body, parents_first(body, np.flatnonzero(deform)))
     new = {j: i for i, j in enumerate(order)}
     joint_parents = np.array([new[body[j]] if body[j] >= 0 else -1 for j in order], dtype=int)
     kept = np.array([body[j] == parents[j] for j in order])  # a bone still on its own parent may stay connected
@@ -47,6 +47,22 @@ def physical_skeleton(obj, scene, total_mass=None, require=True):
                         np.zeros(len(order)), np.zeros((len(order), 3)), np.zeros((len(order), 3, 3)), roles, scale)
     from ..mass_model import mass_model_for
     return skeleton.with_mass_model(*mass_model_for(obj, scene, skeleton, total_mass))
+
+
+def _depth_first(parents, order):
+    """`order` (parents first) rearranged depth first, children in their given order: the order
+    Blender lists an armature's bones in, so a plain copy of the physical skeleton has the same."""
+    inside = set(order)
+    children = {j: [] for j in order}
+    roots = []
+    for j in order:
+        (children[parents[j]] if parents[j] in inside else roots).append(j)
+    out, stack = [], roots[::-1]
+    while stack:
+        j = stack.pop()
+        out.append(j)
+        stack.extend(children[j][::-1])
+    return out
 
 
 def evaluated_pose(obj, scene, skeleton, frames, action=None):

@@ -124,7 +124,7 @@ def correct_controls(obj, scene, skeleton, frames, targets, bases):
 def _new_action_keys(obj, source, name, copy_source):
     """A writer into a NEW action for the control rig: a copy of the source (so every other
     control keeps its keys), or a fresh one."""
-    if source is not None and copy_source:
+    if source is not None and copy_source and (not action_api.SLOTTED or action_api.object_slot(source, obj)):
         action = source.copy()
         action.name = name
         return action_api.ChannelWriter(action, obj, existing=True)

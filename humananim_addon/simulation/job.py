@@ -14,6 +14,7 @@ from ..actions import bone_path
 from ..armature import skeleton_from_armature
 from ..arrows import arrow_forces
 from ..forces import add_arrow, gravity_of, hand_loads
+from ..rig.capability import RigView
 
 TORQUE = "humananim_torque"  # N m, magnitude over the joint's axes
 USAGE = "humananim_strength_usage"  # required / available torque, worst axis; > 1: too weak
@@ -69,8 +70,9 @@ def run(obj, scene):
     from ..validation import check_job
     props = scene.humananim_simulation
     source, start, end = check_job(obj, props, "pushes")
-    skeleton = skeleton_from_armature(obj, scene)
-    traj = yield from actions.iter_read_action(obj, scene, skeleton, source, frame_range=(start, end))
+    rig = RigView(obj, scene)  # a control rig: the deform bones as Blender shows them, keyed through the controls
+    skeleton = rig.skeleton
+    traj = yield from rig.iter_read(source, frame_range=(start, end))
     if traj.frame_count < 3:
         raise MotionError(f"'{source.name}' has {traj.frame_count} frame{'s' if traj.frame_count != 1 else ''} "
                           "in the range: at least 3 are needed to simulate")
@@ -78,8 +80,8 @@ def run(obj, scene):
     t0 = time.perf_counter()
     result = yield from iter_simulate(skeleton, traj, settings)
     seconds = time.perf_counter() - t0
-    out = actions.write_action(obj, skeleton, result.trajectories, f"{source.name}.sim",
-                               scene.humananim.output, source, stress_channels(obj, skeleton, result))
+    out = yield from rig.iter_write(result.trajectories, f"{source.name}.sim", scene.humananim.output, source,
+                                    stress_channels(obj, skeleton, result))
     joints = np.unique(result.model.dof_joint[6:])
     angle = rotations.angle_between(traj.rotations[:, joints], result.trajectories.rotations[:, joints])
     return {"source_action": source.name, "action": out.name, "frames": traj.frame_count,
@@ -89,7 +91,7 @@ def run(obj, scene):
             "peak_strength_usage": float(np.abs(result.usage).max()),
             "peak_balance_assist_n": float(np.linalg.norm(result.root_wrench[:, 3:6], axis=1).max()),
             "pushes": len(settings.pushes), "loads_kg": dict(settings.loads),
-            "ground_height_m": settings.ground.height}
+            "ground_height_m": settings.ground.height, **rig.summary()}
 
 
 def add_push(obj, scene, bone_name, frame, direction=None, magnitude=300.0, duration=0.1):

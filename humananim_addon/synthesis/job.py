@@ -14,6 +14,7 @@ import numpy as np
 from ...solver.errors import MotionError, RigError
 from .. import actions
 from ..armature import skeleton_from_armature
+from ..rig.capability import RigView
 
 # ---- queue editing ------------------------------------------------------------------------------
 
@@ -87,12 +88,14 @@ def _entry_range(entry):
     return start, end
 
 
-def read_entry(obj, scene, skeleton, entry):
-    """The queue entry as solver action data (generator: yields read progress)."""
+def read_entry(obj, scene, skeleton, entry, rig=None):
+    """The queue entry as solver action data (generator: yields read progress); `rig`: a
+    RigView reads it (a control rig's deform bones as Blender shows them)."""
     from ...solver.synthesis import from_trajectories
     if entry.action is None:
         raise MotionError("a Motion Queue entry has no action")
-    traj = yield from actions.iter_read_action(obj, scene, skeleton, entry.action, frame_range=_entry_range(entry))
+    traj = yield from (rig.iter_read(entry.action, _entry_range(entry)) if rig else
+                       actions.iter_read_action(obj, scene, skeleton, entry.action, frame_range=_entry_range(entry)))
     if traj.frame_count < 3:
         raise MotionError(f"'{entry.action.name}' has {traj.frame_count} frames: at least 3 are needed")
     overrides = marker_overrides(entry.action, traj.frames)
@@ -140,10 +143,11 @@ def run(obj, scene):
     entries = list(props.entries)
     if not entries:
         raise MotionError("the Motion Queue is empty: add actions (or queue the NLA strips)")
-    skeleton = skeleton_from_armature(obj, scene)
+    rig = RigView(obj, scene)  # a control rig: the deform bones as Blender shows them, keyed through the controls
+    skeleton = rig.skeleton
     acts = []
     for i, e in enumerate(entries):
-        act = yield from read_entry(obj, scene, skeleton, e)
+        act = yield from read_entry(obj, scene, skeleton, e, rig)
         acts.append(act)
         yield 0.3 * (i + 1) / len(entries)
     t0 = time.perf_counter()
@@ -162,14 +166,14 @@ def run(obj, scene):
             if act is not None:
                 e = type("E", (), {"action": act, "frame_start": 0, "frame_end": 0, "initial_duration": 0.2,
                                    "terminal_duration": 0.2})
-                falls[key] = yield from read_entry(obj, scene, skeleton, e)
+                falls[key] = yield from read_entry(obj, scene, skeleton, e, rig)
         reaction = react(syn.motion, cs, reaction_settings(props), falls or None)
         traj = reaction.trajectories
         support = reaction.support
     yield 0.9
     seconds = time.perf_counter() - t0
     first = entries[0].action
-    out = actions.write_action(obj, skeleton, traj, f"{first.name}.synth", scene.humananim.output, first)
+    out = yield from rig.iter_write(traj, f"{first.name}.synth", scene.humananim.output, first)
     for e in entries:
         e.action.use_fake_user = True
     requests = []
@@ -182,7 +186,7 @@ def run(obj, scene):
                "fps": traj.fps, "frame_range": [float(traj.frames[0]), float(traj.frames[-1])],
                "requests": requests, "accepted": sum(r["accepted"] for r in requests),
                "rejected": sum(not r["accepted"] for r in requests), "seconds": round(seconds, 3),
-               "frames_supported": {s: int(np.count_nonzero(m)) for s, m in support.items()}}
+               "frames_supported": {s: int(np.count_nonzero(m)) for s, m in support.items()}, **rig.summary()}
     if reaction is not None:
         summary["reaction"] = {"kind": reaction.kind,
                                "frame": float(traj.frames[reaction.frame]) if reaction.frame >= 0 else None,

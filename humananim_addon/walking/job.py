@@ -18,6 +18,7 @@ from .. import action_api, actions
 from ..actions import bone_path, scene_fps
 from ..armature import armature_to_world, skeleton_from_armature
 from .properties import STYLE_FIELDS, apply_preset  # noqa: F401 (the operator's and the command's name)
+from ..rig.capability import RigView
 
 GENERATOR_KEY = "humananim_generator"  # on a generator's action: its scope, priority, weight, start
 SUPPORT_KEY = "humananim_support"  # on a walk's action: the support intervals (JSON)
@@ -184,7 +185,8 @@ def run(obj, scene):
     Yields progress; returns a summary dict."""
     from ...solver.walking import iter_walk
     props = scene.humananim_walk
-    skeleton = skeleton_from_armature(obj, scene)
+    rig = RigView(obj, scene)  # a control rig: the deform bones' body, its controls keyed (rig/capability.py)
+    skeleton = rig.skeleton
     fps = scene_fps(scene)
     kwargs = {}
     if props.path_mode == "KEYED":
@@ -205,7 +207,7 @@ def run(obj, scene):
                                   frame_start=frame_start, armature_to_world=armature_to_world(obj, scene),
                                   reference=standing_motion(obj, scene, skeleton), **kwargs)
     seconds = time.perf_counter() - t0
-    action = write_walk(obj, skeleton, result, f"{obj.name}.walk")
+    action = write_walk(obj, skeleton, result, f"{obj.name}.walk", rig)
     CACHE[(obj.name, action.name)] = result
     summary = metrics.summary(result)
     summary.update(action=action.name, armature=obj.name, path=props.path.name if props.path else None,
@@ -227,16 +229,17 @@ def standing_motion(obj, scene, skeleton):
     return actions.read_action(obj, scene, skeleton, ad.action)
 
 
-def write_walk(obj, skeleton, result, name):
+def write_walk(obj, skeleton, result, name, rig=None):
     """The walk as a NEW action (every moving bone, the support channels and intervals), played by
     a generator strip of scope 'all' on the armature's stack; an active action the rig had is set
     aside (kept with a fake user) so the stack shows."""
     traj = result.trajectories
-    action = bpy.data.actions.new(name)
-    writer = action_api.ChannelWriter(action, obj)
+    controlled = rig is not None and rig.control_rig  # the controls keyed, checked against Blender
+    action = rig.write(traj, name) if controlled else bpy.data.actions.new(name)
+    writer = action_api.ChannelWriter(action, obj, existing=controlled)
     channels = actions._rotation_channels(obj, skeleton, traj)
     ends = traj.frames[[0, -1]]
-    for j, bone in enumerate(skeleton.names):
+    for j, bone in enumerate(() if controlled else skeleton.names):
         if j not in channels:  # still bones are keyed too: the walk owns every bone of its scope
             _key_rest(writer, obj, bone, ends)
             continue

@@ -7,7 +7,8 @@
   knee poles `anim_knee_S` (children of the root); FK toes `anim_toe_S` under the IK feet;
 - mechanism (hidden collection): `helper_hips` (the hips' frame, on the torso), the IK leg
   chains `helper_thigh_S` -> `helper_shin_S` (IK to the foot control, pole the knee),
-  `helper_foot_S` (copies the foot control's rotation), a flat `helper_bind_root` the deform legs hang from, and `helper_socket_S` the deform arms hang from;
+  `helper_foot_S` (copies the foot control's rotation), a flat `helper_bind_root` the deform legs hang from, and `helper_socket_S`
+  (on the collar control) the deform arms hang from;
 - deform bones (hidden, what a mesh follows): `bind_hips` (Copy Transforms of helper_hips) ->
   `bind_spine` -> `bind_chest` -> `bind_neck` -> `bind_head` (Copy Rotation of the FK spine
   controls), `bind_collar_S` under the chest, `bind_upperarm_S` under the socket, then
@@ -96,7 +97,7 @@ def build_control_rig(name="Puppet"):
                 _bone(eb, f"bind_collar_{s}", h, t, "bind_chest")
                 _bone(eb, f"anim_collar_{s}", h, t, "anim_chest")
             elif n == "upperarm":
-                _bone(eb, f"helper_socket_{s}", h, _mirror((0.18, 0.02, 1.35), s), "anim_chest")
+                _bone(eb, f"helper_socket_{s}", h, _mirror((0.18, 0.02, 1.35), s), f"anim_collar_{s}")
                 _bone(eb, f"bind_upperarm_{s}", h, t, f"helper_socket_{s}")
                 _bone(eb, f"anim_upperarm_{s}", h, t, f"anim_collar_{s}")
             else:
@@ -218,3 +219,37 @@ def export_fbx(obj, path):
                              bake_anim=True, bake_anim_use_all_actions=False, bake_anim_use_nla_strips=False,
                              add_leaf_bones=True)  # the scene take: NLA-strip takes export nothing without strips
     return str(path)
+
+
+# --- a plain FK copy of a rig's physical skeleton (what the rig's results are compared with) -----
+def plain_fk_copy(obj, scene, action=None, name="PlainCopy"):
+    """An armature of only the deform bones of `obj`, each hung from its body parent (the
+    physical skeleton) at the same rest, keyed with the motion `action` (the active one by
+    default) shows on `obj`; all of its bones are deform and control. Returns the new object."""
+    from mathutils import Matrix
+    from humananim.humananim_addon import actions
+    from humananim.humananim_addon.armature import skeleton_from_armature
+    from humananim.humananim_addon.rig.physical import physical_skeleton, physical_trajectories
+    physical = physical_skeleton(obj, scene)
+    traj = physical_trajectories(obj, scene, physical, action)
+    copy, _, eb = _new_armature(name)
+    copy.matrix_world = obj.matrix_world
+    for j, bone in enumerate(physical.names):
+        rest = np.array(obj.data.bones[bone].matrix_local)
+        b = eb.new(bone)
+        b.head, b.tail = (0.0, 0.0, 0.0), (0.0, obj.data.bones[bone].length, 0.0)
+        b.matrix = Matrix(rest.tolist())
+        if physical.parents[j] >= 0:
+            b.parent = eb[physical.names[physical.parents[j]]]
+            b.use_connect = bool(physical.connected[j])
+    bpy.ops.object.mode_set(mode="OBJECT")
+    for pb in copy.pose.bones:
+        pb.rotation_mode = obj.pose.bones[pb.name].rotation_mode
+    skeleton = skeleton_from_armature(copy, scene)
+    assert skeleton.names == physical.names or set(skeleton.names) == set(physical.names)
+    order = [physical.index(n) for n in skeleton.names]
+    from humananim.solver.trajectories import Trajectories
+    moved = Trajectories(traj.frames, traj.fps, traj.rotations[:, order], traj.translations[:, order],
+                         traj.armature_to_world)
+    actions.write_action(copy, skeleton, moved, f"{name}Action")
+    return copy

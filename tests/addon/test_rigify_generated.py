@@ -44,14 +44,99 @@ def test_constrained_pose_is_read_exactly(rig):
     assert (moved > 0.05).sum() >= 10
 
 
-def test_simulating_a_control_rig_is_refused_with_the_reason(rig):
-    """Its deform legs follow control bones through constraints: refused, nothing written."""
-    n_actions = len(bpy.data.actions)
+def _keyed_bones(action, obj):
+    from humananim.humananim_addon.action_api import fcurves_of
+    return {actions.bone_channel(fc.data_path)[0] for fc in fcurves_of(action, obj)
+            if actions.bone_channel(fc.data_path)}
+
+
+def _deform_pose(rig, action, frames):
+    from humananim.humananim_addon.rig.physical import evaluated_pose, physical_skeleton
+    skeleton = physical_skeleton(rig, bpy.context.scene)
+    return skeleton, evaluated_pose(rig, bpy.context.scene, skeleton, frames, action)
+
+
+def test_simulating_a_control_rig_keys_its_controls(rig):
+    """Formerly refused ("not children of the pelvis"): Simulate reads the deform bones as Blender
+    evaluates them and keys the controls (torso, IK feet and hands, FK spine): 8 kg per hand on a
+    squat; the feet and the pelvis Blender shows are the solve's within 1 mm."""
+    from humananim.humananim_addon.rig import capability
+    from humananim.humananim_addon.rig.bones import classify
+    from test_rig_layer import _squat_rigify
+    source = _squat_rigify(rig, 0.3)
     settings = bpy.context.scene.humananim_simulation
-    settings.frame_start, settings.frame_end = 1, 12
-    with pytest.raises(RuntimeError, match="not children of the pelvis"):
-        bpy.ops.humananim.simulate()
-    assert len(bpy.data.actions) == n_actions
+    settings.frame_start, settings.frame_end = 1, 30
+    settings.load_left = settings.load_right = 8.0
+    reports = []
+    summary = capability.RigView.summary
+    capability.RigView.summary = lambda self: reports.append(summary(self)) or reports[-1]
+    try:
+        assert bpy.ops.humananim.simulate() == {"FINISHED"}
+    finally:
+        capability.RigView.summary = summary
+    result = rig.animation_data.action
+    assert result != source
+    assert _keyed_bones(result, rig) <= classify(rig).control
+    mismatch = reports[-1]["mismatch_per_role"]
+    for role in ("pelvis", "foot.L", "foot.R", "spine", "chest", "head"):
+        assert mismatch[role][0] < 1.0 and mismatch[role][1] < 0.5, (role, mismatch[role])
+    for role in ("hand.L", "hand.R"):  # IK arms the simulation straightens: see docs/rigs.md
+        assert mismatch[role][0] < 10.0, (role, mismatch[role])
+    assert reports[-1]["limbs"] == {"thigh.L": "IK", "thigh.R": "IK", "upper_arm.L": "IK", "upper_arm.R": "IK"}
+
+
+def test_walk_along_a_path_moves_the_rigify_rig(rig):
+    """A 4 m walk keyed on the controls (torso, IK feet and hands, the IK chains' tops): the pelvis,
+    both feet and both hands Blender shows travel 4 m along the line; feet and hands within 1 mm
+    of the solve (the knees and elbows of its pole-less IK limbs are not yet: see docs/rigs.md)."""
+    from humananim.humananim_addon import walking
+    from humananim.humananim_addon.rig import capability
+    from humananim.humananim_addon.walking_cli import line_object
+    from humananim.solver.progress import run_to_end
+    scene = bpy.context.scene
+    props = scene.humananim_walk
+    props.armature, props.path = rig, line_object(scene, 4.0)
+    props.speed, props.speed_mode, props.path_mode = 1.2, "CONSTANT", "CURVE"
+    reports = []
+    write = capability.RigView.iter_write
+
+    def iter_write(self, *a, **k):
+        out = yield from write(self, *a, **k)
+        reports.append(self.summary())
+        return out
+    capability.RigView.iter_write = iter_write
+    try:
+        summary = run_to_end(walking.run(rig, scene))
+    finally:
+        capability.RigView.iter_write = write
+    mismatch = reports[-1]["mismatch_per_role"]
+    for role in ("foot.L", "foot.R", "hand.L", "hand.R"):
+        assert mismatch[role][0] < 1.0, (role, mismatch[role])
+    assert mismatch["pelvis"][0] < 5.0, mismatch["pelvis"]
+    result = walking.CACHE[(rig.name, summary["action"])]
+    rig.animation_data.action = None  # what the walk's NLA strip shows
+    skeleton, pose = _deform_pose(rig, None, result.frames[[0, -1]])
+    pose = np.array(rig.matrix_world) @ pose
+    for role in ("pelvis", "foot.L", "foot.R", "hand.L", "hand.R"):
+        j = skeleton.role_index(role)
+        assert pose[-1, j, 0, 3] - pose[0, j, 0, 3] == pytest.approx(4.0, abs=0.1), role
+
+
+def test_bake_keys_only_the_controls_and_shows_the_same_pose(rig):
+    """Bake to New Action on a control rig keys its controls, never a constraint-driven bone, and
+    Blender shows the deform bones as the source did."""
+    from humananim.humananim_addon.rig.bones import classify
+    source = rig.animation_data.action
+    assert bpy.ops.humananim.bake_action() == {"FINISHED"}
+    baked = rig.animation_data.action
+    assert baked != source
+    keyed = _keyed_bones(baked, rig)
+    assert keyed and keyed <= classify(rig).control
+    frames = np.arange(1, 25)
+    _, before = _deform_pose(rig, source, frames)
+    _, after = _deform_pose(rig, baked, frames)
+    assert np.abs(after[..., :3, 3] - before[..., :3, 3]).max() < 1e-4
+    assert np.abs(after[..., :3, :3] - before[..., :3, :3]).max() < 1e-4
 
 
 def test_deform_bone_to_its_fk_control_by_following_constraints(rig):

@@ -1,0 +1,442 @@
+"""A solved pose written back to the controls an animator keys, on any rig.
+
+Input: the physical skeleton's solved frames (armature space, metres) of its deform bones. Output:
+a NEW action keying the controls (the source action is copied, never changed), and Blender's own
+evaluation of the deform bones compared with the solved pose, per role.
+
+Which control moves which body part, found by structure (rig/bones.py, rig/controls.py):
+- the pelvis: the outermost control upstream of it that carries it, short of the rig's root (a
+  torso control);
+- a limb that an active IK constraint bends: its IK target control (the control that carries the
+  hand or foot) placed where the solved pose puts the hand or foot, and the knee or elbow plane set
+  by the pole control (or, with no pole, by turning the IK chain's top bone about the hip-ankle
+  line), unless the animator asks for FK;
+- every other role bone: the FK control that turns it (the switch values that make it drive are
+  keyed), else the nearest control that carries it.
+Each control is placed from its parent as Blender evaluates it, frame by frame, until nothing
+changes; the knee plane is corrected by the angle Blender shows off it."""
+
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+
+from ...solver.errors import HumanAnimError
+from ...solver.progress import run_to_end
+from . import controls as rc
+from .bones import classify
+from .physical import evaluated_pose
+
+REACH_M = 0.01  # how far an IK target may be put beyond the hand or foot for the chain to reach it
+_LIMBS = (("thigh", "shin", "foot"), ("upper_arm", "forearm", "hand"))
+
+
+@dataclass
+class Handle:
+    """One control to key. kind 'carry': placed where joint's solved frame puts it (`offset`: the
+    control's rest in the joint's rest); 'pole': an IK pole placed in the limb's plane (`local`:
+    its rest position in the limb's rest frame); 'twist': the top of a pole-less IK chain, turned
+    about the hip-ankle line. `chain`: the limb's (upper, lower, end) joints."""
+
+    control: str
+    kind: str
+    joint: int
+    offset: np.ndarray = None
+    chain: tuple = ()
+    local: np.ndarray = None
+
+
+@dataclass
+class ControlPlan:
+    handles: list = field(default_factory=list)
+    switches: dict = field(default_factory=dict)  # (bone, property) -> value the plan relies on
+    changed: dict = field(default_factory=dict)  # those of `switches` that differ from the rig's
+    unmapped: list = field(default_factory=list)  # role bones no control moves
+    modes: dict = field(default_factory=dict)  # limb ('thigh.L') -> 'IK' or 'FK'
+
+    @property
+    def controls(self):
+        return [h.control for h in self.handles]
+
+
+def _rest(obj, name):
+    """Armature-space rest matrix (Blender units, orthonormal)."""
+    m = np.array(obj.data.bones[name].matrix_local, dtype=float)
+    m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=0)
+    return m
+
+
+def _shown(obj, name):
+    from .bones import _shown as shown
+    return shown(obj, name)
+
+
+def _active_ik(obj, bone):
+    """(owner, constraint) of the first active IK constraint upstream of `bone`, or None."""
+    for name in rc.upstream(obj, bone):
+        for con in obj.pose.bones[name].constraints:
+            if con.type == "IK" and not con.mute and con.influence > 0 and con.target == obj and con.subtarget:
+                return name, con
+    return None
+
+
+def _carrier(obj, bone, candidates, used, moves=True, not_carrying=None):
+    """The first of `candidates` (names) that is a control, not used yet, and carries `bone`;
+    `moves`: its location is free; `not_carrying`: a bone it must not carry (an IK target carries
+    the foot, not the thigh)."""
+    for c in candidates:
+        if c in used or not rc.is_control(obj, c) or (moves and all(obj.pose.bones[c].lock_location)):
+            continue
+        if rc.carries(obj, bone, c) and not (not_carrying and rc.carries(obj, not_carrying, c)):
+            return c
+    return None
+
+
+def _nearest_first(obj, name):
+    up = rc.upstream(obj, name)
+    return [n for n, _ in sorted(up.items(), key=lambda kv: kv[1]) if n != name]
+
+
+def _chain_frame(heads):
+    """Frames (..., 4, 4) with origin at the limb's root, x to its end, y toward its middle joint."""
+    h, k, a = heads
+    x = a - h
+    x = x / np.linalg.norm(x, axis=-1, keepdims=True)
+    u = (k - h) - np.sum((k - h) * x, axis=-1, keepdims=True) * x
+    y = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-12)
+    out = np.zeros(h.shape[:-1] + (4, 4))
+    out[..., :3, 0], out[..., :3, 1], out[..., :3, 2], out[..., :3, 3] = x, y, np.cross(x, y), h
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def plan_controls(obj, skeleton, fk=False):
+    """The ControlPlan of the role bones of `skeleton` (a physical skeleton of `obj`). `fk`: key
+    the limbs through their FK controls (switching the rig's IK/FK switch when needed)."""
+    classes = classify(obj)
+    roles = skeleton.roles
+    pbs = obj.pose.bones
+    drivers = rc.switch_drivers(obj)
+    saved = {k: pbs[k[0]][k[1]] for k in rc.switches_of(drivers, set(pbs.keys()))}
+    plan, used, done = ControlPlan(), set(), set()
+    role_joints = [j for j, n in enumerate(skeleton.names) if roles.role_of(n) is not None]
+    scale = skeleton.unit_scale
+    try:
+        if all(skeleton.names[j] in classes.control for j in role_joints):  # a plain FK rig
+            plan.handles = [Handle(skeleton.names[j], "carry", j, np.eye(4)) for j in role_joints]
+            return plan
+        pelvis = skeleton.role_index("pelvis")
+        if pelvis is not None:
+            name = skeleton.names[pelvis]
+            ups = _nearest_first(obj, name)[::-1]  # outermost first
+            ups = [c for c in ups if pbs[c].parent is not None]  # a torso control, not the rig's root
+            c = name if name in classes.control else _carrier(obj, name, ups, used)
+            if c is not None:
+                plan.handles.append(Handle(c, "carry", pelvis, np.linalg.solve(_rest(obj, name), _rest(obj, c))))
+                used.add(c)
+                done.add(pelvis)
+        for limb in _LIMBS:
+            for s in ("L", "R"):
+                joints = [skeleton.role_index(f"{r}.{s}") for r in limb]
+                if None in joints or fk:
+                    continue
+                handles = _ik_limb(obj, skeleton, joints, used)
+                if handles:  # the switches as they are keep the limb in IK
+                    lower = skeleton.names[joints[1]]
+                    plan.switches.update((k, saved[k]) for k in rc.switches_of(drivers, set(rc.upstream(obj, lower))))
+                    plan.handles += handles
+                    plan.modes[f"{limb[0]}.{s}"] = "IK"
+                    used.update(h.control for h in handles)
+                    done.update(joints)
+        for j in role_joints:
+            if j in done:
+                continue
+            name = skeleton.names[j]
+            if name in classes.control:
+                plan.handles.append(Handle(name, "carry", j, np.eye(4)))
+                used.add(name)
+                continue
+            found = rc._search_control(obj, name, scale, saved, drivers, plan.switches)
+            if found is not None and found.name not in used:
+                plan.switches.update(found.switches)
+                off = np.linalg.solve(_rest(obj, name), _rest(obj, found.name))
+                plan.handles.append(Handle(found.name, "carry", j, off))
+                used.add(found.name)
+                continue
+            p = skeleton.parents[j]  # a control that turns this bone, not its body parent too
+            ups = [c for c in _nearest_first(obj, name) if pbs[c].parent is not None]
+            c = (_carrier(obj, name, ups, used, moves=False, not_carrying=skeleton.names[p] if p >= 0 else None)
+                 or _carrier(obj, name, ups, used, moves=False))
+            if c is None:
+                plan.unmapped.append(name)
+                continue
+            plan.handles.append(Handle(c, "carry", j, np.linalg.solve(_rest(obj, name), _rest(obj, c))))
+            used.add(c)
+        for limb in _LIMBS:
+            for s in ("L", "R"):
+                if f"{limb[0]}.{s}" not in plan.modes and skeleton.role_index(f"{limb[0]}.{s}") is not None:
+                    plan.modes[f"{limb[0]}.{s}"] = "FK"
+    finally:
+        for (b, p), v in saved.items():
+            pbs[b][p] = v
+        bpy.context.view_layer.update()
+    plan.changed = {k: v for k, v in plan.switches.items() if float(v) != float(saved[k])}
+    order = {b.name: i for i, b in enumerate(obj.data.bones)}  # parents come before children
+    rank = {"carry": 0, "pole": 1, "twist": 2}
+    plan.handles.sort(key=lambda h: (rank[h.kind], order[h.control]))
+    return plan
+
+
+def _ik_limb(obj, skeleton, joints, used):
+    """Handles of an IK-driven limb (target, then pole or twist), or [] when no active IK with a
+    control carrying the limb's end bends it."""
+    upper, lower, end = (skeleton.names[j] for j in joints)
+    found = _active_ik(obj, lower)
+    if found is None:
+        return []
+    owner, con = found
+    end_ctl = _carrier(obj, end, [con.subtarget] + _nearest_first(obj, con.subtarget), used, not_carrying=upper)
+    if end_ctl is None:
+        return []
+    heads = [_rest(obj, n)[:3, 3] for n in (upper, lower, end)]
+    frame = _chain_frame(heads)
+    out = [Handle(end_ctl, "carry", joints[2], np.linalg.solve(_rest(obj, end), _rest(obj, end_ctl)), tuple(joints))]
+    pole = con.pole_subtarget if con.pole_target == obj else ""
+    if pole:
+        ctl = next((c for c in [pole] + _nearest_first(obj, pole) if rc.is_control(obj, c)), None)
+        if ctl is not None and ctl not in used:
+            local = np.linalg.solve(frame, np.append(_rest(obj, ctl)[:3, 3], 1.0))
+            out.append(Handle(ctl, "pole", joints[2], chain=tuple(joints), local=local))
+        return out
+    top, n = obj.pose.bones[owner], con.chain_count
+    while n > 1 and top.parent is not None:
+        top, n = top.parent, n - 1
+    if _shown(obj, top.name) and not all(top.lock_rotation):
+        out.append(Handle(top.name, "twist", joints[2], chain=tuple(joints)))
+    return out
+
+
+# --- placing the controls, frame by frame, from Blender's evaluation ---------------------------
+def _rest_local(obj, name):
+    b = obj.data.bones[name]
+    rest = _rest(obj, name)
+    return rest if b.parent is None else np.linalg.solve(_rest(obj, b.parent.name), rest)
+
+
+def _matrix(pb):
+    m = np.array(pb.matrix, dtype=float)
+    m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=0)
+    return m
+
+
+def _set_world(obj, name, target, rest_local=None):
+    """Sets the bone's basis so that (its parent as evaluated now) it shows `target` (units), by
+    Blender's own conversion (which honours local location and the inherit options)."""
+    from mathutils import Matrix
+    pb = obj.pose.bones[name]
+    old = np.array(pb.matrix_basis, dtype=float)
+    pb.matrix = Matrix(target.tolist())
+    return float(np.abs(np.array(pb.matrix_basis, dtype=float) - old).max())
+
+
+def _plane_error(obj, skeleton, chain, solved_heads):
+    """(axis point, axis direction, signed angle) turning the limb's knee plane as Blender shows
+    it into the solved one, about the shown root-end line; None for a straight limb."""
+    pbs = obj.pose.bones
+    shown = [np.array(pbs[skeleton.names[j]].head, dtype=float) for j in chain]
+    h, k, a = shown
+    x = (a - h) / np.linalg.norm(a - h)
+
+    def perp(v):
+        return v - np.dot(v, x) * x
+    u, w = perp(k - h), perp(solved_heads[1] - solved_heads[0])
+    if np.linalg.norm(w) < 1e-3 * np.linalg.norm(a - h) or np.linalg.norm(u) < 1e-9:
+        return None
+    angle = np.arctan2(np.dot(np.cross(u, w), x), np.dot(u, w))
+    return h, x, float(angle)
+
+
+def _rotation_about(point, axis, angle):
+    from mathutils import Matrix, Vector
+    r = np.array(Matrix.Rotation(angle, 4, Vector(axis.tolist())), dtype=float)
+    t = np.eye(4)
+    t[:3, 3] = point
+    return t @ r @ np.linalg.inv(t)
+
+
+class _Secant:
+    """The turn (radians) about the limb's root-end line that zeroes the knee-plane error Blender
+    shows. An IK solve is no linear function of its pole or its chain's start (the turn may even
+    act backwards), so the turn is found by secant steps, at most 0.3 rad each, starting from the
+    previous frame's turn and slope."""
+
+    def __init__(self):
+        self.turn, self.slope, self.last = 0.0, -1.0, None
+
+    def next_frame(self):
+        self.last = None
+
+    def step(self, error):
+        if self.last is not None and abs(self.turn - self.last[0]) > 1e-9:
+            slope = (error - self.last[1]) / (self.turn - self.last[0])
+            if abs(slope) > 0.05:
+                self.slope = slope
+        self.last = (self.turn, error)
+        self.turn -= float(np.clip(error / self.slope, -0.3, 0.3))
+        return self.turn
+
+
+def solve_bases(obj, scene, skeleton, plan, frames, solved):
+    """{control: (F, 4, 4) basis (Blender units)} showing the solved frames `solved` (F, J, 4, 4,
+    armature space, metres) on `frames`, with the plan's switch values set while solving."""
+    return run_to_end(iter_solve_bases(obj, scene, skeleton, plan, frames, solved))
+
+
+def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
+    """solve_bases as a job step: yields the share of frames done."""
+    pbs = obj.pose.bones
+    view_layer = bpy.context.view_layer
+    units = solved.copy()
+    units[..., :3, 3] /= skeleton.unit_scale
+    rest_local = {h.control: _rest_local(obj, h.control) for h in plan.handles}
+    out = {h.control: np.empty((len(frames), 4, 4)) for h in plan.handles}
+    saved_switch = {k: pbs[k[0]][k[1]] for k in plan.switches}
+    turning = [h for h in plan.handles if h.kind != "carry"]
+    secant = {h.control: _Secant() for h in turning}
+    targets = [h for h in plan.handles if h.kind == "carry" and h.chain]  # IK targets
+    pelvis = next((h for h in plan.handles if h.kind == "carry" and h.joint == skeleton.role_index("pelvis")), None)
+    keep = scene.frame_current
+    try:
+        for k, f in enumerate(frames):
+            scene.frame_set(int(f))
+            for (b, p), v in plan.switches.items():
+                pbs[b][p] = v
+            for sec in secant.values():
+                sec.next_frame()
+            start = {}  # a twist control's evaluated frame before any turn
+            reach = {h.control: np.zeros(3) for h in targets}
+            missed, last_shift, stuck = {}, {}, set()
+            for _ in range(24):
+                change = 0.0
+                for h in plan.handles:
+                    if h.kind == "carry":
+                        t = units[k, h.joint] @ h.offset
+                        if h.control in reach:
+                            t[:3, 3] += reach[h.control]
+                        change = max(change, _set_world(obj, h.control, t, rest_local[h.control]))
+                    else:
+                        change = max(change, _turn(obj, h, units[k], secant[h.control].turn, start,
+                                                   rest_local[h.control]))
+                if pelvis is not None:  # again: a spine control that also turns the pelvis (Rigify's FK
+                    view_layer.update()  # spine) is undone, the pelvis ends each pass where the solve puts it
+                    change = max(change, _set_world(obj, pelvis.control, units[k, pelvis.joint] @ pelvis.offset,
+                                                    rest_local[pelvis.control]))
+                view_layer.update()
+                for h in turning:
+                    err = _plane_error(obj, skeleton, h.chain, units[k, list(h.chain), :3, 3])
+                    if err is None or abs(err[2]) < 5e-5:
+                        continue
+                    change = max(change, abs(err[2]))
+                    secant[h.control].step(err[2])
+                for h in targets:  # an IK chain that falls short of its target: the target a little further
+                    miss = units[k, h.joint, :3, 3] - np.array(pbs[skeleton.names[h.joint]].head, dtype=float)
+                    c, dist = h.control, float(np.linalg.norm(miss))
+                    if c in stuck or dist < 1e-5:
+                        continue
+                    if dist > 0.7 * missed.get(c, np.inf):  # the chain doesn't follow: back to the best shift
+                        reach[c] -= last_shift[c]
+                        stuck.add(c)
+                        change = max(change, float(np.abs(last_shift[c]).max()))
+                        continue
+                    if np.linalg.norm(reach[c] + miss) < REACH_M / skeleton.unit_scale:
+                        reach[c] += miss
+                        missed[c], last_shift[c] = dist, miss
+                        change = max(change, float(np.abs(miss).max()))
+                if change < 1e-6:
+                    break
+            for h in plan.handles:
+                out[h.control][k] = np.array(pbs[h.control].matrix_basis, dtype=float)
+            yield (k + 1) / len(frames)
+    finally:
+        for (b, p), v in saved_switch.items():
+            pbs[b][p] = v
+        scene.frame_set(keep)
+    return out
+
+
+def _turn(obj, h, units, turn, start, rest_local):
+    """Places a pole (in the solved limb plane, turned by `turn` about the limb's root-end line),
+    or turns a pole-less IK chain's top before the IK solves it: its basis on the frame (`start`)
+    turned by `turn` about that line, so the IK starts from the rig's own bend, turned."""
+    from mathutils import Matrix
+    heads = units[list(h.chain), :3, 3]
+    root, x = heads[0], (heads[2] - heads[0]) / np.linalg.norm(heads[2] - heads[0])
+    spin = _rotation_about(root, x, turn)
+    pb = obj.pose.bones[h.control]
+    if h.kind == "pole":
+        t = _matrix(pb)
+        t[:3, 3] = (spin @ _chain_frame(heads) @ h.local)[:3]
+        return _set_world(obj, h.control, t, rest_local)
+    b0 = start.setdefault(h.control, np.array(pb.matrix_basis, dtype=float))
+    parent = _matrix(pb.parent) if pb.parent is not None else np.eye(4)
+    pre = parent @ rest_local @ b0  # where the chain's top is before the IK turns it
+    spin = _rotation_about(pre[:3, 3], x, turn)  # about its own head: the top turns, never moves
+    r = np.linalg.solve(pre, spin @ pre)
+    b = b0 @ r
+    old = np.array(pb.matrix_basis, dtype=float)
+    pb.matrix_basis = Matrix(b.tolist())
+    return float(np.abs(b - old).max())
+
+
+def mismatch(obj, scene, skeleton, frames, solved, action=None):
+    """{role: (largest head distance mm, largest angle deg)} between Blender's evaluation of the
+    deform role bones (with `action`) and the solved frames (armature space, metres)."""
+    shown = evaluated_pose(obj, scene, skeleton, frames, action)
+    shown[..., :3, :3] /= np.linalg.norm(shown[..., :3, :3], axis=-2, keepdims=True)
+    shown[..., :3, 3] *= skeleton.unit_scale
+    out = {}
+    for j, name in enumerate(skeleton.names):
+        role = skeleton.roles.role_of(name)
+        if role is None:
+            continue
+        d = np.linalg.norm(shown[:, j, :3, 3] - solved[:, j, :3, 3], axis=-1).max()
+        rel = np.swapaxes(shown[:, j, :3, :3], -1, -2) @ solved[:, j, :3, :3]
+        cos = np.clip((np.trace(rel, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
+        ang = np.degrees(np.arccos(cos)).max()
+        mm, deg = out.get(role, (0.0, 0.0))
+        out[role] = (round(max(mm, 1000 * float(d)), 3), round(max(deg, float(ang)), 3))
+    return out
+
+
+def write_pose(obj, scene, skeleton, frames, solved, name, fk=False, plan=None):
+    """The NEW action keying the controls of `obj` so that its deform bones show `solved` (F, J,
+    4, 4: the physical skeleton's frames in armature space, metres) on `frames`; and the report
+    {"controls", "modes", "switches", "mismatch": {role: (mm, deg)}}. The source action is
+    copied (its other keys kept), never changed; the scene's output setting (new action or NLA
+    track) applies. Raises HumanAnimError when some role bone the solve moves has no control."""
+    return run_to_end(write_pose_steps(obj, scene, skeleton, frames, solved, name, fk, plan))
+
+
+def write_pose_steps(obj, scene, skeleton, frames, solved, name, fk=False, plan=None):
+    """write_pose as a job step: yields progress (0-1) while solving the controls frame by frame."""
+    from .posing import write_controls
+    frames = np.asarray(frames)
+    solved = np.asarray(solved, dtype=float)
+    plan = plan or plan_controls(obj, skeleton, fk)
+    moving = np.abs(solved - solved[:1]).max(axis=(0, 2, 3)) > 1e-6
+    lost = [n for n in plan.unmapped if moving[skeleton.index(n)]]
+    if lost:
+        raise HumanAnimError(f"no control of '{obj.name}' moves {', '.join(lost[:4])}"
+                             f"{' ...' if len(lost) > 4 else ''}: the result can't be keyed on this rig")
+    bases = yield from iter_solve_bases(obj, scene, skeleton, plan, frames, solved)
+    keys = write_controls(obj, scene, _Switches(plan.changed), frames, bases, name)
+    action = keys.action
+    report = {"controls": plan.controls, "modes": dict(plan.modes),
+              "switches": {f"{b}:{p}": v for (b, p), v in plan.changed.items()},
+              "mismatch": mismatch(obj, scene, skeleton, frames, solved, action)}
+    return action, report
+
+
+@dataclass
+class _Switches:
+    switches: dict
