@@ -117,7 +117,7 @@ def preview_run(arm, scene, garment, body, last):
     """Preview Cloth headless: what the modal operator's timer does, tick by tick (ClothPreview.tick:
     set the frame, read the pose and the skinned body from Blender, simulate one frame, write the
     preview mesh). The first tick sets the simulation up (the body's search grids): timed apart."""
-    from humananim.humananim_addon import cloth
+    from humananim.humananim_addon.cloth import job as cloth
     props = scene.humananim_cloth
     props.garment, props.armature, props.pin_group = garment, arm, "waist"
     props.body, props.collider, props.level = body, "MESH", 2

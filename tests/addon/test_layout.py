@@ -160,3 +160,20 @@ def test_every_relative_import_names_a_module_that_exists(top):
             if not (os.path.isdir(target) or os.path.isfile(target + ".py")):
                 missing.append(f"{os.path.relpath(path, ROOT)}:{node.lineno} from {'.' * node.level}{node.module or ''}")
     assert not missing, missing
+
+
+def test_nothing_takes_an_attribute_of_a_capability_folder_that_holds_only_modules():
+    """`from humananim.humananim_addon import walking` gives the folder, whose __init__ defines
+    nothing: code written before the move (`walking.run`) fails only when it runs. Tests,
+    benchmarks and the docs scripts import the module they use (`walking.job`)."""
+    bare = {name for name in os.listdir(BRIDGE) if os.path.isfile(os.path.join(BRIDGE, name, "__init__.py"))
+            and not any(isinstance(n, (ast.FunctionDef, ast.ClassDef, ast.Assign, ast.ImportFrom))
+                        for n in ast.parse(open(os.path.join(BRIDGE, name, "__init__.py")).read()).body)}
+    wrong = []
+    for top in ("tests", "benchmarks", "docs"):
+        for path in python_files(os.path.join(ROOT, top)):
+            for node in ast.walk(ast.parse(open(path, encoding="utf-8").read(), path)):
+                if isinstance(node, ast.ImportFrom) and (node.module or "").endswith("humananim_addon"):
+                    wrong += [f"{os.path.relpath(path, ROOT)}:{node.lineno} {a.name}" for a in node.names
+                              if a.name in bare]
+    assert not wrong, wrong

@@ -100,9 +100,9 @@ def test_loads_on_a_control_rig_key_its_controls_and_show_the_solve(puppet, capa
 def test_walk_along_a_path_moves_the_control_rig(puppet):
     """A 4 m walk: the pelvis and both feet of the deform skeleton, as Blender shows it (the walk's
     NLA strip of control keys), go along the path and match the solved walk within the aim."""
-    from humananim.humananim_addon import walking
+    from humananim.humananim_addon.walking import job as walking
     from humananim.humananim_addon.rig import capability
-    from humananim.humananim_addon.walking_cli import line_object
+    from humananim.humananim_addon.walking.cli import line_object
     from humananim.solver.progress import run_to_end
     scene = bpy.context.scene
     props = scene.humananim_walk
@@ -152,9 +152,9 @@ def mixamo(empty_scene, tmp_path):
 def test_capabilities_on_a_reimported_mixamo_rig(mixamo):
     """A plain FK rig after Blender's FBX round trip: Simulate (8 kg per hand) and a 4 m walk key its
     bones, and Blender shows the hands sinking and the body walking."""
-    from humananim.humananim_addon import walking
+    from humananim.humananim_addon.walking import job as walking
     from humananim.humananim_addon.rig.capability import is_control_rig
-    from humananim.humananim_addon.walking_cli import line_object
+    from humananim.humananim_addon.walking.cli import line_object
     from humananim.solver.progress import run_to_end
     assert not is_control_rig(mixamo)
     scene = bpy.context.scene
@@ -177,7 +177,8 @@ def test_capabilities_on_a_reimported_mixamo_rig(mixamo):
 def test_motion_queue_with_a_push_reaction_keys_the_controls(puppet):
     """The squat queued twice (blended) with a push set in the Dynamic Control panel: the Motion
     Queue's reaction is keyed on the controls and Blender shows the solve within the aim."""
-    from humananim.humananim_addon import motion_control, synthesis
+    from humananim.humananim_addon.motion_control import job as motion_control
+    from humananim.humananim_addon.synthesis import job as synthesis
     from humananim.humananim_addon.rig import capability
     from humananim.solver.progress import run_to_end
     scene = bpy.context.scene
@@ -213,7 +214,7 @@ def test_motion_queue_with_a_push_reaction_keys_the_controls(puppet):
 def test_live_capture_refuses_a_control_rig_before_connecting(puppet):
     """Live Capture can't key a control rig's controls yet: it says so before any device opens,
     naming the constraint-driven deform bones, rather than stream into keys that move nothing."""
-    from humananim.humananim_addon import capture
+    from humananim.humananim_addon.capture import job as capture
     from humananim.solver.errors import HumanAnimError
     scene = bpy.context.scene
     capture.add_device(scene, "CYBERGLOVE", name="glove", simulate=True, rate=100.0, sensors="22", hand="R")

@@ -89,9 +89,9 @@ def test_walk_along_a_path_moves_the_rigify_rig(rig):
     """A 4 m walk keyed on the controls (torso, IK feet and hands, the IK chains' tops): the pelvis,
     both feet and both hands Blender shows travel 4 m along the line; feet and hands within 1 mm
     of the solve (the knees and elbows of its pole-less IK limbs are not yet: see docs/rigs.md)."""
-    from humananim.humananim_addon import walking
+    from humananim.humananim_addon.walking import job as walking
     from humananim.humananim_addon.rig import capability
-    from humananim.humananim_addon.walking_cli import line_object
+    from humananim.humananim_addon.walking.cli import line_object
     from humananim.solver.progress import run_to_end
     scene = bpy.context.scene
     props = scene.humananim_walk
