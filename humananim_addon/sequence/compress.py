@@ -107,12 +107,11 @@ def iter_compress(obj, scene, source, sel, degrees=0.5, centimetres=0.5, value_t
 
 
 def _leg_scale(group, motion, feet_scale):
-    """The tolerance scale of a group: `feet_scale` on the foot chains' bones (and the object's
-    own channels, which move the whole figure), 1 elsewhere."""
+    """The tolerance scale of a group: `feet_scale` on the foot chains' bones, 1 elsewhere."""
     skeleton, _ = motion
     _, chain = foot_chains(skeleton)
     j = skeleton.find(group.bone) if group.bone else None
-    return feet_scale if j is None or j in chain else 1.0
+    return feet_scale if j is not None and j in chain else 1.0
 
 
 def _rescaled(results, groups, samples, tols, reduce_group, scale, scale_of):
@@ -130,7 +129,7 @@ def _keep_planted_feet(motion, groups, frames, samples, tols, results, reduce_gr
     keys, scale, error = key_reduction.fit_to_error(
         lambda s: results if s == 1.0 else _rescaled(results, groups, samples, tols, reduce_group, s,
                                                       lambda g: _leg_scale(g, motion, s)),
-        measure, feet_mm)
+        measure, feet_mm, steps=5)  # the scale to 1/32
     return keys, scale, error
 
 

@@ -106,16 +106,19 @@ def planted_feet_measure(motion, groups, frames):
     the source plants none. Each point within e of the source keeps a contact's slide within the
     source's own plus 2 e."""
     skeleton, base = motion
-    feet, _ = foot_chains(skeleton)
+    feet, chain = foot_chains(skeleton)
     if not feet or base.frame_count < 2:
         return None
     source = foot_points(skeleton, base, feet)
     planted = planted_frames(source, base.fps)
     if not planted.any():
         return None
+    # only the chains' channels move the feet: the others keep the source's values
+    moving = [i for i, g in enumerate(groups) if g.bone and skeleton.find(g.bone) in chain]
 
     def measure(results):
-        played = foot_points(skeleton, _played(motion, groups, frames, results), feet)
+        played = _played(motion, [groups[i] for i in moving], frames, [results[i] for i in moving])
+        played = foot_points(skeleton, played, feet)
         d = np.linalg.norm(played[..., :2] - source[..., :2], axis=-1)
         return 1000.0 * float(d[planted].max())
     return measure
