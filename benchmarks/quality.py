@@ -6,6 +6,7 @@ copied) and the bundled CMU clips, each result held to the motion QA's threshold
     python benchmarks/quality.py                 # every clip, every command: a table
     python benchmarks/quality.py --per-type 1    # one clip of every motion type
     python benchmarks/quality.py --json          # one JSON object, also benchmarks/results/quality.json
+    python benchmarks/quality.py --json --commands simulate,compress   # updates those rows of it
 
 Per command: clips run, clips passed (exit 0 and every QA measure within its threshold), clips
 refused (exit 2, with the reason), and the worst planted-foot slide (mm), depth below the ground
@@ -59,6 +60,23 @@ def summarise(command, rows):
             "median_seconds": round(statistics.median([r["seconds"] for r in rows]), 2) if rows else None}
 
 
+def merged(table, clips):
+    """`table` with the rows of benchmarks/results/quality.json for the commands not run now, when
+    that file holds the same number of clips (a run of some --commands updates their rows and keeps
+    the others', each row with its date); in the order of corpus_runs.COMMANDS."""
+    path = ROOT / "benchmarks" / "results" / "quality.json"
+    try:
+        before = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return table
+    if before.get("clips") != clips:
+        return table
+    ran = {t["command"] for t in table}
+    rows = table + [t for t in before.get("commands", []) if t.get("command") not in ran]
+    order = list(corpus_runs.COMMANDS)
+    return sorted(rows, key=lambda t: order.index(t["command"]) if t["command"] in order else len(order))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--per-type", type=int, help="clips of each motion type (default: all)")
@@ -87,7 +105,9 @@ def main():
                       f"{seconds:.1f} s {error}", file=sys.stderr, flush=True)
     finally:
         humananim.unregister()
-    table = [summarise(c, r) for c, r in rows.items()]
+    table = [dict(summarise(c, r), date=datetime.date.today().isoformat()) for c, r in rows.items()]
+    if args.json:
+        table = merged(table, len(clips))
     result = {"benchmark": "quality", "date": datetime.date.today().isoformat(),
               "machine_speed": {"numpy_add_us": round(speed, 3)},
               "clips": len(clips), "corpus": str(corpus_runs.CORPUS) if corpus_runs.CORPUS.is_dir() else None,

@@ -27,13 +27,13 @@ and the new action), `measures` (errors), one per tool (`equalize`, `blend`, `co
 
 from .blend import blend, nla_pair
 from .channels import Selection, action_frames, select_channels, selection_for_context
-from .compress import compress, iter_compress
+from .compress import FEET_MM, compress, iter_compress
 from .equalize import MAX_LEVELS, band_energies, band_labels, default_levels, equalize
 from .settings import CLASSES, register, store_bands, unregister
 from .warp import marker_constraints, parse_map, squeeze_stretch, warp
 from .writing import read_keys
 
 __all__ = ["CLASSES", "MAX_LEVELS", "Selection", "action_frames", "band_energies", "band_labels", "blend",
-           "compress", "default_levels", "equalize", "iter_compress", "marker_constraints", "nla_pair",
+           "FEET_MM", "compress", "default_levels", "equalize", "iter_compress", "marker_constraints", "nla_pair",
            "parse_map", "read_keys", "register", "select_channels", "selection_for_context", "squeeze_stretch",
            "store_bands", "unregister", "warp"]

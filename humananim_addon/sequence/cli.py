@@ -43,6 +43,9 @@ def add_commands(sub, add_common_options):
     c.add_argument("--value", type=POSITIVE, default=1e-3, help="largest error of other curves (default 0.001)")
     c.add_argument("--tail-cm", type=NON_NEGATIVE, default=0.0,
                    help="also keep bone tails and points 10 cm beyond them within this many cm (default: off)")
+    c.add_argument("--feet-mm", type=NON_NEGATIVE, default=None,
+                   help="keep planted feet within this many mm of the source (the legs' tolerances are tightened "
+                        "where needed; default 2.5, half the motion QA's slide margin; 0: off)")
     c.add_argument("--method", choices=("hermite", "pyramid"), default="hermite")
     add_common_options(c)
     w = sub.add_parser("warp", help="time warp through OLD:NEW frame pairs (or the file's warp markers)")
@@ -195,7 +198,8 @@ def cmd_compress(args):
     t0 = time.perf_counter()
     obj, scene, action, sel, unit = _prepare(args)
     summary = sequence.compress(obj, scene, action, sel, args.degrees, args.cm, args.value, args.method.upper(),
-                                args.replace, args.tail_cm)
+                                args.replace, args.tail_cm,
+                                sequence.FEET_MM if args.feet_mm is None else args.feet_mm)
     return _save(args, summary, t0, unit)
 
 

@@ -28,6 +28,11 @@ def test_compress_a_bvh_meets_its_tolerances_and_reports(tmp_path):
     assert s["max_error_deg"] <= 1.0 and s["max_error_cm"] <= 1.0
     assert 0 < s["tail_error_cm"] <= s["tail_10cm_error_cm"]
     assert s["action"] == "cmu_131_01.compressed" and s["ms"] > 0
+    # planted feet kept within 2.5 mm of the source by default (docs/qa.md), and the QA's slide holds
+    assert s["tolerance_feet_mm"] == 2.5 and s["feet_error_mm"] <= 2.5
+    assert s["qa"]["measures"]["slide"]["passed"] is True
+    r = run("compress", CMU_CLIPS[0], "--feet-mm", "-1", "--out", str(tmp_path / "bad.blend"))
+    assert r.returncode == 2 and "Traceback" not in r.stderr and not (tmp_path / "bad.blend").exists()
 
 
 def test_filter_then_warp_a_blend_and_plain_summaries(tmp_path):

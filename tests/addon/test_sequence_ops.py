@@ -196,6 +196,30 @@ def test_compression_to_a_bone_tail_tolerance(cmu_rig):
     assert loose["keys_after"] < s["keys_after"] < tight["keys_after"]
 
 
+def test_compression_keeps_planted_feet_by_default(cmu_rig):
+    """The channel tolerances bound each channel, not the feet: the root's and legs' errors add up
+    at a planted foot. By default the legs' tolerances are tightened until every foot point the
+    source plants stays within 2.5 mm of it, so the motion QA's slide (the source's own plus 5 mm)
+    holds as Blender plays the result; 0 turns it off."""
+    from humananim.humananim_addon.qa.job import measure_result
+    scene = bpy.context.scene
+    source = cmu_rig.animation_data.action
+    sel = sequence.select_channels(cmu_rig, scene, source)
+    loose = sequence.compress(cmu_rig, scene, source, sel, degrees=2.0, centimetres=2.0, feet_mm=0.0)
+    assert "feet_error_mm" not in loose
+    loose_qa = measure_result(cmu_rig, scene, bpy.data.actions[loose["action"]], [source], store=False)
+    activate(cmu_rig, source)
+    s = sequence.compress(cmu_rig, scene, source, sel, degrees=2.0, centimetres=2.0)
+    assert s["tolerance_feet_mm"] == sequence.FEET_MM == 2.5
+    assert s["feet_error_mm"] <= 2.5 and 0.0 < s["feet_tolerance_scale"] < 1.0
+    assert s["max_error_deg"] <= 2.0 and s["max_error_cm"] <= 2.0
+    qa = measure_result(cmu_rig, scene, bpy.data.actions[s["action"]], [source], store=False)
+    slide, loose_slide = qa["measures"]["slide"], loose_qa["measures"]["slide"]
+    assert loose_slide["passed"] is False  # the loose legs drag a planted foot past the limit
+    assert slide["passed"] is True and slide["value"] < loose_slide["value"]
+    assert loose["keys_after"] < s["keys_after"]  # only the legs' channels took more keys
+
+
 def test_compression_on_quaternion_bones_of_the_metarig(metarig):
     scene = bpy.context.scene
     keyed_metarig(metarig)

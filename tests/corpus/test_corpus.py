@@ -55,10 +55,13 @@ KNOWN = {
              "walk (the QA's cap for a generated motion: 15; the 62 deg/frame snaps are gone and every rig walks)"),
     "blend": ({"slide", "penetration", "pop_acceleration"},
               "the multiresolution blend of a clip's end into its start drags planted feet in the transition"),
-    "compress": ({"slide"}, "the tolerances bound each channel, not the feet: the legs' errors add up to "
-                            "1-1.5 cm more slide at a planted foot (--tail-cm keeps the feet)"),
-    "filter": ({"slide"}, "the low-pass denoise smears the CMU hop's take-off into the contact before it"),
-    "warp": ({"pop_acceleration"}, "the warp's spline changes the dance's hip speed within a few frames"),
+    "filter": ({"slide", "penetration", "pop_acceleration"},
+               "the low-pass denoise drags planted feet (the CMU hop's take-off smeared into the contact before "
+               "it; kick, dash, dance), a toe 2.1 cm under the floor, and smooths the dance's hips' Euler angles "
+               "near gimbal lock"),
+    "warp": ({"pop_acceleration"}, "moved LINEAR keys of a clip keyed on every frame play between their Euler "
+                                   "angles at fractional frames: near gimbal lock the hips turn off the capture's "
+                                   "path (dance, kick)"),
 }
 
 

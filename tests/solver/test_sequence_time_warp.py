@@ -16,6 +16,26 @@ def test_warp_hits_constraints_and_is_monotone():
         tw.TimeWarp([(0, 0), (50, 40), (40, 60)])
 
 
+def test_warp_moves_no_frame_further_than_its_constraints():
+    """Frame 61 of 1,900 three frames later with both ends pinned: a cubic through the pairs
+    themselves (PCHIP on f) bulged along the long interval, shifting frame 1,150 by 20 frames; the
+    shifts' own shape-preserving interpolant keeps every shift between its neighbours', and the
+    speed f' near one and continuous, also into the slope-one continuation past the ends."""
+    warp = tw.TimeWarp([(1, 1), (64, 61), (1900, 1900)])
+    t = np.linspace(1, 1900, 20001)
+    shift = warp(t) - t
+    assert shift.min() >= -1e-9 and shift.max() <= 3.0 + 1e-9
+    assert np.abs(shift[t > 1000]).max() < 1.5
+    slope = warp.slope(t)
+    assert slope.min() > 0.99 and slope.max() < 1.11
+    assert warp.slope(np.array([1.0, 1900.0])) == pytest.approx([1.0, 1.0], abs=1e-9)
+    # a strong squeeze stays monotone (Fritsch-Carlson's limit on the slopes)
+    hard = tw.TimeWarp([(0, 0), (5, 50), (6, 100), (200, 200)])
+    u = np.linspace(-10, 210, 5001)
+    assert np.all(np.diff(hard(u)) > 0)
+    assert np.allclose(hard([0, 50, 100, 200]), [0, 5, 6, 200])
+
+
 def test_warped_channels_show_the_original_at_the_constraint_times():
     bvh = data.load("cmu_131_01.bvh")
     x = bvh.values[:, 3:40]
