@@ -190,6 +190,9 @@ class HUMANANIM_OT_compress_keys(SequenceOperator, JobOperator, bpy.types.Operat
     tail_cm: FloatProperty(name="Bone Tails", default=0.0, min=0.0, soft_max=10.0,
                            description="Also keep every bone's tail, and a point 10 cm beyond it, within this "
                                        "many centimetres on every frame (0: off)")
+    feet_mm: FloatProperty(name="Planted Feet", default=sequence.FEET_MM, min=0.0, soft_max=20.0,
+                           description="Keep every foot point the source plants within this many millimetres of "
+                                       "the source, by tightening only the legs' tolerances (0: off)")
     method: EnumProperty(name="Method", items=(
         ("HERMITE", "Hermite Keys", "Key reduction by cubic Hermite segments (Huang 5.8): fewest keys"),
         ("PYRAMID", "Pyramid Levels", "Keys on the coarsest pyramid level within the tolerance (Huang 5.5)")),
@@ -199,17 +202,20 @@ class HUMANANIM_OT_compress_keys(SequenceOperator, JobOperator, bpy.types.Operat
         obj, action = context.active_object, self.source(context)
         sel = self.selection(context, action)
         s = yield from sequence.iter_compress(obj, context.scene, action, sel, self.degrees, self.centimetres,
-                                              self.value_tolerance, self.method, self.replace, self.tail_cm)
+                                              self.value_tolerance, self.method, self.replace, self.tail_cm,
+                                              self.feet_mm)
         text = (f"'{s['action']}': {s['keys_before']} -> {s['keys_after']} keys ({s['ratio']:g}x), largest error "
                 f"{s['max_error_deg']:.3f} deg, {s['max_error_cm']:.3f} cm")
         if "tail_error_cm" in s:
             text += f", bone tail {s['tail_error_cm']:.2f} cm, 10 cm beyond {s['tail_10cm_error_cm']:.2f} cm"
+        if "feet_error_mm" in s:
+            text += f", planted feet within {s['feet_error_mm']:.1f} mm"
         return _with_note(text, s, self, context)
 
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
-        for name in ("method", "degrees", "centimetres", "tail_cm", "value_tolerance"):
+        for name in ("method", "degrees", "centimetres", "tail_cm", "feet_mm", "value_tolerance"):
             layout.prop(self, name)
         self.draw_common(layout)
 
