@@ -160,7 +160,7 @@ def test_4_5_frontal_impulse_recovers_and_feet_stay(squat, newton_seconds, withi
     0.2 m/s push on a 70 kg figure: the pelvis can only be stopped as fast as the ZMP at the heel
     allows; the thesis's figure recovers "while maintaining balance", without a time). The push
     moves some joint well beyond the 2 deg band (4.1 and 6.2 deg; the joints' servo takes part of
-    it, controller._Loop._servoed_inertia: 6 N s moved 2.5 deg, 7 before it)."""
+    it, pushes.servoed_inertia: 6 N s moved 2.5 deg, 7 before it)."""
     sk, tr = squat
     tracked = control(sk, tr, replace(push(sk, newton_seconds), tracking_only=True))
     assert tracked.balance_error.max() > 0.01  # pure tracking would need the ZMP outside
