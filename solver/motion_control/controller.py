@@ -253,8 +253,9 @@ class ControlLoop:
         st = self.st
         a_raw = self.tracking.acceleration(t, q, v)
         planted = bool(feet[0] or feet[1])
-        targets = self.feet.targets(body, feet, t) if planted else None
-        a_track = self.feet.constrain(body, q, v, a_raw, feet, targets) if planted else a_raw
+        held = self.feet.held(feet)  # planted, or being released (feet.RELEASE_TIME)
+        targets = self.feet.targets(body, held, t) if held.any() else None
+        a_track = self.feet.constrain(body, q, v, a_raw, held, targets) if targets is not None else a_raw
         allow, criteria = self.allowance(t)
         sides, foot_bodies = body.contact_sets[bool(feet[0]), bool(feet[1])] if planted else (None, None)
         cs = control_state(body.model, body.data, q, v, feet, body.strength, f_ext=f_ext,
@@ -267,7 +268,7 @@ class ControlLoop:
             return a_track, cs, None
         res = dynamic_control(cs, a_track)
         if res.falling is not None:
-            a_track, res = self._slower_return(body, cs, t, a_raw, a_track, res, feet, targets)
+            a_track, res = self._slower_return(body, cs, t, a_raw, a_track, res, held, targets)
         a = a_track + _bounded(res.delta, st.max_dynamic_acceleration) if res.acted else a_track
         if record:
             self._record_result(f, cs, res)
@@ -300,20 +301,21 @@ class ControlLoop:
             feet[:] = False
             planted = False
         resolve = correction = targets = None
-        if planted:  # the feet's velocity over the step: the targets' at its end
-            targets = self.feet.targets(body, feet, t + dt)
-            v = self.feet.project_velocity(body, q, v, feet, targets)
+        held = self.feet.held(feet) if not self.fallen else feet
+        if held.any():  # the held feet's velocity over the step: the targets' at its end
+            targets = self.feet.targets(body, held, t + dt)
+            v = self.feet.project_velocity(body, q, v, held, targets)
             # the positions' re-solve: predicted from the frames at q, or after the step (a violent
-            # step, a foot lifting, foot_iterations)
+            # step, a foot lifting or being released, foot_iterations)
             if st.foot_iterations == 0:
-                correction = self.feet.predicted_resolve(body, q, v, feet, targets, t, dt)
+                correction = self.feet.predicted_resolve(body, q, v, held, targets, dt)
             resolve = correction is None
         # semi-implicit Euler: with tracking.step_consistent's input velocities it steps onto the
         # input's frames and velocities exactly (test_motion_control_tracking)
         q = kinematics.integrate(m, q, v * dt if correction is None else v * dt + correction)
         self.t = t + dt
         if resolve:
-            q = self.feet.project_position(body, q, feet, targets, max(st.foot_iterations, 1))
+            q = self.feet.project_position(body, q, held, targets, max(st.foot_iterations, 1))
         return q, v
 
     def _slower_return(self, body, cs, t, a_raw, a_track, res, feet, targets):

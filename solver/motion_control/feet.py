@@ -30,6 +30,11 @@ from ..dynamics import kinematics
 from ..dynamics.inverse_dynamics import velocity_terms
 from .vector_math import cross, cross3, point_motion, rotation_log
 
+# s: a foot the input lifts leaves its planted place for the input's over this time (release):
+# its leg stays held by the inverse kinematics, on a target blended from the planted pose to the
+# input's (smoothstep), instead of being handed to the tracking at once, which turned the CMU
+# demo's left hip 5.6 deg in the frame its foot lifted
+RELEASE_TIME = 0.15
 LANDING_TURN = 0.1  # rad: the most a planted leg's joint (or the root) may turn in a step predicted_resolve serves
 SKATE_SMOOTHING = 0.02  # s, standard deviation of foot_skate's smoothing
 CONTACT_SCALE = 0.01  # m: sole points this much above the lowest share the contact by exp(-dz / scale)
@@ -83,14 +88,18 @@ def rolling_anchor(model, qs, parts, soles, support_in):
     """A planted foot rolls (heel to toe) but its contact does not slide: per input frame and
     side, the weights of the sole points in contact (the lowest ones) and the horizontal offset
     (F, 2, 3) that cancels the input's own travel of that contact point over each support
-    interval (capture's foot skate included)."""
+    interval (capture's foot skate included). Between support intervals the offset holds its
+    last value: a planted foot's target does not jump when the input lifts it (the jump turned
+    the CMU demo's left hip 5.6 deg in one frame), and a released foot's offset is blended out
+    (PlantedFeet._shift)."""
     nf = len(qs)
     weights, roll = [], np.zeros((nf, 2, 3))
     for s, (w, step) in enumerate(contact_steps(model, qs, parts, soles)):
         weights.append(w)
         for f in range(1, nf):
+            roll[f, s, :2] = roll[f - 1, s, :2]
             if support_in[f, s] and support_in[f - 1, s]:
-                roll[f, s, :2] = roll[f - 1, s, :2] - step[f - 1]
+                roll[f, s, :2] -= step[f - 1]
     return weights, roll
 
 
@@ -129,6 +138,9 @@ class PlantedFeet:
     roll_weights: list  # per side (F, k): rolling_anchor's
     roll: np.ndarray  # (F, 2, 3): rolling_anchor's
     planted: list = field(default_factory=lambda: [None, None])  # per side a Plant or None
+    # per side, a foot being released: (its offset from the input foot at lift-off, plant and rolling
+    # anchor (3,), the rolling anchor's offset then (3,), lift time), or None
+    releasing: list = field(default_factory=lambda: [None, None])
     drift: list = field(default_factory=lambda: [None, None])  # per side (contact drift (2,), last sole points)
     grid_targets: list = None  # per input frame: input_feet at that frame
     # memos of one configuration (the steps ask for the same ones several times)
@@ -143,7 +155,6 @@ class PlantedFeet:
     def __post_init__(self):
         self.dt_frame = self.tracking.dt
         self.frame_count = len(self.support_in)
-        self.support_rows = self.support_in.tolist()
         st = self.settings
         self.eye6 = st.foot_damping ** 2 * np.eye(6)
         self.singular = (st.singular_band ** 2, st.singular_damping ** 2)
@@ -154,16 +165,44 @@ class PlantedFeet:
     # ---- landing and planted state ----
 
     def update(self, body, feet, t, q):
-        """Plant the feet that landed at t, release those that lifted."""
+        """Plant the feet that landed at t, start releasing those that lifted."""
         for s in range(2):
             if not feet[s]:
-                self.planted[s] = None
-            elif self.planted[s] is None:
-                self.planted[s] = self.landing(body, s, t, q)
-                self.drift[s] = None
+                if self.planted[s] is not None:
+                    roll = self.roll_offset(s, t)[0]
+                    self.releasing[s] = (self.planted[s].shift + roll, roll, t)
+                    self.planted[s] = None
+                elif self.releasing[s] is not None and t - self.releasing[s][2] >= RELEASE_TIME - 1e-9:
+                    self.releasing[s] = None
+            else:
+                self.releasing[s] = None
+                if self.planted[s] is None:
+                    self.planted[s] = self.landing(body, s, t, q)
+                    self.drift[s] = None
+
+    def held(self, feet):
+        """(2,) bool: the feet whose legs the inverse kinematics hold, planted (`feet`) or being
+        released."""
+        return np.array([bool(feet[0]) or self.releasing[0] is not None,
+                         bool(feet[1]) or self.releasing[1] is not None])
 
     def release(self):
+        """Let go of every foot at once (a fall)."""
         self.planted = [None, None]
+        self.releasing = [None, None]
+
+    def _shift(self, s, t):
+        """The offset (3,) moving the input foot (with its rolling anchor) onto the held one at t,
+        and its velocity and acceleration: the plant's, or for a released foot its offset at
+        lift-off blended out by a smoothstep (the rolling anchor holds its lift-off value then)."""
+        if self.planted[s] is not None:
+            return self.planted[s].shift, 0.0, 0.0
+        shift, roll, t0 = self.releasing[s]
+        u = min(max((t - t0) / RELEASE_TIME, 0.0), 1.0)
+        w = 1.0 - u * u * (3.0 - 2.0 * u)
+        dw = -6.0 * u * (1.0 - u) / RELEASE_TIME
+        ddw = -(6.0 - 12.0 * u) / RELEASE_TIME ** 2 if u < 1.0 else 0.0
+        return w * shift - roll, dw * shift, ddw * shift
 
     def landing(self, body, s, t, q):
         """A landing foot's offset from the input's. The foot may land turned from the input's (a
@@ -225,7 +264,8 @@ class PlantedFeet:
         and 6-D acceleration (angular; head point), moved by the landing offset (remembered for the
         same time, feet, plants and body)."""
         p0, p1 = self.planted
-        key = (t, bool(feet[0]), bool(feet[1]), id(p0), id(p1), id(body))
+        r0, r1 = self.releasing
+        key = (t, bool(feet[0]), bool(feet[1]), id(p0), id(p1), id(r0), id(r1), id(body))
         if self._targets_key != key:
             self._targets_key, self._targets = key, self.targets_at(body, feet, t)
         return self._targets
@@ -237,7 +277,12 @@ class PlantedFeet:
         for s in (0, 1):
             if feet[s]:
                 rot, pos, vel, acc = feet_in[s]
-                out[s] = (rot, pos + self.planted[s].shift, vel, acc)
+                shift, dshift, ddshift = self._shift(s, t)
+                if self.planted[s] is not None:
+                    out[s] = (rot, pos + shift, vel, acc)
+                else:
+                    out[s] = (rot, pos + shift, np.concatenate((vel[:3], vel[3:] + dshift)),
+                              np.concatenate((acc[:3], acc[3:] + ddshift)))
         return out
 
     def input_feet(self, body, t):
@@ -345,7 +390,7 @@ class PlantedFeet:
                 v[leg.cols] += self.dls(leg.leg, targets[s][2] - leg.full.dot(v.take(leg.dofs)))
         return v
 
-    def predicted_resolve(self, body, q, v, feet, targets, t, dt):
+    def predicted_resolve(self, body, q, v, feet, targets, dt):
         """The planted legs' position re-solve (project_position's Gauss-Newton step) without a
         forward kinematics at the integrated configuration: each foot's pose at q (+) v dt is
         predicted from the frames at q to second order, its head x + x' dt + x'' dt^2 / 2 and its
@@ -353,13 +398,10 @@ class PlantedFeet:
         integrate's constant-velocity step (the rotating legs carry the foot on an arc), and the
         error to its target is corrected by the legs' damped least squares at q, added to the
         step (one integration). The residual is third order in the step (v dt). A (nv,) step,
-        or None in a step this does not hold for: a planted leg's joint (or the root) turning
-        more than LANDING_TURN, or a foot the input lifts at the step's end (the rolling anchor's
-        offset ends with the support, so its target pose jumps there)."""
+        or None in a step this does not hold for: a held leg's joint (or the root) turning more
+        than LANDING_TURN. (A foot the input lifts keeps a continuous target: the rolling anchor
+        holds its offset and the release blends it out.)"""
         f0, f1 = bool(feet[0]), bool(feet[1])
-        nxt = self.support_rows[frame_index(t + dt, self.dt_frame, self.frame_count)]
-        if (f0 and not nxt[0]) or (f1 and not nxt[1]):
-            return None
         turns = v.take(body.landing_dofs[f0, f1])
         if np.max(np.abs(turns)) * dt > LANDING_TURN:
             return None
