@@ -327,7 +327,9 @@ class PlantedFeet:
             jac = np.empty((6, len(dofs)))
             jac[:3] = cols[:, :3].T
             # head velocity v_O + omega x x = v_O - x x omega
-            jac[3:] = (cols[:, 3:] + cross(cols[:, :3], frame[:3, 3])).T
+            # head velocity v_O + omega x x: each column's omega x x as one product with x's skew
+            x0, x1, x2 = frame[:3, 3].tolist()
+            jac[3:] = (cols[:, 3:] - cols[:, :3].dot(np.array([[0.0, x2, -x1], [-x2, 0.0, x0], [x1, -x0, 0.0]]))).T
             out[s] = LegJacobian(jac, frame, dofs, jac[:, body.leg_pos[s]], body.leg_cols[s])
         self._legs_key, self._legs = key, out
         return out
@@ -425,9 +427,12 @@ class PlantedFeet:
             w, vo, al = vb[s + 1][:3], vb[s + 1][3:], acc[s][:3]
             ao = [acc[s][3] - root[0], acc[s][4] - root[1], acc[s][5] - root[2]]
             xd, xdd = point_motion(w, vo, al, ao, x)  # the head point's velocity and acceleration
-            turn = rotation_log(targets[s][0].dot(leg.frame[:3, :3].T))
-            error = np.concatenate((turn - h * np.array(w) - h2 * np.array(al),
-                                    targets[s][1] - x - h * np.array(xd) - h2 * np.array(xdd)))
+            t0, t1, t2 = rotation_log(targets[s][0].dot(leg.frame[:3, :3].T)).tolist()
+            p0, p1, p2 = targets[s][1].tolist()
+            # (plain floats: the six components of target - (pose + velocity h + acceleration h^2 / 2))
+            error = np.array([t0 - h * w[0] - h2 * al[0], t1 - h * w[1] - h2 * al[1], t2 - h * w[2] - h2 * al[2],
+                              p0 - x[0] - h * xd[0] - h2 * xdd[0], p1 - x[1] - h * xd[1] - h2 * xdd[1],
+                              p2 - x[2] - h * xd[2] - h2 * xdd[2]])
             step[leg.cols] = self.dls(leg.leg, error)
         return step
 
