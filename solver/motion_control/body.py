@@ -37,6 +37,12 @@ class ControlBody:
         self.leg_cols = [np.asarray(c, int) for c in p.legs]
         self.leg_dofs = [np.flatnonzero(model.ancestors[b][model.dof_body] != 0) for b in self.foot_body]
         self.leg_pos = [np.searchsorted(dofs, cols) for dofs, cols in zip(self.leg_dofs, self.leg_cols)]
+        # both legs batched when they have the same layout (a symmetric rig): the feet's bodies,
+        # frame offsets, Jacobian columns (2, k) and the leg's own columns among them (l,)
+        same = (len(self.leg_dofs[0]) == len(self.leg_dofs[1])
+                and np.array_equal(self.leg_pos[0], self.leg_pos[1]))
+        self.legs_batched = (self.feet_rows, np.array(self.foot_offset), np.array(self.leg_dofs),
+                             self.leg_pos[0]) if same else None
         # per foot (2, nb) its ancestors and (2, nv) their DOFs (as 0 / 1)
         self.feet_ancestors = np.ascontiguousarray(model.ancestors[self.foot_body], float)
         self.feet_dof_mask = (self.feet_ancestors[:, model.dof_body] != 0.0).astype(float)

@@ -243,7 +243,9 @@ class ControlLoop:
                 q, v = self._integrate(body, q, v, t, dt, a, cs, feet, planted, fall, f_ext)
         except (np.linalg.LinAlgError, FloatingPointError) as exc:
             raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}: {exc}") from None
-        if not (np.isfinite(q).all() and np.isfinite(v).all()):
+        # (a sum of q and v is finite when both are: one overflowing sum would take values of
+        # 1e306, which no body reaches without diverging first)
+        if not math.isfinite(float(np.add.reduce(q)) + float(np.add.reduce(v))):
             raise SimulationError(f"the motion control diverged at frame {self.tr.frames[f]:g}")
         self.q, self.v = q, v
 
@@ -355,7 +357,8 @@ class ControlLoop:
         if res.zmp is not None:
             rec.zmp[f] = res.zmp
             rec.mmp[f] = res.mmp
-            rec.err[f] = self.excess(float(np.linalg.norm(res.zmp - res.mmp)), cs)
+            dx, dy = (res.zmp - res.mmp).tolist()
+            rec.err[f] = self.excess(math.hypot(dx, dy), cs)
         if not res.acted:  # no mask is set: the row stays zero
             return
         code = np.zeros(m.nv, np.int8)

@@ -317,6 +317,10 @@ class PlantedFeet:
         m, d = body.model, body.data
         self._dls_factors.clear()  # the factors of the previous configuration's legs
         sub = kinematics.motion_subspace(m, d, q)  # (nv, 6) world (omega, v at origin)
+        if feet[0] and feet[1] and body.legs_batched is not None:
+            out = self._both_legs(body, d, sub)
+            self._legs_key, self._legs = key, out
+            return out
         out = [None, None]
         for s in (0, 1):
             if not feet[s]:
@@ -333,6 +337,20 @@ class PlantedFeet:
             out[s] = LegJacobian(jac, frame, dofs, jac[:, body.leg_pos[s]], body.leg_cols[s])
         self._legs_key, self._legs = key, out
         return out
+
+    def _both_legs(self, body, d, sub):
+        """leg_jacobians of two planted legs of the same layout, in batched products."""
+        bodies, offsets, dofs, pos = body.legs_batched
+        frames = d.frames.take(bodies, axis=0) @ offsets  # (2, 4, 4)
+        (a0, a1, a2), (b0, b1, b2) = frames[:, :3, 3].tolist()
+        skew = np.array([[[0.0, a2, -a1], [-a2, 0.0, a0], [a1, -a0, 0.0]],
+                         [[0.0, b2, -b1], [-b2, 0.0, b0], [b1, -b0, 0.0]]])
+        cols = sub.take(dofs, axis=0)  # (2, k, 6)
+        jac = np.empty((2, 6, dofs.shape[1]))
+        jac[:, :3] = cols[:, :, :3].swapaxes(1, 2)
+        jac[:, 3:] = (cols[:, :, 3:] - cols[:, :, :3] @ skew).swapaxes(1, 2)
+        leg = jac[:, :, pos]  # (2, 6, l)
+        return [LegJacobian(jac[i], frames[i], dofs[i], leg[i], body.leg_cols[i]) for i in (0, 1)]
 
     def dls(self, jac, r):
         """Damped least squares J' (J J' + lambda^2)^-1 r of a (6, k) leg Jacobian; the Cholesky
@@ -405,7 +423,7 @@ class PlantedFeet:
         holds its offset and the release blends it out.)"""
         f0, f1 = bool(feet[0]), bool(feet[1])
         turns = v.take(body.landing_dofs[f0, f1])
-        if np.max(np.abs(turns)) * dt > LANDING_TURN:
+        if np.maximum.reduce(np.abs(turns)) * dt > LANDING_TURN:  # (the ufunc: np.max dispatches in Python)
             return None
         m, d = body.model, body.data
         legs = self.leg_jacobians(body, q, feet)  # the frames at q
