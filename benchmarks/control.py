@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
-"""Speed of Oshita's dynamic motion control loop (solver/motion_control/controller.py).
+"""Speed of Oshita's dynamic motion control loop (solver/motion_control/controller.py), beside the
+loop as it was before it was split into parts (commit BASELINE, extracted from git into a
+temporary package for the run).
 
     python3 benchmarks/control.py              # a table
     python3 benchmarks/control.py --json       # one JSON object (writes benchmarks/results/control.json)
     python3 benchmarks/control.py --repeats 5  # best of 5 bakes per case (default 3)
+    python3 benchmarks/control.py --sample     # the CMU cases only, one bake each per implementation
 
 What is measured: CPU milliseconds (time.process_time: the machine is shared, wall time is not the
 loop's) per control step, median and worst over the steps of a bake (one step per frame while
@@ -17,7 +20,9 @@ standing), the best of `--repeats` bakes, for
   most of the bake): its steps, and the whole bake's real-time factor beside the unpushed clip's,
   which is the claim "bake speed independent of falls" (a fallen body takes the steps its
   contact spheres' speed needs, _Loop._fall_steps).
-Per case the real-time factor at 30 Hz (seconds of motion per CPU second with one mean step per
+Both implementations bake every case in turn (baseline, current, baseline, ...), so a swing of the
+machine's load falls on both; per case the claim is the current median step over the baseline's
+(aim: within 10 %, ratio <= 1.1). Per case the real-time factor at 30 Hz (seconds of motion per CPU second with one mean step per
 1/30 s) and the whole bake's (set-up included, at the clip's own frame rate). The thesis: 0.8 ms
 average, 3.1 ms worst per step (C++, 800 MHz Pentium III). The issue's aims: median step < 0.5 ms
 and a real-time factor > 50 at 30 Hz. Compare implementations side by side in the same minutes
@@ -25,8 +30,12 @@ and a real-time factor > 50 at 30 Hz. Compare implementations side by side in th
 """
 
 import argparse
+import importlib
 import json
+import subprocess
 import sys
+import tarfile
+import tempfile
 import time
 from pathlib import Path
 
@@ -39,6 +48,29 @@ from humananim.solver.motion_control import controller as ctl  # noqa: E402
 from humananim.solver.trajectories import Trajectories  # noqa: E402
 from machine import numpy_add_us  # noqa: E402  (the contract's machine-speed indicator)
 
+BASELINE = "a662106"  # the controller as one 1,500-line module, before its split into parts
+REPO = Path(__file__).resolve().parent.parent
+
+
+def baseline_controller(workdir):
+    """The baseline commit's solver package, extracted with `git archive` into `workdir` as the
+    package humananim_baseline; its controller module."""
+    data = subprocess.run(["git", "-C", str(REPO), "archive", BASELINE, "solver"], check=True,
+                          capture_output=True).stdout
+    root = Path(workdir) / "humananim_baseline"
+    root.mkdir()
+    (root / "__init__.py").write_text("")
+    archive = Path(workdir) / "solver.tar"
+    archive.write_bytes(data)
+    with tarfile.open(archive) as tar:
+        tar.extractall(root)
+    sys.path.insert(0, str(workdir))
+    return importlib.import_module("humananim_baseline.solver.motion_control.controller")
+
+
+def loop_class(module):
+    return getattr(module, "ControlLoop", None) or module._Loop
+
 
 def standing(sk, seconds=2.0, fps=30.0):
     n = int(round(seconds * fps)) + 1
@@ -47,59 +79,86 @@ def standing(sk, seconds=2.0, fps=30.0):
     return Trajectories(np.arange(n) + 1.0, fps, rot, np.zeros((n, sk.joint_count, 3)), np.eye(4))
 
 
-def step_times(sk, tr, settings):
-    """CPU ms of every control step of one bake, the bake's CPU seconds (set-up included), and
-    the result."""
+def step_times(impl, sk, tr, settings):
+    """CPU ms of every control step of one bake by the controller module `impl`, the bake's CPU
+    seconds (set-up included), and the result."""
     times = []
-    original = ctl._Loop.step
+    cls = loop_class(impl)
+    original = cls.step
 
     def timed(self, *args, **kw):
         t0 = time.process_time()
         original(self, *args, **kw)
         times.append((time.process_time() - t0) * 1e3)
 
-    ctl._Loop.step = timed
+    cls.step = timed
     try:
         t0 = time.process_time()
-        res = ctl.control(sk, tr, settings)
+        res = impl.control(sk, tr, settings)
         total = time.process_time() - t0
     finally:
-        ctl._Loop.step = original
+        cls.step = original
     return np.array(times), total, res
 
 
-def measure(repeats=3):
-    out = {}
-    fig = oshita_figure()
-    tr = standing(fig)
-    cases = [("figure_standing", fig, tr, ctl.ControlSettings()),
-             ("figure_15kg", fig, tr, ctl.ControlSettings(loads=(ctl.Load("hand.L", 7.5), ctl.Load("hand.R", 7.5))))]
-    try:
-        from test_dynamics_closed_loop_rigs import load
-        sk, cmu = load("cmu_131_01")
-        cases.append(("cmu", sk, cmu, ctl.ControlSettings()))
-        # the planted legs' exact position re-solve after the step (the default predicts it: see
-        # the fifth and sixth rounds below)
-        cases.append(("cmu_exact_resolve", sk, cmu, ctl.ControlSettings(foot_iterations=1)))
-        chest = sk.roles.chain("spine")[-1]
-        push = ctl.Impulse(0.5, chest, (0.0, 0.1, 0.0), (0.0, 1.0, 0.0), 150.0)
-        cases.append(("cmu_knocked_over", sk, cmu, ctl.ControlSettings(impulses=(push,))))
-    except Exception as exc:  # the fixture is in the repository's tests
-        out["cmu_error"] = str(exc)
-    for name, sk, motion, settings in cases:
-        runs = [step_times(sk, motion, settings) for _ in range(max(1, repeats))]
-        ms = [r[0] for r in runs]
-        duration = (motion.frame_count - 1) / motion.fps
-        out[f"{name}_step_median_ms"] = float(min(np.median(m) for m in ms))
-        out[f"{name}_step_worst_ms"] = float(min(m.max() for m in ms))
-        out[f"{name}_step_mean_ms"] = float(min(m.mean() for m in ms))
-        out[f"{name}_steps"] = len(ms[0])
-        out[f"{name}_fell"] = bool(runs[0][2].falling.any())
-        out[f"{name}_frames_falling"] = int(runs[0][2].falling.sum())
-        # at 30 Hz: one (mean) step per 1/30 s of motion
-        out[f"{name}_realtime_factor_30hz"] = 1.0 / (out[f"{name}_step_mean_ms"] * 1e-3 * 30.0)
-        out[f"{name}_bake_cpu_s"] = float(min(r[1] for r in runs))
-        out[f"{name}_bake_realtime_factor"] = duration / out[f"{name}_bake_cpu_s"]
+def cases(impl, sample=False):
+    """(name, skeleton, motion, settings) per case, with the settings classes of `impl`."""
+    out = []
+    if not sample:
+        fig = oshita_figure()
+        tr = standing(fig)
+        out += [("figure_standing", fig, tr, impl.ControlSettings()),
+                ("figure_15kg", fig, tr, impl.ControlSettings(loads=(impl.Load("hand.L", 7.5), impl.Load("hand.R", 7.5))))]
+    from test_dynamics_closed_loop_rigs import load
+    sk, cmu = load("cmu_131_01")
+    out.append(("cmu", sk, cmu, impl.ControlSettings()))
+    if not sample:
+        # the planted legs' exact position re-solve after the step (the default predicts it)
+        out.append(("cmu_exact_resolve", sk, cmu, impl.ControlSettings(foot_iterations=1)))
+    chest = sk.roles.chain("spine")[-1]
+    push = impl.Impulse(0.5, chest, (0.0, 0.1, 0.0), (0.0, 1.0, 0.0), 150.0)
+    out.append(("cmu_knocked_over", sk, cmu, impl.ControlSettings(impulses=(push,))))
+    return out
+
+
+def figures(name, runs, motion, out):
+    ms = [r[0] for r in runs]
+    duration = (motion.frame_count - 1) / motion.fps
+    out[f"{name}_step_median_ms"] = float(min(np.median(m) for m in ms))
+    out[f"{name}_step_worst_ms"] = float(min(m.max() for m in ms))
+    out[f"{name}_step_mean_ms"] = float(min(m.mean() for m in ms))
+    out[f"{name}_steps"] = len(ms[0])
+    out[f"{name}_fell"] = bool(runs[0][2].falling.any())
+    out[f"{name}_frames_falling"] = int(runs[0][2].falling.sum())
+    # at 30 Hz: one (mean) step per 1/30 s of motion
+    out[f"{name}_realtime_factor_30hz"] = 1.0 / (out[f"{name}_step_mean_ms"] * 1e-3 * 30.0)
+    out[f"{name}_bake_cpu_s"] = float(min(r[1] for r in runs))
+    out[f"{name}_bake_realtime_factor"] = duration / out[f"{name}_bake_cpu_s"]
+
+
+def measure(repeats=3, sample=False):
+    """The current controller's figures (keys <case>_...), the baseline's (baseline_<case>_...) and
+    per case the ratio of their median and mean steps (<case>_over_baseline_median, _mean)."""
+    out = {"baseline_commit": BASELINE}
+    with tempfile.TemporaryDirectory() as tmp:
+        try:
+            base = baseline_controller(tmp)
+        except Exception as exc:  # no git history (an installed copy): the current code alone
+            base = None
+            out["baseline_error"] = str(exc)
+        impls = [("", ctl)] + ([("baseline_", base)] if base is not None else [])
+        todo = {prefix: cases(impl, sample) for prefix, impl in impls}
+        for i, (name, sk, motion, _) in enumerate(todo[""]):
+            runs = {prefix: [] for prefix, _ in impls}
+            for _ in range(max(1, repeats)):  # interleaved: a swing of the load falls on both
+                for prefix, impl in impls[::-1]:
+                    runs[prefix].append(step_times(impl, sk, motion, todo[prefix][i][3]))
+            for prefix, _ in impls:
+                figures(prefix + name, runs[prefix], motion, out)
+            if base is not None:
+                for stat in ("median", "mean"):
+                    out[f"{name}_over_baseline_{stat}"] = (out[f"{name}_step_{stat}_ms"]
+                                                           / out[f"baseline_{name}_step_{stat}_ms"])
     return out
 
 
@@ -116,6 +175,11 @@ def contract(out):
         claim("CMU 131_01: median control step", "cmu_step_median_ms", "ms", "< 0.5 ms", lambda v: v < 0.5),
         claim("CMU 131_01: real-time factor at 30 Hz", "cmu_realtime_factor_30hz", "x", "> 50", lambda v: v > 50),
     ]
+    for name in ("figure_standing", "figure_15kg", "cmu", "cmu_exact_resolve", "cmu_knocked_over"):
+        if f"{name}_over_baseline_median" in out:
+            claims.append(claim(f"{name}: median control step over the baseline's ({BASELINE}), same run",
+                                f"{name}_over_baseline_median", "ratio", "<= 1.1 (within 10 %)",
+                                lambda v: v <= 1.1))
     if "cmu_knocked_over_bake_realtime_factor" in out and out.get("cmu_bake_realtime_factor"):
         out["knocked_over_over_unpushed_bake_speed"] = (out["cmu_knocked_over_bake_realtime_factor"]
                                                         / out["cmu_bake_realtime_factor"])
@@ -131,8 +195,9 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--repeats", type=int, default=3, help="bakes per case (the best is reported)")
+    parser.add_argument("--sample", action="store_true", help="the CMU cases only, one bake each")
     args = parser.parse_args(argv)
-    out = measure(args.repeats)
+    out = measure(1 if args.sample else args.repeats, sample=args.sample)
     if args.json:
         report = contract(out)
         print(json.dumps(report))

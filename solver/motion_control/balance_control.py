@@ -40,10 +40,9 @@ def support_polygon(state):
     the polygon is those points at their current positions, without a new hull; beyond that, while
     the monotone chain would take the same path on the moved points, the same
     vertices (_same_path). Once per state."""
-    polygon = state._cache.get("polygon")
-    if polygon is None:
-        polygon = state._cache["polygon"] = _support_polygon(state)
-    return polygon
+    if state.polygon is None:
+        state.polygon = _support_polygon(state)
+    return state.polygon
 
 
 def _support_polygon(state):
@@ -52,8 +51,9 @@ def _support_polygon(state):
     if not pts:
         return np.zeros((0, 2))
     pts = np.concatenate(pts)
-    key = (id(state.parts), tuple(state.feet))
-    cached = _hull_cache.get(key)
+    hulls = state.constants.hulls
+    key = tuple(state.feet.tolist())
+    cached = hulls.get(key)
     same_shape = cached is not None and cached[0].shape == pts.shape
     if same_shape and np.maximum.reduce(np.abs(cached[0] - pts), None) < _HULL_REUSE:  # (.max() goes through Python)
         return pts.take(cached[1], axis=0)  # (take: a third of fancy indexing's cost)
@@ -72,9 +72,7 @@ def _support_polygon(state):
                 first.setdefault(p, i)
             idx = np.array([first[p] for p in map(tuple, hull.tolist())], int)
             path = None
-    if len(_hull_cache) > 16:
-        _hull_cache.clear()
-    _hull_cache[key] = (pts, idx, path)
+    hulls[key] = (pts, idx, path)
     return pts.take(idx, axis=0)
 
 
@@ -111,20 +109,12 @@ def _same_path(pts, path):
 
 
 _HULL_REUSE = 1e-4  # m
-_hull_cache = {}
 
 
 # the ZMP is a ratio over the vertical ground force: below this share of the body's weight (a
 # body all but airborne, a capture's one-frame glitch) it is ill-conditioned (metres off for a
 # newton) and the figure is not judged for balance
 MIN_SUPPORT = 0.2
-
-
-def _weight(model):
-    cached = model.__dict__.get("_weight")  # (mass, gravity, weight): once per model
-    if cached is None or cached[0] is not model.mass or cached[1] is not model.gravity:
-        cached = model._weight = (model.mass, model.gravity, float(model.mass.sum() * np.linalg.norm(model.gravity)))
-    return cached[2]
 
 
 def zmp_of(wrench, ground_height=0.0):
@@ -166,7 +156,7 @@ def balance_error(state, wrench, polygon=None):
     nothing supports the body (no foot down) or nothing pushes on the ground. Remembered per
     state, wrench and polygon (the control sequence asks for the same one several times)."""
     polygon = support_polygon(state) if polygon is None else polygon
-    memo = state._cache.setdefault("balance", {})
+    memo = state.balance_memo
     key = (np.asarray(wrench, float).tobytes(), id(polygon))
     known = memo.get(key)
     if known is not None and known[0] is polygon:
@@ -177,10 +167,7 @@ def balance_error(state, wrench, polygon=None):
 
 
 def _balance_error(state, wrench, polygon):
-    weight = state._cache.get("weight")
-    if weight is None:
-        weight = state._cache["weight"] = _weight(state.model)
-    if len(polygon) == 0 or wrench[5] <= MIN_SUPPORT * weight:
+    if len(polygon) == 0 or wrench[5] <= MIN_SUPPORT * state.constants.weight:
         return None, None, 0.0
     # the ZMP, inside and closest_boundary_point (minimum_moment_point for a ZMP known to lie
     # outside) on plain floats: the same arithmetic without their conversions
@@ -212,11 +199,21 @@ def augmented_body(state, dofs=None):
     """The augmented bodies of DOFs (all by default) at rest (velocity terms excluded)."""
     m, d, q = state.model, state.data, state.q
     dofs = np.arange(m.nv) if dofs is None else np.asarray(dofs, int)
-    rate = state.cached("momentum_rate", lambda: _momentum_rate(m, d, q))[:, dofs]
-    mass_c = state.cached("subtree_mc", lambda: _subtree_mc(m, d, q))
+    rate = momentum_rate(state)[:, dofs]
+    if state.subtree_mass_com is None:
+        state.subtree_mass_com = _subtree_mc(m, d, q)
+    mass_c = state.subtree_mass_com
     b = m.dof_body[dofs]
     mass, com = mass_c[0][b], mass_c[1][b]
     return AugmentedBody(mass, com, rate[3:].T / mass[:, None], rate)
+
+
+def momentum_rate(state):
+    """The whole body's rate of spatial momentum (6, nv) per unit joint acceleration (once per
+    state)."""
+    if state.momentum_rate is None:
+        state.momentum_rate = _momentum_rate(state.model, state.data, state.q)
+    return state.momentum_rate
 
 
 def _momentum_rate(model, data, q):
@@ -257,7 +254,7 @@ def balance_candidates(state, part, a):
     # own excursion for captured motion (controller's baseline)
     target = mmp + (p - mmp) * (0.9 * state.settings.zmp_tolerance / dist)
     point = _on_ground(target, state.ground_height)
-    rate = state.cached("momentum_rate", lambda: _momentum_rate(state.model, state.data, state.q))
+    rate = momentum_rate(state)
     matrix = part_matrix(state, part)
     if part == "legs":  # horizontally: unloading the feet is no way to balance
         matrix = matrix * np.array([1.0, 1.0, 0.0])

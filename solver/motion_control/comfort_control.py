@@ -112,9 +112,44 @@ def _soles(model, feet, contacts):
 
 # ---- the state of one control step ------------------------------------------------------------
 
+@dataclass(frozen=True)
+class StateConstants:
+    """What every control state of one body (model, body parts, strength) shares: made once per
+    body (state_constants) and handed to its states, so nothing is remembered on the model."""
+
+    dof_strength: object  # strength.select of the actuated DOFs (a StrengthModel's rows)
+    fused: tuple  # _dof_limits' constants of a StrengthModel, None for another strength model
+    weight: float  # N, the body's weight (balance_control's MIN_SUPPORT)
+    selections: dict  # part name -> (nv, k) selection matrix S of eq. 2.16 (read-only)
+    # contact set (left, right) -> the last support polygon's points, hull vertices and monotone
+    # chain path (balance_control._support_polygon: the hull is rebuilt only when the feet move)
+    hulls: dict = field(default_factory=dict)
+
+
+def state_constants(model, parts, strength):
+    """The StateConstants of a body."""
+    sel = strength.select(model.dof_joint[6:], model.dof_slot[6:])
+    fused = None
+    if type(strength) is StrengthModel:
+        body = model.dof_body[6:]
+        fused = (3 + 4 * body[:, None] + np.arange(4)[None, :],  # each DOF's body quaternion in q
+                 4 * np.arange(model.nv - 6) + 1 + np.asarray(model.dof_slot[6:]),  # its component, flat
+                 sel.scale * sel.peak, sel.max_velocity)
+    selections = {}
+    for part in ("arms", "back"):
+        cols = getattr(parts, part)
+        s = np.zeros((model.nv, len(cols)))
+        s[cols, np.arange(len(cols))] = 1.0
+        s.flags.writeable = False
+        selections[part] = s
+    weight = float(model.mass.sum() * np.linalg.norm(model.gravity))
+    return StateConstants(sel, fused, weight, selections)
+
+
 @dataclass(eq=False)
 class ControlState:
-    """Everything a control step needs about the figure at (q, v): lazily computed and cached."""
+    """Everything a control step needs about the figure at (q, v). What is derived from it is
+    computed on first use and kept in the fields below the inputs (one state per step)."""
 
     model: object
     data: object
@@ -127,39 +162,49 @@ class ControlState:
     ground_height: float = 0.0
     settings: Settings = field(default_factory=Settings)
     allowance: np.ndarray = None  # (nv,) N m each DOF may exceed its strength (the input's own excess)
+    constants: StateConstants = None  # the body's (state_constants; made here when not given)
+    # ---- derived, on first use ----
+    soles: list = None  # per side (k, 3) world sole points (a caller that knows them passes them)
+    contact_sides: np.ndarray = None  # indices of the feet in contact
+    foot_bodies: np.ndarray = None  # their feet's bodies
+    sole_centres: list = None  # per side in contact: mean sole point [x, y, ground]
+    polygon: np.ndarray = None  # the support polygon (balance_control.support_polygon)
+    torque_memo: dict = field(default_factory=dict)  # acceleration bytes -> required_torques
+    balance_memo: dict = field(default_factory=dict)  # (wrench bytes, id(polygon)) -> balance_error
+    _limits: tuple = None
+    _pelvis_jacobian: np.ndarray = None
+    momentum_rate: np.ndarray = None  # (6, nv) balance_control._momentum_rate
+    subtree_mass_com: tuple = None  # balance_control._subtree_mc
 
     def __post_init__(self):
         self.q = np.asarray(self.q, float)
         self.v = np.asarray(self.v, float)
         self.feet = np.asarray(self.feet, bool)
-        self._cache = {}
-
-    def cached(self, key, make):
-        if key not in self._cache:
-            self._cache[key] = make()
-        return self._cache[key]
+        if self.constants is None:
+            self.constants = state_constants(self.model, self.parts, self.strength)
 
     def sides(self):
         """Indices (array) of the feet in contact (np.flatnonzero(feet), once per state)."""
-        out = self._cache.get("sides")
-        if out is None:
-            out = self._cache["sides"] = np.flatnonzero(self.feet)
-        return out
+        if self.contact_sides is None:
+            self.contact_sides = np.flatnonzero(self.feet)
+        return self.contact_sides
 
     @property
     def limits(self):
         """(tau_min, tau_max) (nv,) of every DOF (eq. 2.2); the base is unbounded."""
-        return self.cached("limits", self._limits)
+        if self._limits is None:
+            self._limits = self._make_limits()
+        return self._limits
 
-    def _limits(self):
+    def _make_limits(self):
         m = self.model
-        fused = _fused_strength(m, self.strength)
+        fused = self.constants.fused
         if fused is not None:
             low, high = _dof_limits(fused, self.q, self.v)
         else:
             # joint_angles(m, q)[dof_joint, dof_slot]: the rotation vector of each DOF's own body
             angles = spatial.quat_log(self.q[7:].reshape(-1, 4))[m.dof_body[6:] - 1, m.dof_slot[6:]]
-            low, high = _dof_strength(m, self.strength).limits(angles, self.v[6:])
+            low, high = self.constants.dof_strength.limits(angles, self.v[6:])
             low, high = np.concatenate((_BASE_LOW, low)), np.concatenate((_BASE_HIGH, high))
         if self.allowance is not None:
             low, high = low - self.allowance, high + self.allowance
@@ -167,9 +212,10 @@ class ControlState:
 
     def sole_world(self):
         """World sole points of each foot (list of (k, 3))."""
-        return self.cached("soles", lambda: [
-            point_positions(self.model, self.data, self.q, j, p)
-            for j, p in zip(self.parts.sole_joints, self.parts.sole_points)])
+        if self.soles is None:
+            self.soles = [point_positions(self.model, self.data, self.q, j, p)
+                          for j, p in zip(self.parts.sole_joints, self.parts.sole_points)]
+        return self.soles
 
     def inertia(self, rows, cols):
         """H[rows][:, cols] (eq. 2.10), from the composite inertias."""
@@ -177,60 +223,27 @@ class ControlState:
 
     def pelvis_jacobian(self):
         """J_p (nv, 3): the joint accelerations a unit world acceleration of the pelvis gives."""
-        return self.cached("jp", lambda: pelvis_jacobian(self))
+        if self._pelvis_jacobian is None:
+            self._pelvis_jacobian = pelvis_jacobian(self)
+        return self._pelvis_jacobian
 
 
 _BASE_LOW, _BASE_HIGH = np.full(6, -np.inf), np.full(6, np.inf)  # the base is unbounded
-_C = {c: np.array(c) for c in (0.3, 0.6)}  # (0-d constants, _dof_limits: numpy 1 converts a Python float)
-
-
-def _fused_strength(model, strength):
-    """The constants of _dof_limits for a StrengthModel (None for another strength model, which
-    gives its own limits), remembered per model and strength."""
-    if type(strength) is not StrengthModel:
-        return None
-    cache = model.__dict__.setdefault("_fused_strength", [])
-    for known, fused in cache:
-        if known is strength:
-            return fused
-    sel = _dof_strength(model, strength)
-    n = model.nv - 6
-    body = model.dof_body[6:]
-    fused = (3 + 4 * body[:, None] + np.arange(4)[None, :],  # each DOF's body quaternion in q
-             4 * np.arange(n) + 1 + np.asarray(model.dof_slot[6:]),  # its component, in the flat (n, 4) quaternions
-             sel.scale * sel.peak, sel.max_velocity)
-    cache.append((strength, fused))
-    del cache[:-4]
-    return fused
 
 
 def _dof_limits(fused, q, v):
     """(tau_min, tau_max) (nv,) with the unbounded base: StrengthModel.limits of the selected DOFs
     at the rotation-vector component of each DOF's body (spatial.quat_log's, its sign left out:
-    the limits' cos is even) on fewer numpy calls, bit for bit (the control decisions are that
-    sensitive: a last-bit change of a limit turned the metarig squat's 28 frames over strength
-    with 15 kg into 64). quat_log's components lie within [-pi, pi], so limits' clamp to it is
-    omitted."""
+    the limits' cos is even) in a few array operations. quat_log's components lie within
+    [-pi, pi], so limits' clamp to it is omitted."""
     index, component, top0, vmax = fused
-    quat = q.take(index)  # (n, 4) (take: a third of fancy indexing's cost)
+    quat = q.take(index)  # (n, 4)
     comp = quat.take(component)  # quat[k, 1 + slot], by its flat index
     xyz = quat[:, 1:]
     s = np.sqrt((xyz * xyz).dot(ONES3))
     angle = spatial.log_scale(s, np.abs(quat[:, 0])) * comp  # (+-: the strength curve is even)
-    low, high = torque_range(top0 * np.maximum(_C[0.3], np.cos(_C[0.6] * angle)), v[6:] / vmax)
+    low, high = torque_range(top0 * np.maximum(0.3, np.cos(0.6 * angle)), v[6:] / vmax)
     return np.concatenate((_BASE_LOW, low)), np.concatenate((_BASE_HIGH, high))
-
-
-def _dof_strength(model, strength):
-    """strength.select of the model's actuated DOFs, remembered per model and strength."""
-    cache = model.__dict__.setdefault("_dof_strength", [])
-    for known, selected in cache:
-        if known is strength:
-            return selected
-    selected = strength.select(model.dof_joint[6:], model.dof_slot[6:])
-    cache.append((strength, selected))
-    del cache[:-4]
-    return selected
 
 
 # ---- eq. 2.8-2.9: required torques and stress --------------------------------------------------
@@ -243,7 +256,7 @@ def required_torques(state, a):
     Remembered per state and acceleration (the control sequence asks for the same one several
     times); the arrays are read-only."""
     a = np.asarray(a, float)
-    memo = state._cache.setdefault("torques", {})
+    memo = state.torque_memo
     key = a.tobytes()
     out = memo.get(key)
     if out is None:
@@ -281,9 +294,9 @@ def _ground_wrenches(state, wrench):
         return None
     h = float(state.ground_height)
     px, py = (h * f0 - n1) / f2, (n0 + h * f1) / f2
-    c = state._cache.get("sole_centres")
+    c = state.sole_centres
     if c is None:
-        c = state._cache["sole_centres"] = _sole_centres(state, sides, h)
+        c = state.sole_centres = _sole_centres(state, sides, h)
     # application points: the sole centres moved so that their weighted mean is the ZMP
     if len(c) == 1:
         w = [1.0]
@@ -303,9 +316,9 @@ def _ground_wrenches(state, wrench):
         g0, g1, g2 = wi * f0, wi * f1, wi * f2
         rows.append((x1 * g2 - x2 * g1 + wi * m0, x2 * g0 - x0 * g2 + wi * m1, x0 * g1 - x1 * g0 + wi * m2,
                      g0, g1, g2))
-    bodies = state._cache.get("foot_bodies")
+    bodies = state.foot_bodies
     if bodies is None:
-        bodies = state._cache["foot_bodies"] = state.model.joint_body[np.asarray(state.parts.feet)[sides]]
+        bodies = state.foot_bodies = state.model.joint_body[np.asarray(state.parts.feet)[sides]]
     return bodies, np.array(rows)
 
 
@@ -408,16 +421,7 @@ def part_matrix(state, part):
     the selection matrices S_a, S_b of eq. 2.16, or J_p for the legs."""
     if part == "legs":
         return state.pelvis_jacobian()
-    # constant per body parts: remembered on them (read-only)
-    known = state.parts.__dict__.setdefault("_selection", {})
-    s = known.get((part, state.model.nv))
-    if s is None:
-        cols = getattr(state.parts, part)
-        s = np.zeros((state.model.nv, len(cols)))
-        s[cols, np.arange(len(cols))] = 1.0
-        s.flags.writeable = False
-        known[(part, state.model.nv)] = s
-    return s
+    return state.constants.selections[part]
 
 
 def torque_sensitivity(state, part, rows, a):

@@ -61,12 +61,14 @@ def dynamic_control(state, a_tracking):
 
 
 def control_state(model, data, q, v, feet, strength, f_ext=None, ground_height=0.0, parts=None,
-                  settings=None, allowance=None):
-    """A ControlState for one step; pass `parts` (body_parts(model)) to reuse it across steps.
-    `allowance`: (nv,) torque each DOF may exceed its strength by (see controller's baseline)."""
+                  settings=None, allowance=None, **known):
+    """A ControlState for one step; pass `parts` (body_parts(model)) and `constants`
+    (state_constants) to reuse them across steps, and any derived field the caller knows (soles,
+    contact_sides, foot_bodies). `allowance`: (nv,) torque each DOF may exceed its strength by
+    (see controller's input allowance)."""
     kw = {} if settings is None else {"settings": settings}
     return ControlState(model, data, q, v, feet, parts or body_parts(model), strength, f_ext=f_ext,
-                        ground_height=ground_height, allowance=allowance, **kw)
+                        ground_height=ground_height, allowance=allowance, **kw, **known)
 
 
 def stress_by_bone(model, stress):

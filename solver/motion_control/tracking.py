@@ -113,7 +113,7 @@ class TrackingController:
         vel = (1.0 - w[..., 0]) * self.v_d[f0, k] + w[..., 0] * self.v_d[f1, k]
         return quat, pos, vel
 
-    def _on_frame(self, t):
+    def on_frame(self, t):
         """The frame index when t is on the input's frame grid (within 1e-7 frames), else None."""
         x = t / self.dt
         f = int(round(x))
@@ -170,13 +170,12 @@ class TrackingController:
     def acceleration(self, t, q, v):
         """Output acceleration (nv,) at time t for the current state (q, v) (eq. 2.6, plus the
         feedforward correction when `feedforward` is on)."""
-        f = self._on_frame(t)
+        f = self.on_frame(t)
         if f is not None:  # on the frame grid (every step without substeps): precomputed
             target, horizon, ff = self._frame_data
             error, vel_t = self._frame_error(f, q)
             h = horizon[f]
-            # (0-d constants: numpy 1 converts a Python float operand at every call)
-            out = (_SIX * error - (_TWO * vel_t + _FOUR * np.asarray(v, float)) * h) / self._frame_h2[f]
+            out = (6.0 * error - (2.0 * vel_t + 4.0 * np.asarray(v, float)) * h) / self._frame_h2[f]
             return out + ff[f] if self.feedforward else out
         times = self.target_times(t)
         horizon = times - t
@@ -195,7 +194,7 @@ class TrackingController:
 
     def desired_state(self, t):
         """Desired q, v, a at time t (linear on the manifold between frames)."""
-        f = self._on_frame(t)
+        f = self.on_frame(t)
         if f is not None:
             return self.q_d[f].copy(), self.v_d[f].copy(), self.a_d[f].copy()
         x = float(np.clip(t / self.dt, 0.0, len(self.q_d) - 1))
@@ -259,7 +258,6 @@ class TrackingController:
         return error, vel
 
 
-_TWO, _FOUR, _SIX = (np.array(c) for c in (2.0, 4.0, 6.0))
 
 
 def next_extremum_times(v_d, dt):

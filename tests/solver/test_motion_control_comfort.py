@@ -76,7 +76,6 @@ def test_limits_are_the_strength_models_at_each_dofs_rotation(figure):
     strength model's limits at the rotation-vector component of each DOF's body (quat_log, the
     short way round: quaternions with w < 0, tiny and half-turn rotations) and its velocity."""
     from humananim.solver.dynamics import spatial
-    from humananim.solver.motion_control.comfort_control import _dof_strength
     m = build_model(figure)
     rng = np.random.default_rng(3)
     for scale in (1e-12, 1e-5, 0.5, 3.1):
@@ -88,7 +87,7 @@ def test_limits_are_the_strength_models_at_each_dofs_rotation(figure):
         strength = default_strength(m)
         st = ControlState(m, m.create_data(), q, v, (True, True), body_parts(m), strength)
         angles = spatial.quat_log(q[7:].reshape(-1, 4))[m.dof_body[6:] - 1, m.dof_slot[6:]]
-        low, high = _dof_strength(m, strength).limits(angles, v[6:])
+        low, high = strength.select(m.dof_joint[6:], m.dof_slot[6:]).limits(angles, v[6:])
         got_low, got_high = st.limits
         assert np.all(np.isinf(got_low[:6])) and np.all(np.isinf(got_high[:6]))
         np.testing.assert_allclose(got_low[6:], low, rtol=1e-12, atol=1e-12)

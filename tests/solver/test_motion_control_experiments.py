@@ -247,7 +247,7 @@ def test_d_a_frontal_push_on_the_cmu_walk_recovers(walk, walk_runs, at):
     unpushed walk's own) and every joint is back within 2 deg of the unpushed controlled walk
     within 1 s (the legs are compared with that, not the capture, whose foot skate the planted
     feet remove). Measured: moved 4.2 and 3.6 deg, back after 0.29 and 0.26 s (6 N s moved 2.5 and
-    1.9 deg since the joints' servo takes part of a push, controller._Loop._servoed_inertia)."""
+    1.9 deg since the joints' servo takes part of a push, pushes.servoed_inertia)."""
     sk, tr = walk
     chest = sk.roles.chain("spine")[-1]
     push = (Impulse(at, chest, (0.0, 0.1, 0.0), (0.0, 1.0, 0.0), 10.0),)
@@ -286,7 +286,7 @@ def test_recorded_controls_do_not_depend_on_rounding(walk, walk_runs):
 def test_a_foot_landing_turned_by_a_push_does_not_slide(walk):
     """A 15 N s push on the chest at 0.99 s, while the left foot swings: the foot lands turned
     from the capture's, and its first target turns it to the capture's rotation at once. That turn
-    is about the contact point (controller._Loop._landing), not the ankle, which slid the
+    is about the contact point (feet.PlantedFeet.landing), not the ankle, which slid the
     contact 1.4 mm in one step (measured before the pivot; 2.4 mm in the demo, with 5 kg in each
     hand, on Blender's import). Measured now: 0.23 mm."""
     sk, tr = walk

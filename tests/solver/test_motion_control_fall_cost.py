@@ -17,13 +17,13 @@ from test_motion_control_ground import depth_below_ground
 def test_a_fallen_body_takes_the_steps_its_speed_needs(monkeypatch):
     sk, tr = load("walk_normal_001")
     steps = []
-    original = ctl._Loop.step
+    original = ctl.ControlLoop.step
 
     def counted(self, f, *args, **kw):
         steps.append(f)
         return original(self, f, *args, **kw)
 
-    monkeypatch.setattr(ctl._Loop, "step", counted)
+    monkeypatch.setattr(ctl.ControlLoop, "step", counted)
     push = (Impulse(2.0, sk.roles.bone("chest"), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 400.0),)
     res = control(sk, tr, ControlSettings(impulses=push))
     fallen = np.flatnonzero(res.falling)

@@ -1,5 +1,5 @@
 """The planted legs' predicted position re-solve (the default, ControlSettings.foot_iterations = 0,
-controller._Loop._predicted_resolve): each planted foot's pose at the end of the step is predicted
+feet.PlantedFeet.predicted_resolve): each planted foot's pose at the end of the step is predicted
 from the frames at the step's start to second order (the velocity-product acceleration of the
 integration's constant-velocity step, and the root's straight-line translation), so the re-solve
 needs no forward kinematics at the integrated configuration. Its residual must be third order in
@@ -26,7 +26,7 @@ def test_the_prediction_is_second_order():
     """With targets at the feet's true poses after the step, the predicted correction is the
     prediction's own error: it falls by ~8 when the step halves (third-order residual)."""
     sk, tr = load("cmu_131_01", frames=60)
-    loop = ctl._Loop(sk, tr, ControlSettings(foot_iterations=0))
+    loop = ctl.ControlLoop(sk, tr, ControlSettings(foot_iterations=0))
     for f in range(40):
         loop.frame(f)
     body, q = loop.body, loop.q
@@ -38,7 +38,7 @@ def test_the_prediction_is_second_order():
         after = feet_poses(body, kinematics.integrate(body.model, q, v * dt))
         targets = [(p[:3, :3], p[:3, 3].copy(), None, None) for p in after]
         loop.t = (40 + 0.25) * loop.dt_frame  # within the frame: no foot lifts at the step's end
-        step = loop._predicted_resolve(body, q, v, feet, targets, dt)
+        step = loop.feet.predicted_resolve(body, q, v, feet, targets, dt)
         assert step is not None
         sizes.append(np.abs(step).max())
     assert sizes[0] < 1e-4 and 6.0 < sizes[0] / sizes[1] < 10.0, sizes
@@ -46,25 +46,25 @@ def test_the_prediction_is_second_order():
 
 def test_the_predicted_resolve_keeps_the_cmu_feet_planted():
     """As test_motion_control_controller.test_1_no_input_tracks_cmu with the predicted re-solve:
-    it serves nearly every step (violent steps and a foot lifting re-solve after the step), the
+    it serves nearly every step (violent steps re-solve after the step), the
     feet land within micrometres of their targets, and they do not slide (under 2 mm)."""
     sk, tr = load("cmu_131_01")
     settings = ControlSettings(foot_iterations=0)
-    loop = ctl._Loop(sk, tr, settings)
+    loop = ctl.ControlLoop(sk, tr, settings)
     exact = [0]
-    project = loop._project_position
+    project = loop.feet.project_position
 
     def counted(*args):
         exact[0] += 1
         return project(*args)
 
-    loop._project_position = counted
+    loop.feet.project_position = counted
     errors = []
     for f in range(loop.tr.frame_count):
         loop.frame(f)
-        planted = [p is not None for p in loop.planted]
+        planted = [p is not None for p in loop.feet.planted]
         if f + 1 < loop.tr.frame_count and any(planted):  # the feet against their targets after the step
-            targets = loop._foot_targets_at(loop.body, planted, loop.t)
+            targets = loop.feet.targets_at(loop.body, planted, loop.t)
             for s, pose in enumerate(feet_poses(loop.body, loop.q)):
                 if targets[s] is not None:
                     errors.append(np.linalg.norm(pose[:3, 3] - targets[s][1]))

@@ -11,10 +11,10 @@ pushed 10 N s turned 121 deg and slid 17 mm; 30 N s slid the metarig's feet 86 c
   ControlSettings.singular_band and singular_damping);
 - the push changed the velocities of a floating body, which carried the pelvis away from feet the
   straight legs then could not reach (now: the planted feet hold during the impulse, so the
-  ground takes its share, controller._Loop._through_feet);
+  ground takes its share, feet.PlantedFeet.through_feet);
 - the push met free joints: 45 N s forward on the metarig's pelvis spun the light pelvis at 14
   rad/s (now: the tracking servo's damping acts over the step of the impulse,
-  controller._Loop._servoed_inertia).
+  pushes.servoed_inertia).
 Measured after (largest joint turn of a leg in one frame while standing / largest foot slide),
 10 N s: figure 0-1 deg / 0 mm, metarig 1-2 deg / 0 mm; 60 N s at the pelvis or the chest, every
 way: at most 15 deg / 54 mm (some fall, some keep standing: balance control may try while the
