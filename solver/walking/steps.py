@@ -73,7 +73,7 @@ def cycle_at(body, progress, style, t, o_now, o_next, dc0=1.0, with_slowing=Fals
     ht, dc = body.ht, dc0
 
     def rv_of(dc):
-        return max(mean_rv(dc), progress.speed(t + o_now) / ht, model.RV_MIN)
+        return float(max(mean_rv(dc), progress.speed(t + o_now) / ht, model.RV_MIN))
 
     def mean_rv(dc):
         return (progress(t + dc + o_next) - progress(t + o_now)) / (dc * ht)
@@ -155,7 +155,7 @@ def _plan_pass(body, path, progress, style, ground, first_side, fps, offsets):
         rv, (dc, ds, db, dds), slowed = cycle_at(body, progress, style, t, o_now, offset(n + 2, o_now), dc,
                                                  with_slowing=True)
         s_mid = float(progress(t + o_now))
-        final = s_mid >= path.length - 0.25 * rv * ht * dc or t + o_now >= progress.duration
+        final = bool(s_mid >= path.length - 0.25 * rv * ht * dc or t + o_now >= progress.duration)
         top = max(top, rv)
         slowing = bool(steady is not None and progress.speed(t + o_now) < progress.speed(t) - 1e-6)
         stopping = bool(slowing and rv < 0.6 * top)
