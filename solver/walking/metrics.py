@@ -98,7 +98,8 @@ def cycles(result, w=None):
     out = []
     for s, prints in result.plan.footprints.items():
         steady = [fp for fp in prints if np.isfinite(fp.t_on) and not fp.final and not fp.stopping]
-        for a, b in zip(steady[:-1], steady[1:]):
+        # a cycle in which the body slows keeps its mid-stance speed's rhythm (steps.cycle_at): not eq. 2-5's
+        for a, b in ((a, b) for a, b in zip(steady[:-1], steady[1:]) if not a.slowed):
             ia, ib = _stance_frames(result, a), _stance_frames(result, b)
             pa, pb = pts[s]["ball"][ia[len(ia) // 2]], pts[s]["ball"][ib[len(ib) // 2]]
             # the distance the body progressed along the path (on a straight path, the distance

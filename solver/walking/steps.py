@@ -33,6 +33,7 @@ class Footprint:
     running: bool = False
     final: bool = False
     stopping: bool = False  # a step of the stop, its cycle held at the walk's rhythm (not eq. 2-5)
+    slowed: bool = False  # the body slows within its cycle, which keeps its mid-stance speed's rhythm
 
 
 @dataclass
@@ -64,7 +65,7 @@ def sole_frame(body, side, ankle_xy, heading, ground):
     return m, psi, pitch
 
 
-def cycle_at(body, progress, style, t, o_now, o_next, dc0=1.0):
+def cycle_at(body, progress, style, t, o_now, o_next, dc0=1.0, with_slowing=False):
     """The cycle of a footprint struck at t and placed where the body is at t + o_now (its
     mid-stance); the same foot's next one is struck at t + Dc and placed at t + Dc + o_next. Dc is
     the fixed point of Dc = 1.346 / sqrt(RV) with RV the body's mean speed between the two
@@ -72,7 +73,10 @@ def cycle_at(body, progress, style, t, o_now, o_next, dc0=1.0):
     ht, dc = body.ht, dc0
 
     def rv_of(dc):
-        return max((progress(t + dc + o_next) - progress(t + o_now)) / (dc * ht), model.RV_MIN)
+        return float(max(mean_rv(dc), progress.speed(t + o_now) / ht, model.RV_MIN))
+
+    def mean_rv(dc):
+        return (progress(t + dc + o_next) - progress(t + o_now)) / (dc * ht)
 
     for _ in range(80):
         new = model.durations(rv_of(dc), ht, style)[0]
@@ -80,6 +84,8 @@ def cycle_at(body, progress, style, t, o_now, o_next, dc0=1.0):
             break
         dc = 0.5 * (dc + new)
     rv = rv_of(dc)
+    if with_slowing:  # the body slows within the cycle: it keeps the rhythm of its mid-stance speed
+        return rv, model.durations(rv, ht, style), bool(mean_rv(dc) < 0.95 * rv)
     return rv, model.durations(rv, ht, style)
 
 
@@ -146,12 +152,14 @@ def _plan_pass(body, path, progress, style, ground, first_side, fps, offsets):
     n, top = 0, 0.0
     while True:
         o_now = offset(n, PLACED * ds)
-        rv, (dc, ds, db, dds) = cycle_at(body, progress, style, t, o_now, offset(n + 2, o_now), dc)
+        rv, (dc, ds, db, dds), slowed = cycle_at(body, progress, style, t, o_now, offset(n + 2, o_now), dc,
+                                                 with_slowing=True)
         s_mid = float(progress(t + o_now))
-        final = s_mid >= path.length - 0.25 * rv * ht * dc or t + o_now >= progress.duration
+        final = bool(s_mid >= path.length - 0.25 * rv * ht * dc or t + o_now >= progress.duration)
         top = max(top, rv)
-        stopping = bool(steady is not None and rv < 0.6 * top and progress.speed(t + o_now) < progress.speed(t))
-        if (final or stopping) and steady is not None:
+        slowing = bool(steady is not None and progress.speed(t + o_now) < progress.speed(t) - 1e-6)
+        stopping = bool(slowing and rv < 0.6 * top)
+        if (final or stopping or (slowing and rv < steady)) and steady is not None:
             # the last steps of a stop keep the rhythm of the walk (the body slows to a halt
             # under them) rather than stretching into ever slower cycles
             rv, (dc, ds, db, _) = steady, model.durations(steady, ht, style)
@@ -162,7 +170,8 @@ def _plan_pass(body, path, progress, style, ground, first_side, fps, offsets):
         lift(prints[side][-1], t, db, osc, ds)
         sole, psi, pitch = place(side, path.length if final else s_mid, stand_width if final else width)
         prints[side].append(Footprint(side, t, np.inf, sole, psi, pitch, heel=osc.heel, heel_roll=0.15 * ds,
-                                      rv=rv, dc=dc, running=running, final=final, stopping=stopping))
+                                      rv=rv, dc=dc, running=running, final=final, stopping=stopping,
+                                      slowed=slowed))
         strikes.append((t, side, rv, dc, running))
         # each foot's next strike ends the cycle its last strike began (snapped per cycle, so a
         # cycle is off its model duration by half a frame at most)
