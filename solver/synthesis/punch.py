@@ -1,7 +1,7 @@
 """The thesis's scene (Oshita 2003, sec. 3.6): one character punches another. The puncher's fist
 is a collider sphere of the fist's (effective) mass driven at a given speed into the victim's
 stomach and back; the victim's dynamic controller receives the hit through its swept contacts
-(motion_control.controller._collide) and the reactions of sec. 3.5 follow from what the hit did
+(motion_control.collisions.Collisions.collide) and the reactions of sec. 3.5 follow from what the hit did
 to its root. Used by the tests, the benchmark and the CLI's demo; in Blender the fist is the
 attacker's armature or a mesh set as the Dynamic Control panel's collider."""
 

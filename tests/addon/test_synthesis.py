@@ -94,7 +94,7 @@ def test_push_gives_a_protective_step(metarig):
     assert not props.reactions  # a push set in the Dynamic Control panel turns reactions on
     sk_root = obj.pose.bones[0].name
     # (24 N s: the pelvis at ~0.65 m/s, inside eq. 3.6's step band; 14 N s did it while a push met
-    # free joints and a floating body, motion_control.controller._Loop._servoed_inertia)
+    # free joints and a floating body, motion_control.pushes.servoed_inertia)
     motion_control.add_impulse(obj, scene, sk_root, 10, direction=(0.0, 1.0, 0.0), magnitude=24.0)
     s = _run(obj, scene)
     assert s["reaction"]["kind"] == "step", s["reaction"]
