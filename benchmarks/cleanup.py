@@ -204,27 +204,20 @@ def _by_fps(kinds):
     return out
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--clips", type=int, default=50, help="Bandai Namco clips (default 50)")
-    ap.add_argument("--max-frames", type=int, default=600, help="frames used of each clip (default 600)")
-    ap.add_argument("--json", action="store_true")
-    args = ap.parse_args()
-    corpus = sorted(CORPUS.glob("*.bvh"))
-    spread = max(1, len(corpus) // max(args.clips, 1))
-    paths = CMU + corpus[::spread] + [p for i, p in enumerate(corpus) if i % spread]  # evenly over the corpus first
+def run_clips(paths, clips, max_frames):
+    """Each usable clip through every case: glitch rows by kind, the change elsewhere, jitter, feet,
+    ground mesh and clean-clip figures, and the clips skipped (with why)."""
     used = 0
     kinds, jit, fl, gr, clean, elsewhere, skipped = {}, [], [], [], [], [], []
-    t0 = time.perf_counter()
     for i, path in enumerate(paths):
-        if used >= args.clips + len(CMU):
+        if used >= clips + len(CMU):
             break
         try:
             sk, tr = load(path)
         except Exception as error:  # a clip the reader or the unit guess refuses
             skipped.append(f"{path.name}: {error}")
             continue
-        n = min(len(tr.frames), args.max_frames)
+        n = min(len(tr.frames), max_frames)
         tr = Trajectories(tr.frames[:n], tr.fps, tr.rotations[:n], tr.translations[:n], tr.armature_to_world)
         if n < MIN_FRAMES:
             skipped.append(f"{path.name}: {n} frames")
@@ -243,15 +236,19 @@ def main():
         except ValueError as error:  # a rig without a leg chain
             skipped.append(f"{path.name} (feet): {error}")
         clean.append(clean_case(sk, tr))
+    return kinds, jit, fl, gr, clean, elsewhere, skipped
+
+
+def summary(kinds, jit, fl, gr, clean, elsewhere, skipped, seconds):
+    """The benchmark's JSON object (without its claims): per-kind glitch counts, medians and worst cases."""
     per_kind = {k: {"injected": len(v), "detected": sum(r["detected"] for r in v),
                     "repaired": sum(r["repaired"] for r in v), "max_deg": max(r["max_deg"] for r in v)}
                 for k, v in kinds.items()}
-    all_rows = [r for v in kinds.values() for r in v]
     jitter_after = [j["after"]["rms_deg"] for j in jit]
-    result = {
+    return {
         "benchmark": "cleanup", "date": datetime.date.today().isoformat(),
         "machine_speed": {"numpy_add_us": numpy_add_us()},
-        "clips": len(clean), "bandai_namco_clips": len(clean) - sum(1 for p in CMU if p.exists()), "skipped": skipped, "seconds": round(time.perf_counter() - t0, 1),
+        "clips": len(clean), "bandai_namco_clips": len(clean) - sum(1 for p in CMU if p.exists()), "skipped": skipped, "seconds": seconds,
         "glitches": per_kind, "glitch_elsewhere_max_deg": max(elsewhere) if elsewhere else None,
         "jitter": {"before_rms_deg": float(np.median([j["before"]["rms_deg"] for j in jit])),
                    "after_rms_deg": float(np.median(jitter_after)),
@@ -277,8 +274,13 @@ def main():
         "clean_rms_deg_max": max(clean), "clean_rms_deg_median": float(np.median(clean)),
         "dropout_max_deg_by_fps": {f"{fps:g}": max(r["max_deg"] for r in rs) for fps, rs in _by_fps(kinds).items()},
     }
+
+
+def claims(result, kinds):
+    """One line per claim, each with its aim and whether it is met."""
+    all_rows = [r for v in kinds.values() for r in v]
     repaired = sum(r["repaired"] for r in all_rows) / len(all_rows)
-    result["claims"] = [
+    return [
         {"claim": "injected flips, spikes and dropouts repaired within 2 deg (fraction)", "value": round(repaired, 4),
          "unit": "fraction", "aim": "1.0", "met": repaired == 1.0},
         {"claim": "planted-foot slide after skate repair, worst clip", "value": round(result["feet"]["slide_after_mm_max"], 2),
@@ -299,13 +301,19 @@ def main():
         {"claim": "jitter (1 deg) left after the filter, median clip", "value": round(result["jitter"]["after_rms_deg"], 3),
          "unit": "deg RMS", "aim": None, "met": None},
     ]
-    if args.json:
-        text = json.dumps(result, indent=1)
-        print(text)
-        out = ROOT / "benchmarks" / "results" / "cleanup.json"
-        out.parent.mkdir(exist_ok=True)
-        out.write_text(text + "\n")
-        return
+
+
+def write_json(result):
+    text = json.dumps(result, indent=1)
+    print(text)
+    out = ROOT / "benchmarks" / "results" / "cleanup.json"
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(text + "\n")
+
+
+def print_report(result):
+    """The same figures as a human-readable table."""
+    per_kind, skipped = result["glitches"], result["skipped"]
     print(f"{result['clips']} clips in {result['seconds']} s ({len(skipped)} skipped)")
     print(f"{'fault':16s} {'injected':>8s} {'detected':>8s} {'repaired':>8s} {'max deg':>8s}")
     for k, v in per_kind.items():
@@ -327,6 +335,25 @@ def main():
     print("dropouts, largest error by frame rate: " + ", ".join(f"{k} fps {v:.1f} deg" for k, v in result["dropout_max_deg_by_fps"].items()))
     for c in result["claims"]:
         print(f"  [{'met' if c['met'] else ('--' if c['met'] is None else 'NOT met')}] {c['claim']}: {c['value']} {c['unit']}")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--clips", type=int, default=50, help="Bandai Namco clips (default 50)")
+    ap.add_argument("--max-frames", type=int, default=600, help="frames used of each clip (default 600)")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    corpus = sorted(CORPUS.glob("*.bvh"))
+    spread = max(1, len(corpus) // max(args.clips, 1))
+    paths = CMU + corpus[::spread] + [p for i, p in enumerate(corpus) if i % spread]  # evenly over the corpus first
+    t0 = time.perf_counter()
+    cases = run_clips(paths, args.clips, args.max_frames)
+    result = summary(*cases, seconds=round(time.perf_counter() - t0, 1))
+    result["claims"] = claims(result, cases[0])
+    if args.json:
+        write_json(result)
+    else:
+        print_report(result)
 
 
 if __name__ == "__main__":

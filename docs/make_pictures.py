@@ -8,6 +8,8 @@ Each picture runs the batch command a user would (`python -m humananim demo`, `g
 temporary scene (the bpy module renders headless with Workbench only): armatures as sticks
 along their deform bones, meshes (capsule bodies, garments, props) as Blender evaluates them at
 each frame. The dynamic-control picture is the demo's own (humananim_addon/motion_control/overlay.py).
+The Motion QA panel's picture is the rows its draw() lays out for a real `control` run, drawn as
+HTML in the sidebar's colours and shot with headless Chromium (not a screenshot of Blender).
 Pictures are posterised before saving so each stays small enough to check in (< 150 KB)."""
 
 import argparse
@@ -16,8 +18,11 @@ import io
 import json
 import os
 import shutil
+import subprocess
 import sys
 import tempfile
+import types
+from html import escape
 
 os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="humananim-pictures-"))
 
@@ -484,9 +489,95 @@ def _roots(scene, arm, frames, lift=0.0, side=0.4):
     return out
 
 
+# ---- the Motion QA panel, drawn from its own draw() ---------------------------------------------
+
+ICONS = {"INFO": "&#9432;", "ACTION": "&#9656;", "ERROR": "&#9888;", "CHECKMARK": "&#10003;", "TIME": "&#9719;"}
+
+
+class PanelRows:
+    """Stands in for Blender's UILayout while a panel's draw() runs: records each row's labels and
+    buttons and whether the row is drawn red (`alert`), in the order draw() lays them out."""
+
+    def __init__(self, rows, single=False):
+        self.rows, self.items, self.alert = rows, [], False
+        if single:
+            rows.append(self)
+
+    def column(self, **_):
+        return PanelRows(self.rows)
+
+    def row(self, **_):
+        return PanelRows(self.rows, single=True)
+
+    def label(self, text="", icon="NONE", **_):
+        target = self if self in self.rows else self.row()
+        target.items.append(("label", text, icon))
+
+    def operator(self, idname, text="", icon="NONE", **_):
+        target = self if self in self.rows else self.row()
+        target.items.append(("button", text, icon))
+        return None  # the panel sets no property on a recorded button
+
+
+def panel_html(title, rows, width=500):
+    """The recorded rows as a small page in Blender's sidebar colours (dark theme)."""
+    lines = []
+    for r in rows:
+        cells = []
+        for kind, text, icon in r.items:
+            glyph = f'<span class="icon">{ICONS.get(icon, "")}</span>' if icon in ICONS else ""
+            cls = "button" if kind == "button" else "label"
+            cells.append(f'<span class="{cls}">{glyph}{escape(text)}</span>')
+        lines.append(f'<div class="row{" alert" if r.alert else ""}">{"".join(cells)}</div>')
+    height = 34 + 25 * len(rows) + 12
+    page = f"""<!doctype html><html><head><meta charset="utf-8"><style>
+body {{ margin: 0; background: #1d1d1d; font: 12px "DejaVu Sans", sans-serif; color: #e6e6e6; }}
+.panel {{ width: {width - 12}px; margin: 6px; background: #303030; border-radius: 4px; overflow: hidden; }}
+.header {{ background: #3d3d3d; padding: 7px 10px; font-weight: bold; }}
+.body {{ padding: 6px 8px 8px; }}
+.row {{ display: flex; align-items: center; height: 21px; margin: 2px 0; padding: 0 4px; border-radius: 3px; }}
+.row.alert {{ background: #6e2a2a; }}
+.label {{ flex: 1; white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }}
+.button {{ background: #545454; border-radius: 3px; padding: 2px 8px; margin-left: 6px; }}
+.alert .button {{ background: #a03a3a; }}
+.icon {{ display: inline-block; width: 16px; color: #bdbdbd; }}
+</style></head><body><div class="panel"><div class="header">&#9662; {escape(title)}</div>
+<div class="body">{"".join(lines)}</div></div></body></html>"""
+    return page, (width, height)
+
+
+def picture_qa(work):
+    """The Motion QA panel after Dynamic Control of the CMU walk with 5 kg in each hand and a push
+    on the chest at frame 120 (a run whose QA fails: the push jerks the collar): the rows the panel's own draw() lays out for the report stored on the armature,
+    drawn as HTML in the sidebar's colours and shot with headless Chromium. Not a screenshot of
+    Blender: the bpy module cannot draw its UI headless."""
+    from humananim.panels.qa import VIEW3D_PT_humananim_qa
+    out = os.path.join(work, "qa.blend")
+    summary = command("control", CLIP, "--frames", "1", "240", "--load-left", "5", "--load-right", "5",
+                      "--impulse", "120:Chest:0,60,0", "--out", out)
+    open_blend(out)
+    arm = bpy.data.objects[summary["armature"]]
+    rows = []
+    panel = types.SimpleNamespace(layout=PanelRows(rows))
+    VIEW3D_PT_humananim_qa.draw(panel, types.SimpleNamespace(active_object=arm))
+    page, (w, h) = panel_html(VIEW3D_PT_humananim_qa.bl_label, rows)
+    html_path, raw = os.path.join(work, "qa.html"), os.path.join(work, "qa-raw.png")
+    with open(html_path, "w", encoding="utf-8") as f:
+        f.write(page)
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        raise SystemExit("the QA panel's picture needs chromium (Debian's package, as the batch report's test)")
+    subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                    f"--user-data-dir={os.path.join(work, 'chromium')}", f"--screenshot={raw}",
+                    f"--window-size={w},{h}", "file://" + html_path],
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=120, check=True)
+    save_small(raw, os.path.join(PICTURES, "qa.png"))
+
+
 PICTURES_MADE = {"control": picture_control, "skirt": picture_skirt, "grasp": picture_grasp, "walk": picture_walk,
                  "mass_model": picture_mass_model, "simulate": picture_simulate, "sequence": picture_sequence,
-                 "flexible": picture_flexible, "synthesis": picture_synthesis, "capture": picture_capture}
+                 "flexible": picture_flexible, "synthesis": picture_synthesis, "capture": picture_capture,
+                 "qa": picture_qa}
 
 
 def main(argv=None):

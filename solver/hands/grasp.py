@@ -709,16 +709,196 @@ def choose_side(skeleton, world, shape):
     return min(d, key=d.get)
 
 
+@dataclass
+class HandPlan:
+    """One hand's plan before any frame is written: its arm chain, the chosen grip candidate, the
+    arm's IK solution at the grip and at the backed-off approach point, and its finger pattern as
+    (closed pattern or None, pre-shape)."""
+    chain: object
+    candidate: object
+    solution: object
+    geom: object
+    pattern: tuple
+    approach: object
+
+
+def _preshape(skeleton, side, basis, world, geom, gtype, shape, pattern):
+    """The hand's shape during the reach -> (pattern pair, anchor, pinch axis, first closed pinch).
+    A pinch finds where its fingertips meet first (the grip candidates are placed around that
+    point); the other types simply open the hand."""
+    if gtype not in PINCHES or pattern is not None:
+        # the hand opens during the reach: thumb abducted, fingers straight
+        guess = geom.palm + geom.normal * 0.05
+        preshape = builtin_pattern(skeleton, side, world, geom, gtype, guess, basis=basis, scales=OPEN_HAND)
+        return (None, preshape), None, None, None
+    aperture = 0.5 * float(np.sort(dimensions(shape))[0]) + 0.015
+    first = pinch_closed(skeleton, side, basis, world, geom, gtype)
+    closed, preshape, anchor, pinch_axis = pinch_open(first, basis, aperture)
+    return (closed, preshape), anchor, pinch_axis, first
+
+
+def _grip_candidates(skeleton, side, basis, world, geom, gtype, shape, sens, preshape, anchor, pinch_axis,
+                     eye, body_c, hands, armature_to_world):
+    """The grip frames worth trying, best first, tested for clearance with the pre-shaped hand."""
+    hand = skeleton.role_index(sided("hand", side))
+    pre = basis.copy()
+    for j, r in preshape.items():
+        pre[j, :3, :3] = r
+    wpre = ik.update_world(skeleton, pre, world, list(preshape), armature_to_world=armature_to_world)
+    inv = rigid_inv(wpre[hand])
+    cen = sensor_centres(sens, wpre, skeleton) @ inv[:3, :3].T + inv[:3, 3]
+    loc = np.column_stack((cen, [x.radius for x in sens]))
+    cands = candidates(shape, gtype, geom, world[hand], eye, body_c, loc, anchor, pinch_axis)
+    if hands == 2:  # each hand on its own side of the object
+        obj_c = shape_frame(shape)[:3, 3]
+        lateral = world[skeleton.role_index(sided("upper_arm", side))][:3, 3] - body_c
+        lateral[2] = 0
+        lateral /= np.linalg.norm(lateral)
+        cands = [c for c in cands if (c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3] - obj_c) @ lateral
+                 > 0.5 * np.linalg.norm(c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3] - obj_c)]
+    return cands
+
+
+def _best_grip(chain, goal, base, cands, geom):
+    """The first candidate the arm reaches exactly (2 mm, 1 degree), else the closest of the first 40."""
+    best = None
+    for c in cands[:40]:
+        target_r = c.hand_world[:3, :3]
+        target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
+        res = ik.solve(chain, goal, base, target_p, target_r, iterations=80)
+        if res.position_error < 0.002 and res.rotation_error < np.radians(1.0):
+            return c, res
+        if best is None or res.position_error < best[1].position_error:
+            best = (c, res)
+    if best is None:
+        raise HumanAnimError("no grasp frame found for the object")
+    return best
+
+
+def _pinch_at_grip(skeleton, side, basis, world, geom, gtype, shape, sens, goal, chain, grip, pinch_axis, first,
+                   armature_to_world):
+    """A pinch's fingertips meet inside the object where the chosen grip put it; the pre-shape
+    opens 1 cm wider at a time until the pre-shaped fingers clear the object -> (closed, pre-shape)."""
+    hand = skeleton.role_index(sided("hand", side))
+    hw = ik.update_world(skeleton, goal, world, chain.joints, armature_to_world=armature_to_world)
+    aperture = extent_along(shape, hw[hand][:3, :3] @ pinch_axis) + 0.012
+    shut = pinch_closed(skeleton, side, basis, world, geom, gtype, grip[:3, 3], warm=first)
+    preshape = None
+    for _ in range(8):
+        closed, preshape, _, _ = pinch_open(shut, basis, aperture, warm=preshape)
+        pre = goal.copy()
+        for j, r in preshape.items():
+            pre[j, :3, :3] = r
+        wpre = ik.update_world(skeleton, pre, hw, list(preshape), armature_to_world=armature_to_world)
+        depth = np.array([x.radius for x in sens]) - shape.distance(sensor_centres(sens, wpre, skeleton))
+        if depth.max() < -0.001:
+            break
+        aperture += 0.01
+    return closed, preshape
+
+
+def _plan_hand(skeleton, side, basis, world, goal, shape, gtype, hands, pattern, with_spine, eye, body_c,
+               hand_sensors, armature_to_world):
+    """One hand's grip, arm solution and finger pattern; `goal` is the posture its IK starts from
+    (the other hand's solution when both hands grasp)."""
+    geom = hand_geometry(skeleton, side, world)
+    sens = (hand_sensors or {}).get(side) or default_hand_sensors(skeleton, side)
+    fingers, anchor, pinch_axis, first = _preshape(skeleton, side, basis, world, geom, gtype, shape, pattern)
+    # the clearance test sees the pre-shaped hand
+    cands = _grip_candidates(skeleton, side, basis, world, geom, gtype, shape, sens, fingers[1], anchor, pinch_axis,
+                             eye, body_c, hands, armature_to_world)
+    chain = ik.Chain.arm(skeleton, side, point=geom.palm, with_spine=with_spine)
+    # the chain's base (above the shoulder or the pelvis) is moved by neither arm
+    base = ik.chain_base(chain, world)
+    c, res = _best_grip(chain, goal, base, cands, geom)
+    # the approach: the palm first comes to a point backed off along its normal
+    n_w = c.hand_world[:3, :3] @ geom.normal
+    target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
+    approach = ik.solve(chain, res.basis, base, target_p - n_w * APPROACH, c.hand_world[:3, :3], iterations=40)
+    if fingers[0] is not None:
+        fingers = _pinch_at_grip(skeleton, side, basis, world, geom, gtype, shape, sens, res.basis, chain, c.grip,
+                                 pinch_axis, first, armature_to_world)
+    return HandPlan(chain, c, res, geom, fingers, approach)
+
+
+def _reach(basis, plans, reach_frames, close_frames, fps):
+    """The frames of the reach, held through the close: a PD servo per arm DOF toward the approach
+    point then the grip, the fingers pre-shaping on the way (a smooth-step slerp)."""
+    frames = np.repeat(basis[None], reach_frames + close_frames + 1, axis=0)
+    for plan in plans.values():
+        chain, res, approach, fingers = plan.chain, plan.solution, plan.approach, plan.pattern
+        th0 = chain.angles(basis)
+        n1 = max(1, int(round(reach_frames * 0.7)))
+        traj = np.vstack((pd_servo(th0, approach.theta, n1, fps),
+                          pd_servo(approach.theta, res.theta, reach_frames - n1, fps)[1:]))
+        frames[:reach_frames + 1] = chain.apply(traj, frames[:reach_frames + 1])
+        frames[reach_frames:] = chain.apply(res.theta, frames[reach_frames])[None]
+        if fingers is not None:
+            x = np.arange(reach_frames + 1) / reach_frames
+            ease = x * x * (3 - 2 * x)
+            js = list(fingers[1])
+            goal = np.array([fingers[1][j] for j in js])
+            rel = np.array([ik.rot_log(basis[j, :3, :3].T @ r) for j, r in zip(js, goal)])  # (B, 3)
+            frames[:reach_frames + 1, js, :3, :3] = basis[js, :3, :3] @ ik.rodrigues(ease[:, None, None] * rel)
+            frames[reach_frames:, js, :3, :3] = goal
+    return frames
+
+
+def _keep_clear(skeleton, frames, armature_to_world, plans, shape, reach_frames, world, moved, with_spine,
+                avoid_body, hand_sensors):
+    """The way in keeps the hands out of the object and (with `avoid_body`) the arms out of the
+    trunk and head (sec. 4.6); edits `frames` in place."""
+    for s, plan in plans.items():
+        _keep_off_object(skeleton, frames, armature_to_world, s, plan.chain, shape, reach_frames,
+                         sensors=(hand_sensors or {}).get(s), world=world, moved=moved)
+    if avoid_body:
+        # (the reach moves the arms and fingers only: their share of the kinematics, every frame at once)
+        reach = frames[:reach_frames + 1]
+        reach_world = ik.update_world(skeleton, reach, world, moved, armature_to_world=armature_to_world)
+        frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, reach, armature_to_world,
+                                                              sides=tuple(plans), with_spine=with_spine,
+                                                              legs=(), world=reach_world)
+        frames[reach_frames:] = frames[reach_frames][None]
+
+
+def _close_fingers(skeleton, frames, plans, shape, gtype, pattern, world_f, hand_sensors, reach_frames,
+                   close_frames):
+    """The fingers close on the object from the reached posture (the animator's pattern, else the
+    pinch's, else the built-in one); writes the closing frames -> one HandGrasp per hand."""
+    final = frames[reach_frames]
+    closing = {}
+    for s, plan in plans.items():
+        hand = skeleton.role_index(sided("hand", s))
+        centre_local = rigid_inv(world_f[hand]) @ shape_frame(shape)
+        pat = pattern if pattern is not None else plan.pattern[0] if plan.pattern[0] is not None else builtin_pattern(
+            skeleton, s, world_f, plan.geom, gtype, centre_local[:3, 3], basis=final)
+        if pattern is not None and not isinstance(pattern, dict):
+            pat = pattern_from_pose(skeleton, s, pattern)
+        closing[s] = (pat, (hand_sensors or {}).get(s))
+    closed = close_hands(skeleton, closing, final, world_f, [shape], close_frames)
+    results = []
+    for s, plan in plans.items():
+        hand = skeleton.role_index(sided("hand", s))
+        track, touching, sensors = closed[s]
+        for j, rots in track.items():
+            frames[reach_frames:, j, :3, :3] = rots
+        fingers = tuple(sorted({x.split(".")[0] for x in touching}))
+        results.append(HandGrasp(s, rigid_inv(world_f[hand]) @ shape_frame(shape), touching, fingers,
+                                 plan.solution.position_error, sensors))
+    return results
+
+
 def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, reach_frames=24,
           close_frames=12, fps=24.0, pattern=None, with_spine=False, eye=None, two_hands=None, avoid_body=True,
           hand_sensors=None):
     """Reach for and close on `shape` (world). Returns a GraspResult with per-frame bases.
-    `hand_sensors` {side: sensors} replaces the bone-sized sensors (e.g. sized from the skin)."""
+    `hand_sensors` {side: sensors} replaces the bone-sized sensors (e.g. sized from the skin).
+    The steps: the grasp type (sec. 4.3.2) and the hands, each hand's plan, the reach, keeping
+    clear of the object and the body, then the close."""
     basis = np.array(basis, float)
     world = skeleton.world_frames(basis, armature_to_world)
     side0 = choose_side(skeleton, world, shape) if side in (None, "AUTO") else side
-    geom0 = hand_geometry(skeleton, side0, world)
-    auto_type, hands = grasp_type(shape, geom0.size)
+    auto_type, hands = grasp_type(shape, hand_geometry(skeleton, side0, world).size)
     gtype = gtype or auto_type
     if two_hands is not None:
         hands = 2 if two_hands else 1
@@ -726,128 +906,19 @@ def grasp(skeleton, basis, armature_to_world, shape, side="AUTO", gtype=None, re
     body_c, head = body_landmarks(skeleton, world)
     eye = head if eye is None else np.asarray(eye, float)
     goal = basis.copy()
-    results = []
-    chosen = {}
+    plans = {}
     for s in sides:
-        hand = skeleton.role_index(sided("hand", s))
-        geom = hand_geometry(skeleton, s, world)
-        sens = (hand_sensors or {}).get(s) or default_hand_sensors(skeleton, s)
-        anchor, pinch_pat, pinch_axis = None, None, None
-        if gtype not in PINCHES or pattern is not None:
-            # the hand opens during the reach: thumb abducted, fingers straight
-            guess = geom.palm + geom.normal * 0.05
-            preshape = builtin_pattern(skeleton, s, world, geom, gtype, guess, basis=basis,
-                                       scales=OPEN_HAND)
-            pinch_pat = (None, preshape)
-        else:
-            aperture = 0.5 * float(np.sort(dimensions(shape))[0]) + 0.015
-            first = pinch_closed(skeleton, s, basis, world, geom, gtype)
-            pinch_pat, preshape, anchor, pinch_axis = pinch_open(first, basis, aperture)
-            pinch_pat = (pinch_pat, preshape)
-        # the clearance test sees the pre-shaped hand
-        pre = basis.copy()
-        for j, r in preshape.items():
-            pre[j, :3, :3] = r
-        wpre = ik.update_world(skeleton, pre, world, list(preshape), armature_to_world=armature_to_world)
-        inv = rigid_inv(wpre[hand])
-        cen = sensor_centres(sens, wpre, skeleton) @ inv[:3, :3].T + inv[:3, 3]
-        loc = np.column_stack((cen, [x.radius for x in sens]))
-        cands = candidates(shape, gtype, geom, world[hand], eye, body_c, loc, anchor, pinch_axis)
-        if hands == 2:  # each hand on its own side of the object
-            obj_c = shape_frame(shape)[:3, 3]
-            lateral = world[skeleton.role_index(sided("upper_arm", s))][:3, 3] - body_c
-            lateral[2] = 0
-            lateral /= np.linalg.norm(lateral)
-            cands = [c for c in cands if (c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3] - obj_c) @ lateral
-                     > 0.5 * np.linalg.norm(c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3] - obj_c)]
-        chain = ik.Chain.arm(skeleton, s, point=geom.palm, with_spine=with_spine)
-        # the chain's base (above the shoulder or the pelvis) is moved by neither arm
-        base = ik.chain_base(chain, world)
-        best = None
-        for c in cands[:40]:
-            target_r = c.hand_world[:3, :3]
-            target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
-            res = ik.solve(chain, goal, base, target_p, target_r, iterations=80)
-            if res.position_error < 0.002 and res.rotation_error < np.radians(1.0):
-                best = (c, res)
-                break
-            if best is None or res.position_error < best[1].position_error:
-                best = (c, res)
-        if best is None:
-            raise HumanAnimError("no grasp frame found for the object")
-        c, res = best
-        # the approach: the palm first comes to a point backed off along its normal
-        n_w = c.hand_world[:3, :3] @ geom.normal
-        target_p = c.hand_world[:3, :3] @ geom.palm + c.hand_world[:3, 3]
-        approach = ik.solve(chain, res.basis, base, target_p - n_w * APPROACH, c.hand_world[:3, :3], iterations=40)
-        goal = res.basis
-        if pinch_pat[0] is not None:  # the fingertips meet inside the object where it ended up
-            hw = ik.update_world(skeleton, goal, world, chain.joints, armature_to_world=armature_to_world)
-            aperture = extent_along(shape, hw[hand][:3, :3] @ pinch_axis) + 0.012
-            shut = pinch_closed(skeleton, s, basis, world, geom, gtype, c.grip[:3, 3], warm=first)
-            preshape = None
-            for _ in range(8):  # open wider until the pre-shaped fingers clear the object
-                closed, preshape, _, _ = pinch_open(shut, basis, aperture, warm=preshape)
-                pre = goal.copy()
-                for j, r in preshape.items():
-                    pre[j, :3, :3] = r
-                wpre = ik.update_world(skeleton, pre, hw, list(preshape), armature_to_world=armature_to_world)
-                depth = np.array([x.radius for x in sens]) - shape.distance(sensor_centres(sens, wpre, skeleton))
-                if depth.max() < -0.001:
-                    break
-                aperture += 0.01
-            pinch_pat = (closed, preshape)
-        chosen[s] = (chain, c, res, geom, pinch_pat, approach)
-    # reach: PD servo per DOF toward the IK posture
-    nfr = reach_frames + close_frames + 1
-    frames = np.repeat(basis[None], nfr, axis=0)
-    for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
-        th0 = chain.angles(basis)
-        n1 = max(1, int(round(reach_frames * 0.7)))
-        traj = np.vstack((pd_servo(th0, approach.theta, n1, fps),
-                          pd_servo(approach.theta, res.theta, reach_frames - n1, fps)[1:]))
-        frames[:reach_frames + 1] = chain.apply(traj, frames[:reach_frames + 1])
-        frames[reach_frames:] = chain.apply(res.theta, frames[reach_frames])[None]
-        if pinch_pat is not None:  # fingers pre-shape during the reach (a smooth-step slerp)
-            x = np.arange(reach_frames + 1) / reach_frames
-            ease = x * x * (3 - 2 * x)
-            js = list(pinch_pat[1])
-            goal = np.array([pinch_pat[1][j] for j in js])
-            rel = np.array([ik.rot_log(basis[j, :3, :3].T @ r) for j, r in zip(js, goal)])  # (B, 3)
-            frames[:reach_frames + 1, js, :3, :3] = basis[js, :3, :3] @ ik.rodrigues(ease[:, None, None] * rel)
-            frames[reach_frames:, js, :3, :3] = goal
-    moved = sorted({j for v in chosen.values() for j in v[0].joints}
-                   | {j for v in chosen.values() if v[4] is not None for j in v[4][1]})
-    for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
-        _keep_off_object(skeleton, frames, armature_to_world, s, chain, shape, reach_frames,
-                         sensors=(hand_sensors or {}).get(s), world=world, moved=moved)
-    if avoid_body:  # the arms keep out of the trunk and head (sec. 4.6) on every frame of the reach
-        # (the reach moves the arms and fingers only: their share of the kinematics, every frame at once)
-        reach = frames[:reach_frames + 1]
-        reach_world = ik.update_world(skeleton, reach, world, moved, armature_to_world=armature_to_world)
-        frames[:reach_frames + 1], _ = remove_self_collisions(skeleton, reach, armature_to_world,
-                                                              sides=tuple(chosen), with_spine=with_spine,
-                                                              legs=(), world=reach_world)
-        frames[reach_frames:] = frames[reach_frames][None]
-    final = frames[reach_frames]
-    world_f = ik.update_world(skeleton, final, world, moved, armature_to_world=armature_to_world)
-    closing = {}
-    for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
-        hand = skeleton.role_index(sided("hand", s))
-        centre_local = rigid_inv(world_f[hand]) @ shape_frame(shape)
-        pat = pattern if pattern is not None else pinch_pat[0] if pinch_pat[0] is not None else builtin_pattern(
-            skeleton, s, world_f, geom, gtype, centre_local[:3, 3], basis=final)
-        if pattern is not None and not isinstance(pattern, dict):
-            pat = pattern_from_pose(skeleton, s, pattern)
-        closing[s] = (pat, (hand_sensors or {}).get(s))
-    closed = close_hands(skeleton, closing, final, world_f, [shape], close_frames)
-    for s, (chain, c, res, geom, pinch_pat, approach) in chosen.items():
-        hand = skeleton.role_index(sided("hand", s))
-        track, touching, sensors = closed[s]
-        for j, rots in track.items():
-            frames[reach_frames:, j, :3, :3] = rots
-        fingers = tuple(sorted({x.split(".")[0] for x in touching}))
-        results.append(HandGrasp(s, rigid_inv(world_f[hand]) @ shape_frame(shape), touching, fingers,
-                                 res.position_error, sensors))
+        plans[s] = _plan_hand(skeleton, s, basis, world, goal, shape, gtype, hands, pattern, with_spine, eye, body_c,
+                              hand_sensors, armature_to_world)
+        goal = plans[s].solution.basis
+    frames = _reach(basis, plans, reach_frames, close_frames, fps)
+    moved = sorted({j for p in plans.values() for j in p.chain.joints}
+                   | {j for p in plans.values() if p.pattern is not None for j in p.pattern[1]})
+    _keep_clear(skeleton, frames, armature_to_world, plans, shape, reach_frames, world, moved, with_spine,
+                avoid_body, hand_sensors)
+    world_f = ik.update_world(skeleton, frames[reach_frames], world, moved, armature_to_world=armature_to_world)
+    results = _close_fingers(skeleton, frames, plans, shape, gtype, pattern, world_f, hand_sensors, reach_frames,
+                             close_frames)
     world_end = ik.update_world(skeleton, frames[-1], world, moved, armature_to_world=armature_to_world)
-    return GraspResult(gtype, kind(shape), results, frames, nfr, reach_frames, close_frames, world_end)
+    return GraspResult(gtype, kind(shape), results, frames, reach_frames + close_frames + 1, reach_frames,
+                       close_frames, world_end)

@@ -83,7 +83,7 @@ def test_pictures_exist_and_are_small():
         assert os.path.exists(picture), f"missing picture {os.path.relpath(picture, ROOT)}"
         assert os.path.getsize(picture) < 150_000, f"{os.path.relpath(picture, ROOT)} is over 150 KB"
     readme = set(pictures_in(README))
-    for name in ("control", "skirt", "grasp", "walk"):  # the results the issue asks the README to show
+    for name in ("control", "skirt", "grasp", "walk", "qa"):  # the results the issue asks the README to show
         assert os.path.join(ROOT, "docs", "pictures", f"{name}.png") in readme
 
 
