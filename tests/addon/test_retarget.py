@@ -1,0 +1,131 @@
+"""Retarget Motion: a capture (the bundled CMU walk, a Bandai Namco walk) put on the procedural
+control rig's controls. Checked on the deform bones as Blender evaluates the new action: planted
+feet hold where the source's are planted, no foot goes below the ground, the stride scales with
+the legs, the source is untouched; and the command's refusals."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+bpy = pytest.importorskip("bpy")
+import numpy as np  # noqa: E402
+
+from conftest import MOCAP  # noqa: E402
+from control_rig import build_control_rig  # noqa: E402
+from humananim.humananim_addon.bvh_import import import_bvh  # noqa: E402
+from humananim.humananim_addon.retarget import job  # noqa: E402
+from humananim.humananim_addon.rig.capability import RigView  # noqa: E402
+from humananim.humananim_addon.rig.physical import evaluated_pose, physical_skeleton  # noqa: E402
+from humananim.solver.cleanup import feet  # noqa: E402
+
+pytestmark = pytest.mark.slow
+
+ROOT = os.path.join(os.path.dirname(__file__), "..", "..")
+CMU_WALK = os.path.join(ROOT, "humananim_addon", "data", "mocap", "cmu_131_01.bvh")
+BANDAI_WALK = os.path.join(MOCAP, "bandai-namco-1", "dataset-1_walk_normal_002.bvh")
+SLIDE_MM, BELOW_MM = 5.0, 1.0
+
+
+def _shown_feet(obj, action, frames):
+    """(foot points {side: (F, k, 3)}, pelvis (F, 3)) of the deform bones as Blender evaluates `action`."""
+    scene = bpy.context.scene
+    skeleton = physical_skeleton(obj, scene)
+    world = np.array(obj.matrix_world) @ evaluated_pose(obj, scene, skeleton, frames, action)
+    return feet.foot_points(skeleton, world), world[:, skeleton.role_index("pelvis"), :3, 3]
+
+
+def _held_slide(points, planted):
+    """The largest slide (m) of the point a planted foot stands on: the ball while it is down, else
+    the toe tip."""
+    worst = 0.0
+    for side, down in planted.items():
+        for i, mask in enumerate((down[:, 0], down[:, 1] & ~down[:, 0]) if down.shape[1] > 1 else (down[:, 0],)):
+            for a, b in feet.contact_runs(mask):
+                p = points[side][a:b, i, :2]
+                worst = max(worst, float(np.linalg.norm(p - p[0], axis=1).max()))
+    return worst
+
+
+@pytest.mark.parametrize("clip,frames", [(CMU_WALK, (1, 240)), (BANDAI_WALK, (1, 90))])
+def test_a_walk_retargeted_onto_a_control_rig_keeps_its_feet_planted(empty_scene, clip, frames):
+    if not os.path.isfile(clip):
+        pytest.skip(f"no {clip}")
+    source, _, _ = import_bvh(clip)
+    source_action = source.animation_data.action
+    src_view = RigView(source, empty_scene)
+    src_traj = src_view.read(source_action, frames)
+    planted = job.source_contacts(src_view.skeleton, src_traj)
+    assert all(d.any() for d in planted.values()), "the source walk plants both feet"
+    keys_before = {fc.data_path: fc.evaluate(frames[0] + 7) for fc in _fcurves(source_action, source)}
+    target = build_control_rig()
+    target.animation_data_create()
+    bpy.context.view_layer.objects.active = target
+    source.select_set(True)
+    assert bpy.ops.humananim.retarget_motion(source=source.name, frame_start=frames[0], frame_end=frames[1]) == {"FINISHED"}
+    result = target.animation_data.action
+    summary = job.stored(target)
+    assert result is not None and result.name == summary["action"]
+    worst = max(summary["mismatch_per_role"].items(), key=lambda kv: kv[1][1])
+    assert summary["mismatch_mm"] < 1.0 and summary["mismatch_deg"] < 1.0, worst  # the write-back's report
+    assert set(summary["mismatch_per_role"]) >= {"pelvis", "foot.L", "foot.R", "hand.L", "hand.R", "head"}
+    points, pelvis = _shown_feet(target, result, src_traj.frames)
+    assert _held_slide(points, planted) <= SLIDE_MM / 1000
+    assert min(float(p[..., 2].min()) for p in points.values()) >= -BELOW_MM / 1000
+    # the stride scales with the legs: the pelvis travels the source's path times the leg ratio
+    src_pelvis = src_traj.world_frames(src_view.skeleton)[:, src_view.skeleton.role_index("pelvis"), :3, 3]
+    travel = np.linalg.norm(pelvis[-1, :2] - pelvis[0, :2]) / np.linalg.norm(src_pelvis[-1, :2] - src_pelvis[0, :2])
+    assert np.linalg.norm(src_pelvis[-1, :2] - src_pelvis[0, :2]) > 0.5, "the source walks"
+    assert travel == pytest.approx(summary["leg_ratio"], rel=0.05)
+    # the source is untouched
+    assert source.animation_data.action == source_action
+    assert {fc.data_path: fc.evaluate(frames[0] + 7) for fc in _fcurves(source_action, source)} == keys_before
+
+
+def _fcurves(action, obj):
+    from humananim.humananim_addon.action_api import fcurves_of
+    return fcurves_of(action, obj)
+
+
+def test_retarget_refuses_a_target_without_body_roles(empty_scene):
+    from humananim.solver.errors import HumanAnimError
+    source, _, _ = import_bvh(CMU_WALK)
+    bpy.ops.object.armature_add()
+    stick = bpy.context.active_object
+    with pytest.raises(HumanAnimError):
+        job.retarget(source, stick, empty_scene, frame_range=(1, 10))
+    assert stick.animation_data is None or stick.animation_data.action is None
+
+
+def _cli(*args):
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
+    return subprocess.run([sys.executable, "-m", "humananim", "retarget", *args], capture_output=True, text=True,
+                          env=env, timeout=600)
+
+
+def test_the_command_refuses_bad_input_with_exit_2(empty_scene, tmp_path):
+    build_control_rig()
+    scene_file = str(tmp_path / "rig.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=scene_file)
+    for args, words in (((CMU_WALK, "--to", scene_file, "--armature", "Nobody"), "no armature named 'Nobody'"),
+                        ((str(tmp_path / "none.bvh"), "--to", scene_file), "no such file"),
+                        ((CMU_WALK, "--to", CMU_WALK), "expected the .blend")):
+        r = _cli(*args, "--out", str(tmp_path / "out.blend"))
+        assert r.returncode == 2, r.stderr
+        ours = [line for line in r.stderr.splitlines() if line.startswith("humananim")]  # not Blender's own log
+        assert len(ours) == 1 and words in ours[0] and "Traceback" not in r.stderr, r.stderr
+    assert not (tmp_path / "out.blend").exists()
+
+
+def test_the_command_retargets_a_walk_onto_the_rig(empty_scene, tmp_path):
+    import json
+    build_control_rig()
+    scene_file = str(tmp_path / "rig.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=scene_file)
+    out = str(tmp_path / "out.blend")
+    r = _cli(CMU_WALK, "--to", scene_file, "--armature", "Puppet", "--frames", "1", "40", "--out", out, "--json")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads(r.stdout)
+    assert summary["armature"] == "Puppet" and summary["wrote"] == [os.path.abspath(out)] or os.path.isfile(out)
+    assert summary["mismatch_per_role"]["foot.L"][0] < 1.0
