@@ -53,7 +53,14 @@ class HUMANANIM_OT_retarget_motion(bpy.types.Operator):
             text = (f"'{s['action']}': {s['roles_mapped']} roles, legs x{s['leg_ratio']:.2f}, planted feet slide "
                     f"{s['planted_slide_mm']:.1f} mm" + (f", mismatch {s['mismatch_mm']:.2f} mm / "
                                                          f"{s['mismatch_deg']:.2f} deg" if "mismatch_mm" in s else ""))
-            return with_qa(self, context, target, s, text, job.GROUND)
+            twisted = {r: v[1] for r, v in (s.get("mismatch_per_role") or {}).items() if v[1] > job.TWIST_WARNING_DEG}
+            if twisted:  # the rig shows these joints turned otherwise than the solve: said, not hidden
+                role = max(twisted, key=twisted.get)
+                text += f"; the rig turns {role} {twisted[role]:.0f} deg away from the retargeted pose"
+            message = with_qa(self, context, target, s, text, job.GROUND)
+            if twisted:
+                message.level = "WARNING"
+            return message
         return run_reporting(self, work)
 
 

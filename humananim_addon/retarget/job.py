@@ -25,6 +25,7 @@ from ..rig.capability import RigView
 
 PROPERTY = "humananim_retarget"  # the last retarget's summary, JSON, on the target armature
 GROUND = 0.0
+TWIST_WARNING_DEG = 5.0  # a role the rig shows turned this far from the retargeted pose is named
 # the role whose head gives a role bone's direction (the bone's own axis where there is none)
 NEXT = {"pelvis": "spine", "chest": "neck", "neck": "head", "clavicle": "upper_arm", "upper_arm": "forearm",
         "forearm": "hand", "thigh": "shin", "shin": "foot", "foot": "toe"}
