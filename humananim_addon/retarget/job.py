@@ -19,7 +19,7 @@ from ...solver import rotations
 from ...solver.body_roles import CHAIN_ROLES, SINGLE_ROLES
 from ...solver.cleanup import feet
 from ...solver.errors import MotionError, RigError
-from ...solver.skeleton import decompose
+from ...solver.skeleton import Skeleton, decompose
 from ...solver.trajectories import Trajectories
 from ..rig.capability import RigView
 
@@ -194,16 +194,47 @@ def retarget(source, target, scene, action=None, frame_range=None, name=None, ou
     if src_traj.frame_count < 3:
         raise MotionError(f"'{action.name}' has {src_traj.frame_count} frames: retargeting needs at least 3")
     traj, ratio = map_motion(src, src_traj, tgt, _to_world(target, scene))
-    traj, planted, drop = plant_feet(tgt, traj, source_contacts(src, src_traj))
-    measures = foot_measures(tgt, traj, planted)
+    legs, keep = role_skeleton(tgt)
+    planted_traj, planted, drop = plant_feet(legs, _columns(traj, keep), source_contacts(src, src_traj))
+    measures = foot_measures(legs, planted_traj, planted)
+    rot, trans = traj.rotations.copy(), traj.translations.copy()
+    rot[:, keep], trans[:, keep] = planted_traj.rotations, planted_traj.translations
+    traj = Trajectories(traj.frames, traj.fps, rot, trans, traj.armature_to_world)
     result = tgt_view.write(traj, name or f"{action.name}.{target.name}", output)
-    summary = {"command": "retarget", "armature": target.name, "source": source.name, "source_action": action.name,
+    # the source's action is "source_motion", not "source_action": the motion QA would read it on the target
+    summary = {"command": "retarget", "armature": target.name, "source": source.name, "source_motion": action.name,
                "action": result.name, "frame_range": [float(traj.frames[0]), float(traj.frames[-1])],
                "fps": traj.fps, "roles_mapped": len(role_pairs(src, tgt)), "leg_ratio": round(ratio, 4),
                "pelvis_lowered_cm": round(100 * drop, 2), **measures, **tgt_view.summary(),
                "ms": round(1000 * (time.perf_counter() - t0), 1)}
     target[PROPERTY] = json.dumps(summary)
     return summary
+
+
+def role_skeleton(skel):
+    """(the skeleton of `skel`'s role joints only, each hung from its nearest kept ancestor; the
+    indices kept). The joints left out (twist segments, a rig's extra bones) stay at rest on their
+    parents in a retargeted pose, so the role joints' bases are the same on both skeletons; the
+    legs' IK of the foot repair needs thigh, shin and foot as a parent-child chain."""
+    keep = [j for j, n in enumerate(skel.names) if skel.roles.role_of(n) is not None or skel.parents[j] < 0]
+    new = {j: i for i, j in enumerate(keep)}
+
+    def kept_parent(j):
+        p = skel.parents[j]
+        while p >= 0 and p not in new:
+            p = skel.parents[p]
+        return new[p] if p >= 0 else -1
+
+    parents = np.array([kept_parent(j) for j in keep], dtype=int)
+    same = np.array([skel.parents[j] in new or skel.parents[j] < 0 for j in keep])
+    return Skeleton(tuple(skel.names[j] for j in keep), parents, skel.rest[keep], skel.lengths[keep],
+                    skel.connected[keep] & same, skel.dof[keep], skel.limits[keep], skel.mass[keep], skel.com[keep],
+                    skel.inertia[keep], skel.roles, skel.unit_scale), keep
+
+
+def _columns(traj, keep):
+    return Trajectories(traj.frames, traj.fps, traj.rotations[:, keep], traj.translations[:, keep],
+                        traj.armature_to_world)
 
 
 def _to_world(obj, scene):

@@ -133,3 +133,28 @@ def test_the_command_retargets_a_walk_onto_the_rig(empty_scene, tmp_path):
     summary = json.loads(r.stdout)
     assert summary["armature"] == "Puppet" and summary["wrote"] == [os.path.abspath(out)] or os.path.isfile(out)
     assert summary["mismatch_per_role"]["foot.L"][0] < 1.0
+
+
+def test_the_cmu_walk_onto_a_generated_rigify_rig(generated_rigify_file):
+    """Onto Rigify's controls (IK feet, torso, FK spine and arms): a short stretch of the walk (the
+    write-back takes about a second per frame there) with the right foot planted throughout."""
+    path, name = generated_rigify_file
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    target = bpy.data.objects[name]
+    source, _, _ = import_bvh(CMU_WALK, update_scene=False)
+    frames = (1, 40)
+    src_view = RigView(source, scene)
+    src_traj = src_view.read(source.animation_data.action, frames)
+    planted = job.source_contacts(src_view.skeleton, src_traj)
+    assert planted["R"].any(), "the source plants its right foot here"
+    summary = job.retarget(source, target, scene, frame_range=frames)
+    result = bpy.data.actions[summary["action"]]
+    report = summary["mismatch_per_role"]
+    assert max(report[r][0] for r in ("foot.L", "foot.R")) < 1.0, report
+    points, _ = _shown_feet(target, result, src_traj.frames)
+    assert _held_slide(points, planted) <= SLIDE_MM / 1000
+    assert min(float(p[..., 2].min()) for p in points.values()) >= -BELOW_MM / 1000
+    worst = {r: report[r] for r in ("pelvis", "hand.L", "hand.R") if report[r][0] >= 1.0}
+    if worst:  # docs/rigs.md: the torso's write-back on Rigify while the body travels
+        pytest.xfail(f"Rigify shows these roles off the retargeted pose: {worst}")
