@@ -88,8 +88,9 @@ def blender_way(source, target, frames):
     bpy.context.view_layer.objects.active = target
     bpy.ops.object.mode_set(mode="POSE")
     bpy.ops.pose.select_all(action="DESELECT")
-    for name in plan.controls:
-        target.data.bones[name].select = True
+    for name in plan.controls:  # selection lives on the pose bone from Blender 5.0, on the bone before
+        pb = target.pose.bones[name]
+        (pb if hasattr(pb, "select") else target.data.bones[name]).select = True
     bpy.ops.nla.bake(frame_start=int(frames[0]), frame_end=int(frames[1]), only_selected=True, visual_keying=True,
                      clear_constraints=True, bake_types={"POSE"})
     bpy.ops.object.mode_set(mode="OBJECT")
