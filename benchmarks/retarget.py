@@ -51,18 +51,13 @@ def rigify_rig():
 
 def held_slide_and_lowest(obj, action, frames, planted):
     from humananim.humananim_addon.rig.physical import evaluated_pose, physical_skeleton
+    from humananim.humananim_addon.retarget.job import held_slide
     from humananim.solver.cleanup import feet
     scene = bpy.context.scene
     skeleton = physical_skeleton(obj, scene)
     world = np.array(obj.matrix_world) @ evaluated_pose(obj, scene, skeleton, frames, action)
     points = feet.foot_points(skeleton, world)
-    worst = 0.0
-    for side, down in planted.items():
-        for i, mask in enumerate((down[:, 0], down[:, 1] & ~down[:, 0]) if down.shape[1] > 1 else (down[:, 0],)):
-            for a, b in feet.contact_runs(mask):
-                p = points[side][a:b, i, :2]
-                worst = max(worst, float(np.linalg.norm(p - p[0], axis=1).max()))
-    return 1000 * worst, 1000 * min(float(p[..., 2].min()) for p in points.values())
+    return 1000 * held_slide(points, planted), 1000 * min(float(p[..., 2].min()) for p in points.values())
 
 
 def blender_way(source, target, frames):

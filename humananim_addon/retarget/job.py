@@ -251,6 +251,18 @@ def foot_measures(skel, traj, planted):
             "lowest_foot_mm": round(1000 * low, 2)}
 
 
+def held_slide(points, planted):
+    """The largest slide (m) over the ground of the point a planted foot stands on: the ball while
+    it is down, else the toe tip. `points` from feet.foot_points, `planted` from source_contacts."""
+    worst = 0.0
+    for side, down in planted.items():
+        for i, mask in enumerate((down[:, 0], down[:, 1] & ~down[:, 0]) if down.shape[1] > 1 else (down[:, 0],)):
+            for a, b in feet.contact_runs(mask):
+                p = points[side][a:b, i, :2]
+                worst = max(worst, float(np.linalg.norm(p - p[0], axis=1).max()))
+    return worst
+
+
 def stored(obj):
     """The last retarget summary on `obj`, or None."""
     raw = obj.get(PROPERTY) if obj is not None else None

@@ -36,18 +36,6 @@ def _shown_feet(obj, action, frames):
     return feet.foot_points(skeleton, world), world[:, skeleton.role_index("pelvis"), :3, 3]
 
 
-def _held_slide(points, planted):
-    """The largest slide (m) of the point a planted foot stands on: the ball while it is down, else
-    the toe tip."""
-    worst = 0.0
-    for side, down in planted.items():
-        for i, mask in enumerate((down[:, 0], down[:, 1] & ~down[:, 0]) if down.shape[1] > 1 else (down[:, 0],)):
-            for a, b in feet.contact_runs(mask):
-                p = points[side][a:b, i, :2]
-                worst = max(worst, float(np.linalg.norm(p - p[0], axis=1).max()))
-    return worst
-
-
 @pytest.mark.parametrize("clip,frames", [(CMU_WALK, (1, 240)), (BANDAI_WALK, (1, 90))])
 def test_a_walk_retargeted_onto_a_control_rig_keeps_its_feet_planted(empty_scene, clip, frames):
     if not os.path.isfile(clip):
@@ -75,7 +63,7 @@ def test_a_walk_retargeted_onto_a_control_rig_keeps_its_feet_planted(empty_scene
     assert max(deg for r, (_, deg) in report.items() if r.split(".")[0] not in ("thigh", "shin")) < 1.0, report
     assert set(summary["mismatch_per_role"]) >= {"pelvis", "foot.L", "foot.R", "hand.L", "hand.R", "head"}
     points, pelvis = _shown_feet(target, result, src_traj.frames)
-    assert _held_slide(points, planted) <= SLIDE_MM / 1000
+    assert job.held_slide(points, planted) <= SLIDE_MM / 1000
     assert min(float(p[..., 2].min()) for p in points.values()) >= -BELOW_MM / 1000
     # the stride scales with the legs: the pelvis travels the source's path times the leg ratio
     src_pelvis = src_traj.world_frames(src_view.skeleton)[:, src_view.skeleton.role_index("pelvis"), :3, 3]
@@ -153,7 +141,7 @@ def test_the_cmu_walk_onto_a_generated_rigify_rig(generated_rigify_file):
     report = summary["mismatch_per_role"]
     assert max(report[r][0] for r in ("foot.L", "foot.R")) < 1.0, report
     points, _ = _shown_feet(target, result, src_traj.frames)
-    assert _held_slide(points, planted) <= SLIDE_MM / 1000
+    assert job.held_slide(points, planted) <= SLIDE_MM / 1000
     assert min(float(p[..., 2].min()) for p in points.values()) >= -BELOW_MM / 1000
     worst = {r: report[r] for r in ("pelvis", "hand.L", "hand.R") if report[r][0] >= 1.0}
     if worst:  # docs/rigs.md: the torso's write-back on Rigify while the body travels
