@@ -461,4 +461,4 @@ COMMANDS = {"info": cmd_info, "demo": cmd_demo}
 # Modules of this package with `add_commands(subparsers, add_common_options) -> {name: run(args)}`;
 # `run` returns the summary dict (with "command" and "wrote") and raises HumanAnimError/UsageError.
 COMMAND_MODULES = ("simulation.cli", "sequence.cli", "motion_control.cli", "cloth.cli", "flexible.cli", "walking.cli", "capture.cli",
-                   "hands.cli", "synthesis.cli", "cleanup.cli", "batch")
+                   "hands.cli", "synthesis.cli", "cleanup.cli", "retarget.cli", "batch")

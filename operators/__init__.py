@@ -2,10 +2,10 @@
 
 import bpy
 
-from . import batch, capture, cleanup, cloth, flexible, hands, motion_control, qa, rig, sequence, simulate, synthesis, walking
+from . import batch, capture, cleanup, cloth, flexible, hands, motion_control, qa, retarget, rig, sequence, simulate, synthesis, walking
 
 CLASSES = (rig.CLASSES + cleanup.CLASSES + simulate.CLASSES + motion_control.CLASSES
            + sequence.CLASSES + cloth.CLASSES + flexible.CLASSES + walking.CLASSES + capture.CLASSES
-           + hands.CLASSES + synthesis.CLASSES + qa.CLASSES + batch.CLASSES)
+           + hands.CLASSES + synthesis.CLASSES + retarget.CLASSES + qa.CLASSES + batch.CLASSES)
 
 register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -1,0 +1,62 @@
+"""The `retarget` command: python -m humananim retarget SRC.bvh|.fbx --to scene.blend --armature RIG
+[--action NAME] [--frames A B] [--out OUT.blend] [--json]. Opens the scene, imports the source
+(Blender's BVH or FBX importer), puts its motion on the armature RIG's controls in a NEW action and
+saves the scene to OUT.blend (the source file and the scene's file untouched)."""
+
+import os
+import time
+
+from ..arguments import UsageError, add_frames, add_out, add_output
+
+
+def add_commands(sub, add_common_options):
+    c = sub.add_parser("retarget", help="put a BVH or FBX capture on a rig's controls (a new action)")
+    c.add_argument("file", help="the source motion: a .bvh or .fbx file")
+    c.add_argument("--to", required=True, metavar="SCENE.blend", help="the .blend holding the target rig")
+    c.add_argument("--armature", help="the target armature in the .blend (default: the only one)")
+    c.add_argument("--source-armature", help="in a .fbx with several armatures, the one to read")
+    c.add_argument("--action", help="the source action (default: the imported one)")
+    add_frames(c, "source frame range")
+    add_output(c)
+    add_out(c, "retarget.blend")
+    add_common_options(c)
+    return {"retarget": cmd_retarget}
+
+
+def cmd_retarget(args):
+    import bpy
+    from ..cli import _load, save_blend
+    from . import job
+    t0 = time.perf_counter()
+    if not args.file.lower().endswith((".bvh", ".fbx")):
+        raise UsageError(f"{os.path.basename(args.file)}: the source must be a .bvh or .fbx file")
+    if not os.path.isfile(args.file):
+        raise UsageError(f"no such file: {args.file}")
+    if not args.to.lower().endswith(".blend"):
+        raise UsageError(f"--to {args.to}: expected the .blend holding the target rig")
+    target, scene, _ = _load(args.to, args.armature, None)
+    source = _import_source(args.file, args.source_armature, args.scale, scene)
+    if args.action:
+        action = bpy.data.actions.get(args.action)
+        if action is None:
+            raise UsageError(f"no action named '{args.action}'")
+    else:
+        action = source.animation_data.action if source.animation_data else None
+    summary = job.retarget(source, target, scene, action, tuple(args.frames) if args.frames else None,
+                           output=args.output)
+    out = save_blend(args.out, summary, target, job.GROUND)
+    summary.update(file=os.path.abspath(args.file), wrote=[out], seconds=round(time.perf_counter() - t0, 3))
+    summary["summary"] = "\n".join([f"retarget: '{source.name}' onto '{target.name}'"]
+                                   + [f"  {line}" for line in job.lines(summary)]
+                                   + [f"  wrote {out}", f"  took {summary['seconds']:.2f} s"])
+    return summary
+
+
+def _import_source(path, armature_name, scale, scene):
+    """The source armature imported into the open scene (its frame rate kept)."""
+    if path.lower().endswith(".bvh"):
+        from ..bvh_import import import_bvh
+        return import_bvh(path, scale, update_scene=False)[0]
+    from ..rig.load import _check_fbx, import_fbx
+    _check_fbx(path)
+    return import_fbx(path, armature_name)

@@ -1,0 +1,148 @@
+"""Retarget Motion: a capture (the bundled CMU walk, a Bandai Namco walk) put on the procedural
+control rig's controls. Checked on the deform bones as Blender evaluates the new action: planted
+feet hold where the source's are planted, no foot goes below the ground, the stride scales with
+the legs, the source is untouched; and the command's refusals."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+bpy = pytest.importorskip("bpy")
+import numpy as np  # noqa: E402
+
+from conftest import MOCAP  # noqa: E402
+from control_rig import build_control_rig  # noqa: E402
+from humananim.humananim_addon.bvh_import import import_bvh  # noqa: E402
+from humananim.humananim_addon.retarget import job  # noqa: E402
+from humananim.humananim_addon.rig.capability import RigView  # noqa: E402
+from humananim.humananim_addon.rig.physical import evaluated_pose, physical_skeleton  # noqa: E402
+from humananim.solver.cleanup import feet  # noqa: E402
+
+pytestmark = pytest.mark.slow
+
+ROOT = os.path.join(os.path.dirname(__file__), "..", "..")
+CMU_WALK = os.path.join(ROOT, "humananim_addon", "data", "mocap", "cmu_131_01.bvh")
+BANDAI_WALK = os.path.join(MOCAP, "bandai-namco-1", "dataset-1_walk_normal_002.bvh")
+SLIDE_MM, BELOW_MM = 5.0, 1.0
+
+
+def _shown_feet(obj, action, frames):
+    """(foot points {side: (F, k, 3)}, pelvis (F, 3)) of the deform bones as Blender evaluates `action`."""
+    scene = bpy.context.scene
+    skeleton = physical_skeleton(obj, scene)
+    world = np.array(obj.matrix_world) @ evaluated_pose(obj, scene, skeleton, frames, action)
+    return feet.foot_points(skeleton, world), world[:, skeleton.role_index("pelvis"), :3, 3]
+
+
+@pytest.mark.parametrize("clip,frames", [(CMU_WALK, (1, 240)), (BANDAI_WALK, (1, 90))])
+def test_a_walk_retargeted_onto_a_control_rig_keeps_its_feet_planted(empty_scene, clip, frames):
+    if not os.path.isfile(clip):
+        pytest.skip(f"no {clip}")
+    source, _, _ = import_bvh(clip)
+    source_action = source.animation_data.action
+    src_view = RigView(source, empty_scene)
+    src_traj = src_view.read(source_action, frames)
+    planted = job.source_contacts(src_view.skeleton, src_traj)
+    assert all(d.any() for d in planted.values()), "the source walk plants both feet"
+    keys_before = {fc.data_path: fc.evaluate(frames[0] + 7) for fc in _fcurves(source_action, source)}
+    target = build_control_rig()
+    target.animation_data_create()
+    bpy.context.view_layer.objects.active = target
+    source.select_set(True)
+    assert bpy.ops.humananim.retarget_motion(source=source.name, frame_start=frames[0], frame_end=frames[1]) == {"FINISHED"}
+    result = target.animation_data.action
+    summary = job.stored(target)
+    assert result is not None and result.name == summary["action"]
+    # the write-back's report: every joint where the solve puts it; every role's turn shown within
+    # 1 deg but the IK legs' thighs and shins, whose roll about their own axis the rig's IK chooses
+    # (docs/rigs.md: a known limit of the write-back)
+    report = summary["mismatch_per_role"]
+    assert max(mm for mm, _ in report.values()) < 1.0, report
+    assert max(deg for r, (_, deg) in report.items() if r.split(".")[0] not in ("thigh", "shin")) < 1.0, report
+    assert set(summary["mismatch_per_role"]) >= {"pelvis", "foot.L", "foot.R", "hand.L", "hand.R", "head"}
+    points, pelvis = _shown_feet(target, result, src_traj.frames)
+    assert job.held_slide(points, planted) <= SLIDE_MM / 1000
+    assert min(float(p[..., 2].min()) for p in points.values()) >= -BELOW_MM / 1000
+    # the stride scales with the legs: the pelvis travels the source's path times the leg ratio
+    src_pelvis = src_traj.world_frames(src_view.skeleton)[:, src_view.skeleton.role_index("pelvis"), :3, 3]
+    travel = np.linalg.norm(pelvis[-1, :2] - pelvis[0, :2]) / np.linalg.norm(src_pelvis[-1, :2] - src_pelvis[0, :2])
+    assert np.linalg.norm(src_pelvis[-1, :2] - src_pelvis[0, :2]) > 0.3, "the source walks"
+    assert travel == pytest.approx(summary["leg_ratio"], rel=0.05)
+    # the source is untouched
+    assert source.animation_data.action == source_action
+    assert {fc.data_path: fc.evaluate(frames[0] + 7) for fc in _fcurves(source_action, source)} == keys_before
+
+
+def _fcurves(action, obj):
+    from humananim.humananim_addon.action_api import fcurves_of
+    return fcurves_of(action, obj)
+
+
+def test_retarget_refuses_a_target_without_body_roles(empty_scene):
+    from humananim.solver.errors import HumanAnimError
+    source, _, _ = import_bvh(CMU_WALK)
+    bpy.ops.object.armature_add()
+    stick = bpy.context.active_object
+    with pytest.raises(HumanAnimError):
+        job.retarget(source, stick, empty_scene, frame_range=(1, 10))
+    assert stick.animation_data is None or stick.animation_data.action is None
+
+
+def _cli(*args):
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
+    return subprocess.run([sys.executable, "-m", "humananim", "retarget", *args], capture_output=True, text=True,
+                          env=env, timeout=600)
+
+
+def test_the_command_refuses_bad_input_with_exit_2(empty_scene, tmp_path):
+    build_control_rig()
+    scene_file = str(tmp_path / "rig.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=scene_file)
+    for args, words in (((CMU_WALK, "--to", scene_file, "--armature", "Nobody"), "no armature named 'Nobody'"),
+                        ((str(tmp_path / "none.bvh"), "--to", scene_file), "no such file"),
+                        ((CMU_WALK, "--to", CMU_WALK), "expected the .blend")):
+        r = _cli(*args, "--out", str(tmp_path / "out.blend"))
+        assert r.returncode == 2, r.stderr
+        ours = [line for line in r.stderr.splitlines() if line.startswith("humananim")]  # not Blender's own log
+        assert len(ours) == 1 and words in ours[0] and "Traceback" not in r.stderr, r.stderr
+    assert not (tmp_path / "out.blend").exists()
+
+
+def test_the_command_retargets_a_walk_onto_the_rig(empty_scene, tmp_path):
+    import json
+    build_control_rig()
+    scene_file = str(tmp_path / "rig.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=scene_file)
+    out = str(tmp_path / "out.blend")
+    r = _cli(CMU_WALK, "--to", scene_file, "--armature", "Puppet", "--frames", "1", "40", "--out", out, "--json")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads(r.stdout)
+    assert summary["armature"] == "Puppet" and summary["wrote"] == [os.path.abspath(out)] or os.path.isfile(out)
+    assert summary["mismatch_per_role"]["foot.L"][0] < 1.0
+
+
+def test_the_cmu_walk_onto_a_generated_rigify_rig(generated_rigify_file):
+    """Onto Rigify's controls (IK feet, torso, FK spine and arms): a short stretch of the walk (the
+    write-back takes about a second per frame there) with the right foot planted throughout."""
+    path, name = generated_rigify_file
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    target = bpy.data.objects[name]
+    source, _, _ = import_bvh(CMU_WALK, update_scene=False)
+    frames = (1, 40)
+    src_view = RigView(source, scene)
+    src_traj = src_view.read(source.animation_data.action, frames)
+    planted = job.source_contacts(src_view.skeleton, src_traj)
+    assert planted["R"].any(), "the source plants its right foot here"
+    summary = job.retarget(source, target, scene, frame_range=frames)
+    result = bpy.data.actions[summary["action"]]
+    report = summary["mismatch_per_role"]
+    assert max(report[r][0] for r in ("foot.L", "foot.R")) < 1.0, report
+    points, _ = _shown_feet(target, result, src_traj.frames)
+    assert job.held_slide(points, planted) <= SLIDE_MM / 1000
+    assert min(float(p[..., 2].min()) for p in points.values()) >= -BELOW_MM / 1000
+    worst = {r: report[r] for r in ("pelvis", "hand.L", "hand.R") if report[r][0] >= 1.0}
+    if worst:  # docs/rigs.md: the torso's write-back on Rigify while the body travels
+        pytest.xfail(f"Rigify shows these roles off the retargeted pose: {worst}")
