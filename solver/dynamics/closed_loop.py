@@ -87,6 +87,10 @@ class Settings:
     # massless helper joints that the motion never turns (e.g. a BVH's LHipJoint) are welded:
     # a second free ball joint at the same point makes H nearly singular
     weld_static_helpers: bool = True
+    # leaf bones whose tail the file does not define (an End Site at zero offset: Blender's
+    # importer copies the parent's vector or leaves a millimetre) have no segment of their own:
+    # their mass is lumped at their head into their parent (see lump_made_up_tails)
+    lump_made_up_tails: bool = True
 
 
 @dataclass
@@ -136,6 +140,8 @@ def iter_simulate(skeleton, trajectories, settings=None):
     st = settings or Settings()
     if st.weld_static_helpers:
         skeleton = weld_static_helpers(skeleton, trajectories)
+    if st.lump_made_up_tails:
+        skeleton = lump_made_up_tails(skeleton)
     _require_connected_body(skeleton)
     run = _Run.prepare(skeleton, trajectories, st)
     rec = _Recording(trajectories.frame_count, run.model)
@@ -329,6 +335,50 @@ def weld_static_helpers(skeleton, trajectories, tolerance=1e-3):
     dof = skeleton.dof.copy()
     dof[static] = False
     return replace(skeleton, dof=dof)
+
+
+def made_up_tails(skeleton, short=2e-3, tolerance=0.01):
+    """Leaf bones (no children) whose tail is an importer's guess, not the file's: shorter than
+    `short` metres (an End Site at zero offset kept a millimetre long), or the exact copy of the
+    parent bone's vector, direction and length within `tolerance` of it (Blender's BVH importer
+    gives a zero-length bone its parent's vector). (J,) bool."""
+    sk = skeleton
+    y = np.array([0.0, 1.0, 0.0])
+    vec = sk.rest[:, :3, :3] @ y * np.asarray(sk.lengths, float)[:, None]
+    out = np.zeros(sk.joint_count, bool)
+    has_child = np.zeros(sk.joint_count, bool)
+    has_child[sk.parents[sk.parents >= 0]] = True
+    for j in np.flatnonzero(~has_child & (sk.parents >= 0)):
+        p = sk.parents[j]
+        copy = sk.lengths[p] > short and np.linalg.norm(vec[j] - vec[p]) <= tolerance * sk.lengths[p]
+        out[j] = sk.lengths[j] < short or copy
+    return out
+
+
+def lump_made_up_tails(skeleton):
+    """The skeleton with every made-up-tail leaf (made_up_tails) lumped into its parent: its
+    mass a point at its head added to the parent's segment (mass, centre of mass and inertia by
+    the parallel axis theorem), its own mass and length zero. It then follows the source motion
+    (a kinematic bone of build_model) and has no contact points of its own (the parent's carry
+    the body), so that no segment, lever or sole point rests on a tail the file never gave."""
+    lumped = made_up_tails(skeleton)
+    lumped &= skeleton.mass > 0.0
+    if not lumped.any():
+        return skeleton
+    sk = skeleton
+    mass, com, inertia = sk.mass.copy(), sk.com.copy(), sk.inertia.copy()
+    lengths = np.asarray(sk.lengths, float).copy()
+    for j in np.flatnonzero(lumped):
+        p = sk.parents[j]
+        head = (np.linalg.inv(sk.rest[p]) @ sk.rest[j])[:3, 3]  # the leaf's head in the parent frame
+        m_p, m_j = mass[p], mass[j]
+        c = (m_p * com[p] + m_j * head) / (m_p + m_j)
+        d_p, d_j = com[p] - c, head - c
+        inertia[p] = (inertia[p] + m_p * (d_p @ d_p * np.eye(3) - np.outer(d_p, d_p))
+                      + m_j * (d_j @ d_j * np.eye(3) - np.outer(d_j, d_j)))
+        mass[p], com[p] = m_p + m_j, c
+        mass[j], com[j], inertia[j], lengths[j] = 0.0, 0.0, 0.0, 0.0
+    return replace(sk, mass=mass, com=com, inertia=inertia, lengths=lengths)
 
 
 def step_explicit(model, data, q, v, servo, dt, st, contacts, push, passive, forward=aba):

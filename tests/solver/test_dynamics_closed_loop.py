@@ -121,3 +121,37 @@ def test_pd_servo_and_ground_settings(tracked):
                                     ground=GroundModel(height=-0.01)))
     rot, root = errors(sk, res, tr)
     assert rot.max() < 0.4 and root.max() < 0.02
+
+
+def test_a_made_up_tail_is_lumped_into_its_parent():
+    """A leaf whose tail the file never gave (Blender copies the parent's vector onto an End Site
+    at zero offset, or leaves it a millimetre) has no segment of its own: its mass goes to its
+    head in the parent, it carries no contact point, and the body keeps its mass; a leaf of its
+    own length (the figure's hands, feet and head) is kept."""
+    from dataclasses import replace
+    from humananim.solver.dynamics.closed_loop import lump_made_up_tails, made_up_tails
+    sk = oshita_figure()
+    assert not made_up_tails(sk).any()
+    assert lump_made_up_tails(sk) is sk
+    hand, forearm = sk.index("hand.L"), sk.index("forearm.L")
+    rest, lengths = sk.rest.copy(), np.asarray(sk.lengths, float).copy()
+    rest[hand, :3, :3] = rest[forearm, :3, :3]  # the forearm's vector from the wrist
+    lengths[hand] = lengths[forearm]
+    copied = replace(sk, rest=rest, lengths=lengths)
+    short = replace(sk, lengths=np.where(np.arange(sk.joint_count) == sk.index("hand.R"), 1e-3, lengths))
+    assert np.flatnonzero(made_up_tails(copied)).tolist() == [hand]
+    assert np.flatnonzero(made_up_tails(short)).tolist() == [sk.index("hand.R")]
+    lumped = lump_made_up_tails(copied)
+    assert lumped.mass[hand] == 0.0 and lumped.lengths[hand] == 0.0
+    assert lumped.mass.sum() == pytest.approx(sk.mass.sum())
+    assert lumped.mass[forearm] == pytest.approx(sk.mass[forearm] + sk.mass[hand])
+    # the lumped centre of mass lies between the forearm's and the wrist (the hand's head)
+    wrist_y = (np.linalg.inv(rest[forearm]) @ rest[hand])[1, 3]
+    assert sk.com[forearm][1] < lumped.com[forearm][1] < wrist_y
+    model = build_model(lumped)
+    assert model.joint_kind[hand] == "kinematic"
+    contacts = default_contacts(model)
+    assert hand not in contacts.joints.tolist()
+    sk2, tr = motion(0.3)
+    result = simulate(copied, tr)
+    assert np.all(np.isfinite(result.trajectories.rotations))
