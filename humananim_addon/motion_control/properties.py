@@ -21,7 +21,8 @@ class HumanAnimControl(LoadsAndPushes, bpy.types.PropertyGroup):
     impulses, a collider, the control's steps."""
 
     load_frame: IntProperty(name="Load From", default=0,
-                            description="Frame the loads are picked up at; 0: from the start")
+                            description="Frame the loads are picked up at (their weight taken up over 0.25 s); "
+                                        "0: from the start")
     impulses: CollectionProperty(type=HumanAnimImpulse)
     impulse_index: IntProperty()
     collider: PointerProperty(name="Collide With", type=bpy.types.Object,

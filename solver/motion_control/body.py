@@ -90,7 +90,9 @@ def capsules(contacts):
 
 
 class LoadedBodies:
-    """The ControlBody of each set of active loads (a load starts at its start_time), made once."""
+    """The ControlBody of each set of active loads, made once: a load acts from its start_time,
+    its mass rising to the whole over ControlSettings.grip_time in grip_steps steps (a key is the
+    tuple of each load's share of its mass)."""
 
     def __init__(self, skeleton, settings, reference_basis, q0, kinematic_mass):
         self.skeleton, self.settings = skeleton, settings
@@ -98,11 +100,23 @@ class LoadedBodies:
         self.bodies = {}
 
     def active(self, t):
-        """Which loads act at time t (a tuple of bools)."""
-        return tuple(t >= l.start_time - 1e-9 for l in self.settings.loads)
+        """The share of each load's mass acting at time t (a tuple of floats in [0, 1]): 0 before
+        its start_time, then rising in grip_steps equal steps to 1 at start_time + grip_time."""
+        st = self.settings
+        steps = max(1, int(st.grip_steps))
+        shares = []
+        for l in st.loads:
+            if t < l.start_time - 1e-9:
+                shares.append(0.0)
+            elif st.grip_time <= 0.0:
+                shares.append(1.0)
+            else:
+                rise = (t - l.start_time) / st.grip_time
+                shares.append(min(1.0, (np.floor(rise * steps + 1e-9) + 1.0) / steps))
+        return tuple(shares)
 
     def unloaded(self):
-        return self.get(tuple(False for _ in self.settings.loads))
+        return self.get(tuple(0.0 for _ in self.settings.loads))
 
     def at(self, t):
         return self.get(self.active(t))
@@ -111,9 +125,9 @@ class LoadedBodies:
         if active not in self.bodies:
             st = self.settings
             loads = {}
-            for l, on in zip(st.loads, active):
-                if on:
-                    loads[l.bone] = loads.get(l.bone, 0.0) + float(l.mass)
+            for l, share in zip(st.loads, active):
+                if share > 0.0:
+                    loads[l.bone] = loads.get(l.bone, 0.0) + share * float(l.mass)
             m = build_model(self.skeleton, reference_basis=self.reference_basis, loads=loads, gravity=st.gravity,
                             kinematic_mass=self.kinematic_mass)
             if self.bodies:

@@ -12,7 +12,8 @@ from .comfort_control import Settings as CriteriaSettings
 @dataclass
 class Load:
     """`mass` kg carried at the centre of mass of bone `bone` (dynamics.model.build_model) from
-    `start_time` (seconds from the clip's start)."""
+    `start_time` (seconds from the clip's start); its weight is taken up over
+    ControlSettings.grip_time from then."""
 
     bone: str
     mass: float
@@ -50,6 +51,12 @@ class ControlSettings:
     gravity: tuple = (0.0, 0.0, -9.81)
     ground_height: float = None  # None: the input's floor (contacts.contact_floor)
     loads: tuple = ()  # Load
+    # s over which a load's mass rises from 0 to its whole from its start_time, in grip_steps equal
+    # steps, as a hand takes up a weight it grips: a load of full weight at one frame, with the arm
+    # moving as captured unloaded, over-stressed the clavicles and made them give way (3 kg per hand
+    # on Bandai Namco's bow: the shoulder turned 9.5 deg in one frame where the capture has 1.4)
+    grip_time: float = 0.25
+    grip_steps: int = 8
     impulses: tuple = ()  # Impulse
     colliders: tuple = ()  # Collider
     strength_scale: float = 1.0
