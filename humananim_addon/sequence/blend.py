@@ -85,7 +85,14 @@ def blend(obj, scene, action_a, action_b, start, window=0, method="MULTIRESOLUTI
     out.finish()
     w = multiresolution_blend.blend_weights(len(fa), s, len(fb), transition)
     moving = np.flatnonzero((w > 0.0) & (w < 1.0))
-    held = _hold_feet(obj, scene, out, layout, frames, (w > 0.0) & (w < 1.0), (action_a, fa), (action_b, fb), s)
+    # the frames the blend changes: the transition and, either side, as far as the pyramid's
+    # coarsest band reaches (two of its samples, 2^levels frames apart)
+    near = np.zeros(len(w), bool)
+    if len(moving):
+        top = levels or int(np.ceil(np.log2(len(moving) + 2)))
+        spread = 2 * 2 ** top if how == "multiresolution" else 0
+        near[max(0, moving[0] - spread):moving[-1] + spread + 1] = True
+    held = _hold_feet(obj, scene, out, layout, frames, near)
     summary = _base_summary(obj, action_a, Selection(action_a, groups_a, sel.note, sel.others), out)
     summary.update(command="blend", action_b=action_b.name, start=float(fa[0] + s), method=how, mask=mask.lower(),
                    frames=[float(frames[0]), float(frames[-1])],
@@ -96,11 +103,10 @@ def blend(obj, scene, action_a, action_b, start, window=0, method="MULTIRESOLUTI
     return summary
 
 
-def _hold_feet(obj, scene, out, layout, frames, transition, input_a, input_b, start):
+def _hold_feet(obj, scene, out, layout, frames, transition):
     """The planted feet held through the transition (solver.sequence.planted_feet) and the legs'
-    channels of the result rewritten: where the result or both inputs plant a foot. Only when the
+    channels of the result rewritten, on the contacts of the result. Only when the
     blend covered every bone the legs' IK moves (else None, nothing changed)."""
-    from ...solver.cleanup import feet
     from ..actions import bone_path, read_action, rotation_channels
     from ..armature import skeleton_from_armature
     if obj.type != "ARMATURE" or not transition.any():
@@ -112,19 +118,9 @@ def _hold_feet(obj, scene, out, layout, frames, transition, input_a, input_b, st
     traj = read_action(obj, scene, skeleton, out.action, frame_range=span)
     if len(traj.frames) != len(frames):
         return None
-    both = {}
-    (action_a, fa), (action_b, fb) = input_a, input_b
-    ta = read_action(obj, scene, skeleton, action_a, frame_range=(float(fa[0]), float(fa[-1])))
-    tb = read_action(obj, scene, skeleton, action_b, frame_range=(float(fb[0]), float(fb[-1])))
-    if len(ta.frames) == len(fa) and len(tb.frames) == len(fb):
-        pa = feet.planted_points(feet.foot_points(skeleton, ta.world_frames(skeleton)), ta.fps)
-        pb = feet.planted_points(feet.foot_points(skeleton, tb.world_frames(skeleton)), tb.fps)
-        for side in pa.keys() & pb.keys():
-            d = np.zeros((len(frames),) + pa[side].shape[1:], bool)
-            lo, hi = start, min(len(fa), start + len(fb))
-            d[lo:hi] = pa[side][lo:hi] & pb[side][:hi - lo]
-            both[side] = d & transition[:, None]
-    held, report = planted_feet.hold_planted_feet(skeleton, traj, transition, both)
+    # contacts found on the result (low and slow in it); where the inputs plant a foot in
+    # different places the blend carries it fast, not planted, and it is left as blended
+    held, report = planted_feet.hold_planted_feet(skeleton, traj, transition)
     paths = {g.data_path for g in layout}
     changed = [j for j in range(len(skeleton.names))
                if not np.allclose(np.abs(np.einsum("fi,fi->f", held.rotations[:, j], traj.rotations[:, j])), 1.0,

@@ -8,6 +8,7 @@ are left as blended. Any skeleton whose feet the body roles name (foot, toe)."""
 import numpy as np
 
 from ..cleanup import feet
+from ..qa import thresholds as T
 
 
 def _near(mask, frames):
@@ -76,8 +77,44 @@ def hold_planted_feet(skeleton, traj, transition, planted_inputs=None, floor=Non
     weight = _near(region, ramp)
     for side, d in offsets.items():
         d[:, :4] *= weight[:, None]  # the rest of the clip stays as blended
+    report["released"] = []
+    while True:
+        held, moved = feet.move_feet(skeleton, traj, offsets)
+        held, _ = feet.pin_toes(skeleton, held, floor, kept)
+        # a hold the legs can only follow with a turn faster than the blended motion's own
+        # (a foot held far from where the blend puts it, let go at a run's toe off) is released
+        pops = _pops(traj.rotations, held.rotations, fps)
+        popping = [s for s in offsets if pops[_leg_joints(skeleton, s)].any()]
+        if not popping:
+            break
+        side = popping[0]
+        report["released"].append(side)
+        offsets[side][:, :4] = 0.0
+        kept[side][:] = False
+        report["held"][side] = []
+    for side, d in offsets.items():
         report["largest_correction_cm"][side] = round(float(100 * np.linalg.norm(d[:, :3], axis=1).max()), 2)
-    traj, moved = feet.move_feet(skeleton, traj, offsets)
     report["pelvis_lowered_cm"] = round(float(100 * moved["pelvis_drop"].max()), 2)
-    traj, _ = feet.pin_toes(skeleton, traj, floor, kept)
-    return traj, report
+    return held, report
+
+
+def _speeds(q):
+    """(F - 1, J) rotation of each joint between frames (deg)."""
+    dot = np.abs(np.einsum("fji,fji->fj", q[1:], q[:-1]))
+    return np.degrees(2.0 * np.arccos(np.clip(dot, 0.0, 1.0)))
+
+
+def _pops(before, after, fps):
+    """(J,) bool: a joint turns faster between frames, or changes its rate more, in `after` than
+    anywhere in `before`, past the motion QA's pop allowance (solver.qa.thresholds)."""
+    out = np.zeros(before.shape[1], bool)
+    for fn, margin in ((_speeds, T.POP_VELOCITY_MARGIN_DEG_S / fps),
+                       (lambda q: np.abs(np.diff(_speeds(q), axis=0)), T.POP_ACCELERATION_MARGIN_DEG_S2 / fps ** 2)):
+        a, b = fn(before), fn(after)
+        if len(a):
+            out |= b.max(axis=0) > T.POP_RATIO * a.max(axis=0) + margin
+    return out
+
+
+def _leg_joints(skeleton, side):
+    return [j for j in (skeleton.role_index(f"{r}.{side}") for r in ("thigh", "shin", "foot", "toe")) if j is not None]
