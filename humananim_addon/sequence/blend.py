@@ -85,13 +85,11 @@ def blend(obj, scene, action_a, action_b, start, window=0, method="MULTIRESOLUTI
     out.finish()
     w = multiresolution_blend.blend_weights(len(fa), s, len(fb), transition)
     moving = np.flatnonzero((w > 0.0) & (w < 1.0))
-    # the frames the blend changes: the transition and, either side, as far as the pyramid's
-    # coarsest band reaches (two of its samples, 2^levels frames apart)
-    near = np.zeros(len(w), bool)
-    if len(moving):
-        top = levels or int(np.ceil(np.log2(len(moving) + 2)))
-        spread = 2 * 2 ** top if how == "multiresolution" else 0
-        near[max(0, moving[0] - spread):moving[-1] + spread + 1] = True
+    # the frames the blend changes: where B's weight in the result (the blend of a channel that
+    # is 0 in A and 1 in B: the pyramid's coarse bands spread the window) is neither 0 nor 1
+    share = (multiresolution_blend.multiresolution_blend if how == "multiresolution"
+             else multiresolution_blend.weighted_sum_blend)(np.zeros((len(fa), 1)), np.ones((len(fb), 1)), s, **kw)[:, 0]
+    near = (share > 1e-3) & (share < 1.0 - 1e-3)
     held = _hold_feet(obj, scene, out, layout, frames, near)
     summary = _base_summary(obj, action_a, Selection(action_a, groups_a, sel.note, sel.others), out)
     summary.update(command="blend", action_b=action_b.name, start=float(fa[0] + s), method=how, mask=mask.lower(),

@@ -41,7 +41,8 @@ def hold_planted_feet(skeleton, traj, transition, planted_inputs=None, floor=Non
     """Trajectories with the feet held through `transition` ((F,) bool: the frames the blend
     changes). Contacts: the foot points planted on the result (feet.planted_points) or, where
     given, on both inputs at once (`planted_inputs`, {side: (F, k) bool} on the result's
-    frames); only contacts overlapping the transition are held. `floor`: a height (m, world Z) or
+    frames); only contacts overlapping the transition are held, from the transition's first
+    frame at the earliest (before it the motion is the first input's, left as it is). `floor`: a height (m, world Z) or
     None for the floor found under the result's contacts (feet.find_floor). Returns
     (trajectories, report: {"held": {side: [[first, last] frame]}, "largest_correction_cm",
     "pelvis_lowered_cm", "floor_m"})."""
@@ -59,12 +60,13 @@ def hold_planted_feet(skeleton, traj, transition, planted_inputs=None, floor=Non
         floor = feet.find_floor(points, {s: d.any(axis=1) for s, d in planted.items()})
     report["floor_m"] = float(floor)
     kept, region = {}, transition.copy()
+    first = int(np.argmax(transition))
     for side, down in planted.items():
         keep = np.zeros_like(down)
         for i in range(down.shape[1]):
             for a, b in feet.contact_runs(down[:, i]):
-                if transition[a:b].any():
-                    keep[a:b, i] = True
+                if transition[a:b].any():  # held from where the blend starts to change it
+                    keep[max(a, first):b, i] = True
         kept[side] = keep
         on = keep.any(axis=1)
         region |= on
@@ -92,10 +94,26 @@ def hold_planted_feet(skeleton, traj, transition, planted_inputs=None, floor=Non
         offsets[side][:, :4] = 0.0
         kept[side][:] = False
         report["held"][side] = []
+    # the pelvis is lowered over a longer ease (feet.pelvis_drop) than the hold: away from the
+    # frames held, eased back to the motion as blended so the rest of the clip is as it was
+    held = _eased_back(traj, held, _near(region, 2 * ramp))
     for side, d in offsets.items():
         report["largest_correction_cm"][side] = round(float(100 * np.linalg.norm(d[:, :3], axis=1).max()), 2)
     report["pelvis_lowered_cm"] = round(float(100 * moved["pelvis_drop"].max()), 2)
     return held, report
+
+
+def _eased_back(original, changed, g):
+    """`changed` where g (F,) is 1, `original` where it is 0, the rotations' and translations'
+    sum weighted between (normalised: the two poses differ by a few degrees at most there)."""
+    from ..trajectories import Trajectories
+    w = g[:, None, None]
+    qa, qb = original.rotations, changed.rotations
+    qb = np.where(np.einsum("fji,fji->fj", qa, qb)[..., None] < 0.0, -qb, qb)
+    q = (1.0 - w) * qa + w * qb
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    t = (1.0 - w) * original.translations + w * changed.translations
+    return Trajectories(changed.frames, changed.fps, q, t, changed.armature_to_world)
 
 
 def _speeds(q):
