@@ -7,7 +7,9 @@ are left as blended. Any skeleton whose feet the body roles name (foot, toe)."""
 
 import numpy as np
 
+from .. import rotations
 from ..cleanup import feet
+from ..dynamics.spatial import quat_log
 from ..qa import thresholds as T
 
 
@@ -60,19 +62,21 @@ def hold_planted_feet(skeleton, traj, transition, planted_inputs=None, floor=Non
         floor = feet.find_floor(points, {s: d.any(axis=1) for s, d in planted.items()})
     report["floor_m"] = float(floor)
     kept, region = {}, transition.copy()
+    ramp = max(1, int(round(feet.RAMP_SECONDS * fps)))
     first = int(np.argmax(transition))
     for side, down in planted.items():
         keep = np.zeros_like(down)
         for i in range(down.shape[1]):
             for a, b in feet.contact_runs(down[:, i]):
-                if transition[a:b].any():  # held from where the blend starts to change it
+                # held from where the blend starts to change it; a hold too short to ease in and
+                # out (its start cut there) is left as blended
+                if transition[a:b].any() and b - max(a, first) >= 2 * ramp:
                     keep[max(a, first):b, i] = True
         kept[side] = keep
         on = keep.any(axis=1)
         region |= on
         report["held"][side] = [[float(traj.frames[a]), float(traj.frames[b - 1])] for a, b in feet.contact_runs(on)]
     offsets = feet.foot_offsets(points, fps, floor=floor, skate=True, planted=kept)
-    ramp = max(1, int(round(feet.RAMP_SECONDS * fps)))
     for side, d in offsets.items():
         if points[side].shape[1] == 1:  # a foot with no toe: its heading is held too
             _hold_heading(d, world[:, skeleton.role_index(f"foot.{side}")], kept[side][:, 0], ramp)
@@ -116,21 +120,21 @@ def _eased_back(original, changed, g):
     return Trajectories(changed.frames, changed.fps, q, t, changed.armature_to_world)
 
 
-def _speeds(q):
-    """(F - 1, J) rotation of each joint between frames (deg)."""
-    dot = np.abs(np.einsum("fji,fji->fj", q[1:], q[:-1]))
-    return np.degrees(2.0 * np.arccos(np.clip(dot, 0.0, 1.0)))
+def _omega(q):
+    """(F - 1, J, 3) rotation vector of each joint between frames (deg)."""
+    step = rotations.multiply(q[:-1] * np.array([1.0, -1.0, -1.0, -1.0]), q[1:])
+    return np.degrees(quat_log(step))
 
 
 def _pops(before, after, fps):
-    """(J,) bool: a joint turns faster between frames, or changes its rate more, in `after` than
+    """(J,) bool: a joint turns faster between frames, or changes that turn more, in `after` than
     anywhere in `before`, past the motion QA's pop allowance (solver.qa.thresholds)."""
     out = np.zeros(before.shape[1], bool)
-    for fn, margin in ((_speeds, T.POP_VELOCITY_MARGIN_DEG_S / fps),
-                       (lambda q: np.abs(np.diff(_speeds(q), axis=0)), T.POP_ACCELERATION_MARGIN_DEG_S2 / fps ** 2)):
-        a, b = fn(before), fn(after)
+    wa, wb = _omega(before), _omega(after)
+    for a, b, margin in ((wa, wb, T.POP_VELOCITY_MARGIN_DEG_S / fps),
+                         (np.diff(wa, axis=0), np.diff(wb, axis=0), T.POP_ACCELERATION_MARGIN_DEG_S2 / fps ** 2)):
         if len(a):
-            out |= b.max(axis=0) > T.POP_RATIO * a.max(axis=0) + margin
+            out |= np.linalg.norm(b, axis=-1).max(axis=0) > T.POP_RATIO * np.linalg.norm(a, axis=-1).max(axis=0) + margin
     return out
 
 
