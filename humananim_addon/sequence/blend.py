@@ -5,12 +5,12 @@ import time
 import numpy as np
 
 from ...solver.errors import MotionError
-from ...solver.sequence import multiresolution_blend
+from ...solver.sequence import multiresolution_blend, planted_feet
 from .. import action_api
 from .channels import (Group, Selection, action_frames, as_quaternions, from_quaternions, groups_of,
                        sample_group, select_channels)
 from .measures import _base_summary, _ms
-from .writing import Output, write_groups
+from .writing import Output, set_samples, write_groups
 
 
 def nla_pair(obj):
@@ -85,12 +85,62 @@ def blend(obj, scene, action_a, action_b, start, window=0, method="MULTIRESOLUTI
     out.finish()
     w = multiresolution_blend.blend_weights(len(fa), s, len(fb), transition)
     moving = np.flatnonzero((w > 0.0) & (w < 1.0))
+    # the frames the blend changes: where B's weight in the result (the blend of a channel that
+    # is 0 in A and 1 in B: the pyramid's coarse bands spread the window) is neither 0 nor 1
+    share = (multiresolution_blend.multiresolution_blend if how == "multiresolution"
+             else multiresolution_blend.weighted_sum_blend)(np.zeros((len(fa), 1)), np.ones((len(fb), 1)), s, **kw)[:, 0]
+    near = (share > 1e-3) & (share < 1.0 - 1e-3)
+    held = _hold_feet(obj, scene, out, layout, frames, near)
     summary = _base_summary(obj, action_a, Selection(action_a, groups_a, sel.note, sel.others), out)
     summary.update(command="blend", action_b=action_b.name, start=float(fa[0] + s), method=how, mask=mask.lower(),
                    frames=[float(frames[0]), float(frames[-1])],
                    transition=[float(fa[0] + moving[0]), float(fa[0] + moving[-1])] if len(moving) else None,
                    ms=_ms(t0))
+    if held is not None:
+        summary["feet"] = held
     return summary
+
+
+def _hold_feet(obj, scene, out, layout, frames, transition):
+    """The planted feet held through the transition (solver.sequence.planted_feet) and the legs'
+    channels of the result rewritten, on the contacts of the result. Only when the
+    blend covered every bone the legs' IK moves (else None, nothing changed)."""
+    from ..actions import bone_path, read_action, rotation_channels
+    from ..armature import skeleton_from_armature
+    if obj.type != "ARMATURE" or not transition.any():
+        return None
+    skeleton = skeleton_from_armature(obj, scene, require=False)
+    if not any(skeleton.role_index(f"foot.{side}") is not None for side in ("L", "R")):
+        return None
+    span = (float(frames[0]), float(frames[-1]))
+    traj = read_action(obj, scene, skeleton, out.action, frame_range=span)
+    if len(traj.frames) != len(frames):
+        return None
+    # contacts found on the result (low and slow in it); where the inputs plant a foot in
+    # different places the blend carries it fast, not planted, and it is left as blended
+    held, report = planted_feet.hold_planted_feet(skeleton, traj, transition)
+    paths = {g.data_path for g in layout}
+    changed = [j for j in range(len(skeleton.names))
+               if not np.allclose(np.abs(np.einsum("fi,fi->f", held.rotations[:, j], traj.rotations[:, j])), 1.0,
+                                  atol=1e-9)]
+    root = skeleton.root
+    lowered = report["pelvis_lowered_cm"] > 0.0
+    if any(bone_path(skeleton.names[j]) + ".rotation_quaternion" not in paths
+           and bone_path(skeleton.names[j]) + ".rotation_euler" not in paths
+           and bone_path(skeleton.names[j]) + ".rotation_axis_angle" not in paths for j in changed):
+        return None  # a leg bone was not blended (channels selected): left as blended
+    for j in changed:
+        bone = skeleton.names[j]
+        prop, values = rotation_channels(held.rotations[:, j], obj.pose.bones[bone].rotation_mode)
+        for i in range(values.shape[1]):
+            set_samples(out.fcurve(f"{bone_path(bone)}.{prop}", i, bone), frames, values[:, i])
+    if lowered and f"{bone_path(skeleton.names[root])}.location" in paths:
+        bone = skeleton.names[root]
+        loc = held.translations[:, root] / skeleton.unit_scale
+        for i in range(3):
+            set_samples(out.fcurve(f"{bone_path(bone)}.location", i, bone), frames, loc[:, i])
+    report["bones"] = [skeleton.names[j] for j in changed]
+    return report
 
 
 def _frames_in(action, frame_range):

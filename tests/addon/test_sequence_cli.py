@@ -59,6 +59,10 @@ def test_blend_two_bvh_clips(tmp_path):
     assert s["action_b"] == "cmu_131_03" and s["start"] == 900.0
     assert s["frames"][0] == 1.0 and s["frames"][1] == 900.0 + 1247.0
     assert 900.0 <= s["transition"][0] < s["transition"][1] <= 920.0
+    # the planted feet are held through the transition: the result's contacts within the QA
+    feet = s["feet"]
+    assert set(feet["held"]) == {"L", "R"} and "released" in feet
+    assert s["qa"]["measures"]["slide"]["passed"] and s["qa"]["measures"]["penetration"]["passed"]
 
 
 @pytest.mark.parametrize("args,needle", [
