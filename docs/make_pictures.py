@@ -513,6 +513,15 @@ class PanelRows:
         target = self if self in self.rows else self.row()
         target.items.append(("label", text, icon))
 
+    def prop(self, data, name, text=None, **_):
+        """A property as Blender draws it in a row: its name, then its value (an enum's item name)."""
+        target = self if self in self.rows else self.row()
+        rna = data.bl_rna.properties[name]
+        value = getattr(data, name)
+        shown = rna.enum_items[value].name if rna.type == "ENUM" else str(value)
+        target.items.append(("label", rna.name if text is None else text, "NONE"))
+        target.items.append(("button", f"{shown} \u25be" if rna.type == "ENUM" else shown, "NONE"))
+
     def operator(self, idname, text="", icon="NONE", **_):
         target = self if self in self.rows else self.row()
         target.items.append(("button", text, icon))
@@ -560,24 +569,45 @@ def picture_qa(work):
     rows = []
     panel = types.SimpleNamespace(layout=PanelRows(rows))
     VIEW3D_PT_humananim_qa.draw(panel, types.SimpleNamespace(active_object=arm))
-    page, (w, h) = panel_html(VIEW3D_PT_humananim_qa.bl_label, rows)
-    html_path, raw = os.path.join(work, "qa.html"), os.path.join(work, "qa-raw.png")
+    shoot_panel(work, "qa", VIEW3D_PT_humananim_qa.bl_label, rows)
+
+
+def shoot_panel(work, name, title, rows, width=500):
+    """The recorded `rows` drawn by panel_html, shot with headless Chromium, saved small as
+    docs/pictures/<name>.png."""
+    page, (w, h) = panel_html(title, rows, width)
+    html_path, raw = os.path.join(work, f"{name}.html"), os.path.join(work, f"{name}-raw.png")
     with open(html_path, "w", encoding="utf-8") as f:
         f.write(page)
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     if chromium is None:
-        raise SystemExit("the QA panel's picture needs chromium (Debian's package, as the batch report's test)")
+        raise SystemExit("a panel's picture needs chromium (Debian's package, as the batch report's test)")
     subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
                     f"--user-data-dir={os.path.join(work, 'chromium')}", f"--screenshot={raw}",
                     f"--window-size={w},{h}", "file://" + html_path],
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=120, check=True)
-    save_small(raw, os.path.join(PICTURES, "qa.png"))
+    save_small(raw, os.path.join(PICTURES, f"{name}.png"))
+
+
+def picture_preferences(work):
+    """HumanAnim's add-on preferences as the add-on's own draw() lays them out, with the add-on
+    enabled in a fresh session (its defaults), drawn like the QA panel (HTML, headless Chromium)."""
+    import addon_utils
+    module = addon_utils.enable("humananim", default_set=True)
+    if module is None:
+        raise SystemExit("could not enable the humananim add-on")
+    prefs = bpy.context.preferences.addons["humananim"].preferences
+    rows = []
+    layout = PanelRows(rows)
+    type(prefs).draw(types.SimpleNamespace(layout=layout, log_level=prefs.log_level, bl_rna=prefs.bl_rna),
+                     bpy.context)
+    shoot_panel(work, "preferences", "HumanAnim (Preferences > Add-ons)", rows)
 
 
 PICTURES_MADE = {"control": picture_control, "skirt": picture_skirt, "grasp": picture_grasp, "walk": picture_walk,
                  "mass_model": picture_mass_model, "simulate": picture_simulate, "sequence": picture_sequence,
                  "flexible": picture_flexible, "synthesis": picture_synthesis, "capture": picture_capture,
-                 "qa": picture_qa}
+                 "qa": picture_qa, "preferences": picture_preferences}
 
 
 def main(argv=None):
