@@ -471,6 +471,65 @@ def picture_capture(work):
 
 
 
+def picture_cleanup(work):
+    """Clean Up Capture on the CMU walk: each toe's lowest point over the frames, the capture (grey)
+    and the cleaned action (blue; left above, right below), height drawn 6 times its scale, the
+    floor (black) and the contacts the clean-up found (orange)."""
+    out = os.path.join(work, "cleanup.blend")
+    summary = command("cleanup", CLIP, "--out", out)
+    scene = open_blend(out)
+    arm = bpy.data.objects[summary["armature"]]
+    source, result = bpy.data.actions[summary["source_action"]], bpy.data.actions[summary["action"]]
+    repairs = {r["repair"]: r for r in summary["report"]["repairs"]}
+    f0, f1 = 1, 600
+    frames = np.arange(f0, f1 + 1, 2)
+    sx, sz = 9.0 / (f1 - f0), 6.0  # metres per frame; the height drawn 6 times
+    ground_m = float(summary["report"].get("ground_m", 0.0))
+    rows = {"L": ("LeftToe", 2.0), "R": ("RightToe", 0.0)}  # each foot's row, lifted by its offset
+    lows = {}
+    ad = arm.animation_data
+    for act in (source, result):
+        ad.action = act
+        if hasattr(ad, "action_slot") and act.slots:
+            ad.action_slot = act.slots[0]
+        for side, (bone, _) in rows.items():
+            pb = arm.pose.bones[bone]
+            lows[act.name, side] = []
+        for f in frames:
+            scene.frame_set(int(f))
+            for side, (bone, _) in rows.items():
+                pb = arm.pose.bones[bone]
+                lows[act.name, side].append(min((arm.matrix_world @ pb.head).z, (arm.matrix_world @ pb.tail).z))
+    picture = new_picture()
+    points, labels = [], []
+    def line(values, lift, y):
+        pts = np.column_stack((frames * sx, np.full(len(frames), y), (np.asarray(values) - ground_m) * sz + lift))
+        return np.stack((pts[:-1], pts[1:]), axis=1)
+    for side, (bone, lift) in rows.items():
+        before = line(lows[source.name, side], lift, 0.0)
+        tube_object(picture, f"capture {side}", before, GHOST, 0.03)
+        tube_object(picture, f"clean {side}", line(lows[result.name, side], lift, -0.2), CLOTH, 0.015)
+        floor = np.array([[[f0 * sx, -0.3, lift], [f1 * sx, -0.3, lift]]])
+        tube_object(picture, f"floor {side}", floor, INK, 0.006)
+        for a, b in repairs["skate"]["contacts"][side]:
+            a, b = max(a, f0), min(b, f1)
+            if a < b:
+                tube_object(picture, f"contact {side} {a}", np.array([[[a * sx, -0.4, lift - 0.12],
+                                                                         [b * sx, -0.4, lift - 0.12]]]), PROP, 0.025)
+        points += [before.reshape(-1, 3), floor.reshape(-1, 3)]
+        labels.append((f"{bone}", (f0 * sx - 0.55, 0.0, lift + 0.3)))
+    labels.append((f"frame {f0}", (f0 * sx, 0.0, -0.35)))
+    labels.append((f"frame {f1}", (f1 * sx, 0.0, -0.35)))
+    lowest = [0.0 + round(100 * (min(min(lows[a.name, side]) for side in rows) - ground_m), 1) for a in (source, result)]
+    labels.append((f"lowest toe point {lowest[0]:+.1f} cm in the capture, {lowest[1]:+.1f} cm cleaned",
+                   ((f0 + f1) / 2 * sx, 0.0, -0.35)))
+    render(picture, np.vstack(points + [np.array([p for _, p in labels])]), os.path.join(PICTURES, "cleanup.png"),
+           (0.0, 1.0, 0.0),
+           title=f"Clean Up Capture, CMU 131_01: toe heights x{sz:.0f}, capture grey, cleaned blue, "
+                 "contacts found orange",
+           labels=labels)
+
+
 def _evenly_along(scene, arm, start, end, count):
     """`count` frames at equal distances along the root's way (standing still counts once)."""
     sampled = np.arange(start, end + 1, 5)
@@ -607,7 +666,8 @@ def picture_preferences(work):
 PICTURES_MADE = {"control": picture_control, "skirt": picture_skirt, "grasp": picture_grasp, "walk": picture_walk,
                  "mass_model": picture_mass_model, "simulate": picture_simulate, "sequence": picture_sequence,
                  "flexible": picture_flexible, "synthesis": picture_synthesis, "capture": picture_capture,
-                 "qa": picture_qa, "preferences": picture_preferences}
+                 "qa": picture_qa, "preferences": picture_preferences,
+                 "cleanup": picture_cleanup}
 
 
 def main(argv=None):
