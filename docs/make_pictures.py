@@ -530,6 +530,39 @@ def picture_cleanup(work):
            labels=labels)
 
 
+def picture_retarget(work):
+    """Retarget Motion: the CMU walk (grey, the source as imported) put on the tests' procedural
+    control rig 'Puppet' (dark: its deform bones as the rig evaluates its keyed controls), side by
+    side at five frames."""
+    sys.path.insert(0, os.path.join(HERE, "..", "tests", "addon"))
+    from control_rig import build_control_rig
+    with contextlib.redirect_stdout(io.StringIO()):
+        bpy.ops.wm.read_homefile(use_empty=True)
+    build_control_rig()
+    scene_path, out = os.path.join(work, "rig.blend"), os.path.join(work, "retarget.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=scene_path)
+    f0, f1 = 1, 240
+    summary = command("retarget", CLIP, "--to", scene_path, "--armature", "Puppet", "--frames", str(f0), str(f1),
+                      "--out", out)
+    scene = open_blend(out)
+    source, target = bpy.data.objects[summary["source"]], bpy.data.objects[summary["armature"]]
+    frames = np.linspace(f0, f1, 5).round().astype(int)
+    picture = new_picture()
+    points, labels = [], []
+    for k, frame in enumerate(frames):
+        scene.frame_set(int(frame))
+        for arm, colour, x in ((source, GHOST, 2.0 * k), (target, BONES, 2.0 * k + 0.8)):
+            root = np.array(arm.matrix_world @ next(pb for pb in arm.pose.bones if pb.bone.use_deform).head)
+            pts = snapshot(picture, scene, frame, np.array([x - root[0], -root[1], 0.0]), sticks=[(arm, colour, ())])
+            points.append(pts)
+        labels.append((f"frame {frame}", (2.0 * k + 0.4, 0.0, float(pts[:, 2].min()) - 0.12)))
+    points = np.concatenate(points)
+    render(picture, np.vstack([points, [p for _, p in labels]]), os.path.join(PICTURES, "retarget.png"),
+           (0.6, 1.0, -0.1), labels=labels,
+           title=f"Retarget Motion: the CMU walk (grey) on a procedural control rig (dark), "
+                 f"{summary['roles_mapped']} roles, {summary['controls_keyed']} controls keyed")
+
+
 def _evenly_along(scene, arm, start, end, count):
     """`count` frames at equal distances along the root's way (standing still counts once)."""
     sampled = np.arange(start, end + 1, 5)
@@ -667,7 +700,7 @@ PICTURES_MADE = {"control": picture_control, "skirt": picture_skirt, "grasp": pi
                  "mass_model": picture_mass_model, "simulate": picture_simulate, "sequence": picture_sequence,
                  "flexible": picture_flexible, "synthesis": picture_synthesis, "capture": picture_capture,
                  "qa": picture_qa, "preferences": picture_preferences,
-                 "cleanup": picture_cleanup}
+                 "cleanup": picture_cleanup, "retarget": picture_retarget}
 
 
 def main(argv=None):
