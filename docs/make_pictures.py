@@ -4,12 +4,13 @@
     .venv/bpy50/bin/python docs/make_pictures.py grasp walk  # only these
 
 Each picture runs the batch command a user would (`python -m humananim demo`, `grasp`, `walk`,
-`simulate`, `compress`), opens the .blend it wrote and renders the result with Workbench in a
+`simulate`, `compress`, `cleanup`, `retarget`), opens the .blend it wrote and renders the result with Workbench in a
 temporary scene (the bpy module renders headless with Workbench only): armatures as sticks
 along their deform bones, meshes (capsule bodies, garments, props) as Blender evaluates them at
 each frame. The dynamic-control picture is the demo's own (humananim_addon/motion_control/overlay.py).
 The Motion QA panel's picture is the rows its draw() lays out for a real `control` run, drawn as
-HTML in the sidebar's colours and shot with headless Chromium (not a screenshot of Blender).
+HTML in the sidebar's colours and shot with headless Chromium (not a screenshot of Blender); the
+add-on preferences' picture is their own draw() drawn the same way.
 Pictures are posterised before saving so each stays small enough to check in (< 150 KB)."""
 
 import argparse
