@@ -493,8 +493,7 @@ def picture_cleanup(work):
         ad.action = act
         if hasattr(ad, "action_slot") and act.slots:
             ad.action_slot = act.slots[0]
-        for side, (bone, _) in rows.items():
-            pb = arm.pose.bones[bone]
+        for side in rows:
             lows[act.name, side] = []
         for f in frames:
             scene.frame_set(int(f))
