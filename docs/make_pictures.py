@@ -4,12 +4,13 @@
     .venv/bpy50/bin/python docs/make_pictures.py grasp walk  # only these
 
 Each picture runs the batch command a user would (`python -m humananim demo`, `grasp`, `walk`,
-`simulate`, `compress`), opens the .blend it wrote and renders the result with Workbench in a
+`simulate`, `compress`, `cleanup`, `retarget`), opens the .blend it wrote and renders the result with Workbench in a
 temporary scene (the bpy module renders headless with Workbench only): armatures as sticks
 along their deform bones, meshes (capsule bodies, garments, props) as Blender evaluates them at
 each frame. The dynamic-control picture is the demo's own (humananim_addon/motion_control/overlay.py).
 The Motion QA panel's picture is the rows its draw() lays out for a real `control` run, drawn as
-HTML in the sidebar's colours and shot with headless Chromium (not a screenshot of Blender).
+HTML in the sidebar's colours and shot with headless Chromium (not a screenshot of Blender); the
+add-on preferences' picture is their own draw() drawn the same way.
 Pictures are posterised before saving so each stays small enough to check in (< 150 KB)."""
 
 import argparse
@@ -471,6 +472,97 @@ def picture_capture(work):
 
 
 
+def picture_cleanup(work):
+    """Clean Up Capture on the CMU walk: each toe's lowest point over the frames, the capture (grey)
+    and the cleaned action (blue; left above, right below), height drawn 6 times its scale, the
+    floor (black) and the contacts the clean-up found (orange)."""
+    out = os.path.join(work, "cleanup.blend")
+    summary = command("cleanup", CLIP, "--out", out)
+    scene = open_blend(out)
+    arm = bpy.data.objects[summary["armature"]]
+    source, result = bpy.data.actions[summary["source_action"]], bpy.data.actions[summary["action"]]
+    repairs = {r["repair"]: r for r in summary["report"]["repairs"]}
+    f0, f1 = 1, 600
+    frames = np.arange(f0, f1 + 1, 2)
+    sx, sz = 9.0 / (f1 - f0), 6.0  # metres per frame; the height drawn 6 times
+    ground_m = float(summary["report"].get("ground_m", 0.0))
+    rows = {"L": ("LeftToe", 2.0), "R": ("RightToe", 0.0)}  # each foot's row, lifted by its offset
+    lows = {}
+    ad = arm.animation_data
+    for act in (source, result):
+        ad.action = act
+        if hasattr(ad, "action_slot") and act.slots:
+            ad.action_slot = act.slots[0]
+        for side in rows:
+            lows[act.name, side] = []
+        for f in frames:
+            scene.frame_set(int(f))
+            for side, (bone, _) in rows.items():
+                pb = arm.pose.bones[bone]
+                lows[act.name, side].append(min((arm.matrix_world @ pb.head).z, (arm.matrix_world @ pb.tail).z))
+    picture = new_picture()
+    points, labels = [], []
+    def line(values, lift, y):
+        pts = np.column_stack((frames * sx, np.full(len(frames), y), (np.asarray(values) - ground_m) * sz + lift))
+        return np.stack((pts[:-1], pts[1:]), axis=1)
+    for side, (bone, lift) in rows.items():
+        before = line(lows[source.name, side], lift, 0.0)
+        tube_object(picture, f"capture {side}", before, GHOST, 0.03)
+        tube_object(picture, f"clean {side}", line(lows[result.name, side], lift, -0.2), CLOTH, 0.015)
+        floor = np.array([[[f0 * sx, -0.3, lift], [f1 * sx, -0.3, lift]]])
+        tube_object(picture, f"floor {side}", floor, INK, 0.006)
+        for a, b in repairs["skate"]["contacts"][side]:
+            a, b = max(a, f0), min(b, f1)
+            if a < b:
+                tube_object(picture, f"contact {side} {a}", np.array([[[a * sx, -0.4, lift - 0.12],
+                                                                         [b * sx, -0.4, lift - 0.12]]]), PROP, 0.025)
+        points += [before.reshape(-1, 3), floor.reshape(-1, 3)]
+        labels.append((f"{bone}", (f0 * sx - 0.55, 0.0, lift + 0.3)))
+    labels.append((f"frame {f0}", (f0 * sx, 0.0, -0.35)))
+    labels.append((f"frame {f1}", (f1 * sx, 0.0, -0.35)))
+    lowest = [0.0 + round(100 * (min(min(lows[a.name, side]) for side in rows) - ground_m), 1) for a in (source, result)]
+    labels.append((f"lowest toe point {lowest[0]:+.1f} cm in the capture, {lowest[1]:+.1f} cm cleaned",
+                   ((f0 + f1) / 2 * sx, 0.0, -0.35)))
+    render(picture, np.vstack(points + [np.array([p for _, p in labels])]), os.path.join(PICTURES, "cleanup.png"),
+           (0.0, 1.0, 0.0),
+           title=f"Clean Up Capture, CMU 131_01: toe heights x{sz:.0f}, capture grey, cleaned blue, "
+                 "contacts found orange",
+           labels=labels)
+
+
+def picture_retarget(work):
+    """Retarget Motion: the CMU walk (grey, the source as imported) put on the tests' procedural
+    control rig 'Puppet' (dark: its deform bones as the rig evaluates its keyed controls), side by
+    side at five frames."""
+    sys.path.insert(0, os.path.join(HERE, "..", "tests", "addon"))
+    from control_rig import build_control_rig
+    with contextlib.redirect_stdout(io.StringIO()):
+        bpy.ops.wm.read_homefile(use_empty=True)
+    build_control_rig()
+    scene_path, out = os.path.join(work, "rig.blend"), os.path.join(work, "retarget.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=scene_path)
+    f0, f1 = 1, 240
+    summary = command("retarget", CLIP, "--to", scene_path, "--armature", "Puppet", "--frames", str(f0), str(f1),
+                      "--out", out)
+    scene = open_blend(out)
+    source, target = bpy.data.objects[summary["source"]], bpy.data.objects[summary["armature"]]
+    frames = np.linspace(f0, f1, 5).round().astype(int)
+    picture = new_picture()
+    points, labels = [], []
+    for k, frame in enumerate(frames):
+        scene.frame_set(int(frame))
+        for arm, colour, x in ((source, GHOST, 2.0 * k), (target, BONES, 2.0 * k + 0.8)):
+            root = np.array(arm.matrix_world @ next(pb for pb in arm.pose.bones if pb.bone.use_deform).head)
+            pts = snapshot(picture, scene, frame, np.array([x - root[0], -root[1], 0.0]), sticks=[(arm, colour, ())])
+            points.append(pts)
+        labels.append((f"frame {frame}", (2.0 * k + 0.4, 0.0, float(pts[:, 2].min()) - 0.12)))
+    points = np.concatenate(points)
+    render(picture, np.vstack([points, [p for _, p in labels]]), os.path.join(PICTURES, "retarget.png"),
+           (0.6, 1.0, -0.1), labels=labels,
+           title=f"Retarget Motion: the CMU walk (grey) on a procedural control rig (dark), "
+                 f"{summary['roles_mapped']} roles, {summary['controls_keyed']} controls keyed")
+
+
 def _evenly_along(scene, arm, start, end, count):
     """`count` frames at equal distances along the root's way (standing still counts once)."""
     sampled = np.arange(start, end + 1, 5)
@@ -512,6 +604,15 @@ class PanelRows:
     def label(self, text="", icon="NONE", **_):
         target = self if self in self.rows else self.row()
         target.items.append(("label", text, icon))
+
+    def prop(self, data, name, text=None, **_):
+        """A property as Blender draws it in a row: its name, then its value (an enum's item name)."""
+        target = self if self in self.rows else self.row()
+        rna = data.bl_rna.properties[name]
+        value = getattr(data, name)
+        shown = rna.enum_items[value].name if rna.type == "ENUM" else str(value)
+        target.items.append(("label", rna.name if text is None else text, "NONE"))
+        target.items.append(("button", f"{shown} \u25be" if rna.type == "ENUM" else shown, "NONE"))
 
     def operator(self, idname, text="", icon="NONE", **_):
         target = self if self in self.rows else self.row()
@@ -560,24 +661,46 @@ def picture_qa(work):
     rows = []
     panel = types.SimpleNamespace(layout=PanelRows(rows))
     VIEW3D_PT_humananim_qa.draw(panel, types.SimpleNamespace(active_object=arm))
-    page, (w, h) = panel_html(VIEW3D_PT_humananim_qa.bl_label, rows)
-    html_path, raw = os.path.join(work, "qa.html"), os.path.join(work, "qa-raw.png")
+    shoot_panel(work, "qa", VIEW3D_PT_humananim_qa.bl_label, rows)
+
+
+def shoot_panel(work, name, title, rows, width=500):
+    """The recorded `rows` drawn by panel_html, shot with headless Chromium, saved small as
+    docs/pictures/<name>.png."""
+    page, (w, h) = panel_html(title, rows, width)
+    html_path, raw = os.path.join(work, f"{name}.html"), os.path.join(work, f"{name}-raw.png")
     with open(html_path, "w", encoding="utf-8") as f:
         f.write(page)
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     if chromium is None:
-        raise SystemExit("the QA panel's picture needs chromium (Debian's package, as the batch report's test)")
+        raise SystemExit("a panel's picture needs chromium (Debian's package, as the batch report's test)")
     subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
                     f"--user-data-dir={os.path.join(work, 'chromium')}", f"--screenshot={raw}",
                     f"--window-size={w},{h}", "file://" + html_path],
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=120, check=True)
-    save_small(raw, os.path.join(PICTURES, "qa.png"))
+    save_small(raw, os.path.join(PICTURES, f"{name}.png"))
+
+
+def picture_preferences(work):
+    """HumanAnim's add-on preferences as the add-on's own draw() lays them out, with the add-on
+    enabled in a fresh session (its defaults), drawn like the QA panel (HTML, headless Chromium)."""
+    import addon_utils
+    module = addon_utils.enable("humananim", default_set=True)
+    if module is None:
+        raise SystemExit("could not enable the humananim add-on")
+    prefs = bpy.context.preferences.addons["humananim"].preferences
+    rows = []
+    layout = PanelRows(rows)
+    type(prefs).draw(types.SimpleNamespace(layout=layout, log_level=prefs.log_level, bl_rna=prefs.bl_rna),
+                     bpy.context)
+    shoot_panel(work, "preferences", "HumanAnim (Preferences > Add-ons)", rows)
 
 
 PICTURES_MADE = {"control": picture_control, "skirt": picture_skirt, "grasp": picture_grasp, "walk": picture_walk,
                  "mass_model": picture_mass_model, "simulate": picture_simulate, "sequence": picture_sequence,
                  "flexible": picture_flexible, "synthesis": picture_synthesis, "capture": picture_capture,
-                 "qa": picture_qa}
+                 "qa": picture_qa, "preferences": picture_preferences,
+                 "cleanup": picture_cleanup, "retarget": picture_retarget}
 
 
 def main(argv=None):
