@@ -156,7 +156,9 @@ def test_broken_and_missing_files_are_reported_and_the_others_done(with_broken):
 def test_ctrl_c_keeps_finished_takes_and_the_rerun_does_only_the_rest(tmp_path):
     out = str(tmp_path / "out")
     clips = [bandai(n) for n in SHORT_BANDAI[:6]]
-    args = [*clips, "--pipeline", "info", "--out-dir", out, "--workers", "1", "--no-progress"]
+    # seconds a take, so Ctrl-C lands while takes remain: the longest start first and `info` on the
+    # shortest ones finishes within a poll on a busy machine
+    args = [*clips, "--pipeline", "compress --degrees 1", "--out-dir", out, "--workers", "1", "--no-progress"]
     driver = subprocess.Popen(batch_command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                               env=batch_env(), start_new_session=True)
     try:

@@ -33,8 +33,8 @@ def test_pipeline_syntax_takes_any_registered_command():
 
 def test_steps_are_checked_against_the_command_line(tmp_path):
     f = _bvh(tmp_path, "a.bvh")
-    with pytest.raises(PlanError, match="unknown pipeline step 'retarget'"):
-        plan([f], [Step("retarget", ["--to", "rig.blend"])], PARSER)
+    with pytest.raises(PlanError, match="unknown pipeline step 'teleport'"):
+        plan([f], [Step("teleport", ["--to", "rig.blend"])], PARSER)
     with pytest.raises(PlanError, match="the batch sets --out itself"):
         plan([f], [Step("compress", ["--out", "x.blend"])], PARSER)
     with pytest.raises(PlanError, match=r"pipeline step 'compress --degrees lots': .*lots"):
