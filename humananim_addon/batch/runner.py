@@ -258,8 +258,7 @@ def run_batch(takes, steps, out_dir, python=None, workers=None, scheduler=None, 
 def _run_on(client, todo, out_dir, python, timeout, retries, start, results, progress):
     from dask.distributed import as_completed
     futures = {client.submit(run_take, t.to_dict(), out_dir, python, timeout, retries, start,
-                             key=f"take-{t.name}-{uuid.uuid4().hex[:6]}", pure=False,
-                             priority=take_size(t)): t for t in sorted(todo, key=take_size, reverse=True)}
+                             key=f"take-{t.name}-{uuid.uuid4().hex[:6]}", pure=False): t for t in todo}
     for future in as_completed(futures):
         take = futures[future]
         try:
@@ -271,18 +270,6 @@ def _run_on(client, todo, out_dir, python, timeout, retries, start, results, pro
                       "error": f"{type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}"}
         results[take.name] = take_summary(record)
         progress.take_finished(record["status"] == "done")
-
-
-def take_size(take):
-    """The order takes are given to the scheduler in, and their priority there: the file's size, so
-    the longest takes start first and the batch does not end waiting on one long take that started
-    last (longest-processing-time-first order; a clip's size grows with its frames and bones, which
-    set its work). Submitting in that order matters too: the first takes go to idle workers before
-    the scheduler has seen the later ones' priorities."""
-    try:
-        return os.path.getsize(take.file)
-    except OSError:  # a missing file fails at once, whenever it runs
-        return 0
 
 
 def _clear_stale(out_dir):

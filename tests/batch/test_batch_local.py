@@ -156,9 +156,7 @@ def test_broken_and_missing_files_are_reported_and_the_others_done(with_broken):
 def test_ctrl_c_keeps_finished_takes_and_the_rerun_does_only_the_rest(tmp_path):
     out = str(tmp_path / "out")
     clips = [bandai(n) for n in SHORT_BANDAI[:6]]
-    # seconds a take, so Ctrl-C lands while takes remain: the longest start first and `info` on the
-    # shortest ones finishes within a poll on a busy machine
-    args = [*clips, "--pipeline", "compress --degrees 1", "--out-dir", out, "--workers", "1", "--no-progress"]
+    args = [*clips, "--pipeline", "info", "--out-dir", out, "--workers", "1", "--no-progress"]
     driver = subprocess.Popen(batch_command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                               env=batch_env(), start_new_session=True)
     try:
@@ -217,14 +215,3 @@ PROBE = """<script>window.addEventListener("load", () => {
     errors: rows.map(r => (r.querySelector(".err") || {}).textContent || ""),
     images: [...document.images].map(i => [i.naturalWidth, i.naturalHeight])}));
 });</script>"""
-
-
-def test_the_longest_takes_start_first(tmp_path):
-    """Takes given shortest first start longest first (by file size), so a batch does not end
-    waiting on one long take that started last."""
-    names = ["dash_normal_001", "run_normal_001", "walk-back_normal_001", "byebye_angry_001"]  # growing sizes
-    status, summary, stderr = run_batch(*[bandai(n) for n in names], "--pipeline", "info",
-                                        "--out-dir", str(tmp_path / "out"), "--workers", "1", "--no-progress")
-    assert status == 0, stderr
-    started = [r["name"] for r in sorted(summary["results"], key=lambda r: r["started_at"])]
-    assert started == [f"dataset-1_{n}" for n in reversed(names)]
