@@ -4,6 +4,7 @@
 import bpy
 
 from ..humananim_addon import cleanup
+from .common import draw_button_and_report
 from .rig import HumanAnimPanel
 
 
@@ -11,15 +12,9 @@ class VIEW3D_PT_humananim_cleanup(HumanAnimPanel, bpy.types.Panel):
     bl_label = "Clean Up Capture"
 
     def draw(self, context):
-        layout = self.layout
-        layout.operator("humananim.clean_up_capture")
         report = cleanup.stored(context.active_object)
-        if report is None:
-            layout.label(text="Cleans the active action into a new one", icon="INFO")
-            return
-        col = layout.column(align=True)
-        for line in cleanup.lines(report):
-            col.label(text=line)
+        lines = None if report is None else cleanup.lines(report)
+        draw_button_and_report(self.layout, "humananim.clean_up_capture", lines, "Cleans the active action into a new one")
 
 
 CLASSES = (VIEW3D_PT_humananim_cleanup,)

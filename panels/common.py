@@ -61,3 +61,15 @@ def draw_loads_and_pushes(layout, context, props, options, items, index, what, l
 
 
 CLASSES = (HUMANANIM_UL_forces,)
+
+
+def draw_button_and_report(layout, operator, lines, hint):
+    """A job panel's body: its button, then the last result's report lines (`lines`: None when
+    nothing has run on the active object yet, and `hint` says what the button does)."""
+    layout.operator(operator)
+    if lines is None:
+        layout.label(text=hint, icon="INFO")
+        return
+    col = layout.column(align=True)
+    for line in lines:
+        col.label(text=line)

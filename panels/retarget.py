@@ -4,6 +4,7 @@ leg ratio and the write-back's mismatch per role."""
 import bpy
 
 from ..humananim_addon.retarget import job
+from .common import draw_button_and_report
 from .rig import HumanAnimPanel
 
 
@@ -11,15 +12,9 @@ class VIEW3D_PT_humananim_retarget(HumanAnimPanel, bpy.types.Panel):
     bl_label = "Retarget Motion"
 
     def draw(self, context):
-        layout = self.layout
-        layout.operator("humananim.retarget_motion")
         summary = job.stored(context.active_object)
-        if summary is None:
-            layout.label(text="Select the source, then the target rig", icon="INFO")
-            return
-        col = layout.column(align=True)
-        for line in job.lines(summary):
-            col.label(text=line)
+        lines = None if summary is None else job.lines(summary)
+        draw_button_and_report(self.layout, "humananim.retarget_motion", lines, "Select the source, then the target rig")
 
 
 CLASSES = (VIEW3D_PT_humananim_retarget,)
