@@ -90,8 +90,8 @@ class LimbIK:
 
     def _reference_direction(self):
         """Swivel reference (parent frame): the zero-pose knee direction tipped towards the hip."""
-        upper0 = self._upper_zero(np.eye(4))
-        ankle = self._ankle_in_upper(self.knee_angle_rest())
+        upper0 = self.upper_zero(np.eye(4))
+        ankle = self.ankle_in_upper(self.knee_angle_rest())
         axis = _unit(ankle)
         bend = self._bend_direction(ankle, 0.0)
         return upper0[:3, :3] @ _unit(bend - axis)
@@ -101,14 +101,15 @@ class LimbIK:
 
     # ---- geometry ----
 
-    def _upper_zero(self, parent):
+    def upper_zero(self, parent):
         """World frame of the upper bone at zero rotation, from its parent's world frame."""
         sk, j = self.skeleton, self.upper
         local = sk.rest_local[j].copy()
         local[:3, 3] += sk.rest_local[j][:3, :3] @ self.basis[j][:3, 3]
         return np.asarray(parent, float) @ local
 
-    def _ankle_in_upper(self, phi):
+    def ankle_in_upper(self, phi):
+        """The ankle in the upper bone's frame with the knee bent by `phi` about its hinge."""
         c = self.upper_chain
         return c[:3, 3] + c[:3, :3] @ _rot(self.hinge, phi) @ self.ankle
 
@@ -141,11 +142,11 @@ class LimbIK:
     def solve(self, parent, end_frame, swivel):
         """Local rotations (upper, lower, end) as quaternions and whether the target was reached
         (otherwise the limb is straightened, or folded, towards it)."""
-        upper0 = self._upper_zero(parent)
+        upper0 = self.upper_zero(parent)
         hip = upper0[:3, 3]
         target = np.asarray(end_frame, float)[:3, 3]
         phi, reached = self.knee_angle(np.linalg.norm(target - hip))
-        ankle_u = self._ankle_in_upper(phi)
+        ankle_u = self.ankle_in_upper(phi)
         src = _frame(ankle_u, self._bend_direction(ankle_u, phi))
         axis = target - hip
         dst = _frame(upper0[:3, :3].T @ axis, upper0[:3, :3].T @ self.swivel_direction(parent, axis, swivel))

@@ -324,10 +324,10 @@ def _solve_limbs(sk, out, raw, targets):
             continue
         side, kind = LIMBS[limb]
         ik = LimbIK(sk, side, kind, basis=basis[0], hinge=_bend_axis(sk, side, kind, world, basis[0]))
-        reach = np.linalg.norm(ik._ankle_in_upper(ik.knee_angle(np.inf)[0] + NEAR_STRAIGHT))
+        reach = np.linalg.norm(ik.ankle_in_upper(ik.knee_angle(np.inf)[0] + NEAR_STRAIGHT))
         for f in np.flatnonzero(np.isfinite(tgt[:, 0, 0])):
             parent = ik.parent_frame(world[f])
-            q, _, _ = ik.solve(parent, _within(tgt[f], ik._upper_zero(parent)[:3, 3], reach), ik.swivel(world[f]))
+            q, _, _ = ik.solve(parent, _within(tgt[f], ik.upper_zero(parent)[:3, 3], reach), ik.swivel(world[f]))
             rot[f, [ik.upper, ik.lower, ik.end]] = q
     return Trajectories(raw.frames, raw.fps, rotations.make_continuous(rot), raw.translations,
                         raw.armature_to_world)

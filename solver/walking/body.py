@@ -161,7 +161,7 @@ class WalkerBody:
     def reach(self, side, flexion):
         """Hip-to-ankle distance of the leg with the knee flexed `flexion` radians from straight."""
         ik = self.ik[side]
-        return float(np.linalg.norm(ik._ankle_in_upper(self.straight[side] + flexion)))
+        return float(np.linalg.norm(ik.ankle_in_upper(self.straight[side] + flexion)))
 
     def flexion(self, side, distance):
         """Knee flexion from straight giving a hip-ankle distance."""
