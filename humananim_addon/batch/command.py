@@ -3,8 +3,10 @@ compress --degrees 0.5" --out-dir out/batch [--workers N | --scheduler tcp://HOS
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import threading
 
 from .plan import PlanError, parse_pipeline, plan
 
@@ -53,6 +55,7 @@ def cmd_batch(args):
     if not _has_bpy_module():
         return _in_batch_python(args)
     from .runner import run_batch
+    _listen_for_ctrl_c()
     summary = run_batch(takes, steps, args.out_dir, python=args.python or sys.executable, workers=args.workers,
                         scheduler=args.scheduler, timeout=args.timeout, retries=args.retries, force=args.force,
                         start=args.start, progress_stream=None if args.no_progress else sys.stderr)
@@ -63,6 +66,15 @@ def cmd_batch(args):
     summary["qa"] = batch_qa(summary["results"])
     summary["summary"] = text_summary(summary)
     return summary
+
+
+def _listen_for_ctrl_c():
+    """Ctrl-C and the panel's Stop (SIGINT to the batch's process group) end the run with the
+    finished takes kept. An ignored SIGINT survives exec, so a batch started by a process that
+    ignores it (a shell script's background job, a test runner that ran a take starter) would
+    otherwise run to the end."""
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def batch_qa(results):

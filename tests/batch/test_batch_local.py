@@ -157,8 +157,10 @@ def test_ctrl_c_keeps_finished_takes_and_the_rerun_does_only_the_rest(tmp_path):
     out = str(tmp_path / "out")
     clips = [bandai(n) for n in SHORT_BANDAI[:6]]
     args = [*clips, "--pipeline", "info", "--out-dir", out, "--workers", "1", "--no-progress"]
+    # started as a script's background job would be, with SIGINT ignored (that survives exec)
     driver = subprocess.Popen(batch_command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                              env=batch_env(), start_new_session=True)
+                              env=batch_env(), start_new_session=True,
+                              preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     try:
         wait_for(lambda: (progress(out) or {}).get("done", 0) >= 2, 300, "two finished takes")
         os.killpg(driver.pid, signal.SIGINT)  # Ctrl-C: the terminal signals the whole process group
@@ -166,7 +168,7 @@ def test_ctrl_c_keeps_finished_takes_and_the_rerun_does_only_the_rest(tmp_path):
     finally:
         if driver.poll() is None:
             driver.kill()
-    assert driver.returncode == 2
+    assert driver.returncode == 2, stderr[-2000:]
     last = stderr.strip().splitlines()[-1]
     assert last.startswith("humananim batch: error: interrupted:") and "run the same command again" in last
     finished = _takes(out)
