@@ -161,10 +161,10 @@ def _skate(skeleton, traj, o, report):
                           for s, c in contacts.items()}
     surface = report.get("surface")
     offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=True, planted=planted)
-    traj, moved = feet.move_feet(skeleton, traj, offsets)
-    traj, _ = feet.pin_toes(skeleton, traj, surface, planted)
+    traj, moved = feet.hold_feet(skeleton, traj, offsets, surface, planted)
     slide = {s: float(100 * np.linalg.norm(d[:, :2], axis=1).max()) for s, d in offsets.items()}
     return traj, {"contacts": report["contacts"], "largest_correction_cm": slide,
+                  "toe_lift_cm": {s: round(float(100 * v.max()), 2) for s, v in moved["lift"].items()},
                   "pelvis_lowered_cm": round(float(100 * moved["pelvis_drop"].max()), 2)}
 
 

@@ -370,14 +370,17 @@ def move_feet(skeleton, traj, offsets, tolerance=1e-5):
     return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
 
 
-MAX_TOE_TURN_DEG = 60.0
+MAX_TOE_TURN_DEG = 90.0  # about the toes' own range of extension
 
 
 def pin_toes(skeleton, traj, floor=None, planted=None):
     """Trajectories whose toe tips stay where they landed while they are down (the foot's hold,
     foot_offsets, keeps the ball, or the toe from where the hold passed to it): each toe bone
     turned about its head (the ball) to put its tip back, faded out over RAMP_SECONDS after the
-    contact, by at most MAX_TOE_TURN_DEG. Returns (trajectories, {side: frames moved})."""
+    contact, by at most MAX_TOE_TURN_DEG. Where the held tip would be under the ground (the ball
+    lower than at landing), it is put on the ground as near as it reaches, and moved["lift"][side]
+    (F,) says how far the foot would have to rise to keep the tip where it landed (hold_feet does).
+    Returns (trajectories, {side: frames moved, "lift": {side: (F,) m}})."""
     from ..trajectories import Trajectories
     sk, fps = skeleton, traj.fps
     world = traj.world_frames(sk)
@@ -385,13 +388,14 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
     planted = planted_points(points, fps) if planted is None else planted
     ramp = max(1, int(round(RAMP_SECONDS * fps)))
     quats = traj.rotations.copy()
-    moved = {}
+    moved = {"lift": {}}
     for side, p in points.items():
         toe, foot = sk.role_index(f"toe.{side}"), sk.role_index(f"foot.{side}")
         if toe is None or p.shape[1] < 2 or sk.parents[toe] != foot:
             continue
         F = len(p)
         omega = np.zeros((F, 3))
+        lift = np.zeros(F)
         head = world[:, toe, :3, 3]
         for a, b in contact_runs(planted[side][:, 1]):  # while the tip is down
             now = p[a:b, 1] - head[a:b]
@@ -404,6 +408,7 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
                 tip = head[a:b] + want
                 low = want[:, 2] - heights_above(tip[:, None], floor)[:, 0]  # the tip's lowest offset
                 lifted = want[:, 2] < low
+                lift[a:b][lifted] = low[lifted] - want[lifted, 2]  # how far the foot would have to rise
                 want[lifted, 2] = np.minimum(low[lifted], reach[lifted])
                 side_room = np.sqrt(np.maximum(reach[lifted] ** 2 - want[lifted, 2] ** 2, 0.0))
                 want[lifted, :2] = _unit(want[lifted, :2]) * side_room[:, None]
@@ -413,6 +418,9 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
             end = min(F, b + ramp)
             fade = np.arange(1, end - b + 1) / (ramp + 1)
             omega[b:end] = omega[b - 1] * (1.0 - fade * fade * (3 - 2 * fade))[:, None]  # eased out
+            lift[b:end] = lift[b - 1] * (1.0 - fade * fade * (3 - 2 * fade))
+        if lift.any():
+            moved["lift"][side] = lift
         if floor is not None:  # where a turn (e.g. fading out after the contact) would put the
             # tip under the ground, the turn is cut back as far as needed
             omega = _keep_tip_up(omega, p[:, 1] - head, head, floor)
@@ -426,6 +434,32 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
         moved[side] = frames
     quats = rotations.make_continuous(quats)
     return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
+
+
+LIFT_PASSES = 3
+
+
+def hold_feet(skeleton, traj, offsets, floor=None, planted=None):
+    """Feet moved by offsets (foot_offsets: move_feet) and toe tips held (pin_toes). Where a held
+    toe tip would have to go under the ground (the captured ball sinking while the tip is down),
+    the foot is raised by that much (eased out after the contact) and solved again, so the tip
+    stays where it landed, on the ground, rather than sliding over it. Returns (trajectories,
+    {side: frames moved, "pelvis_drop": (F,) m, "lift": {side: (F,) m}})."""
+    start = traj
+    traj, moved = move_feet(skeleton, start, offsets)
+    traj, toes = pin_toes(skeleton, traj, floor, planted)
+    total = {}
+    for _ in range(LIFT_PASSES):  # the raised foot turns the leg a little: a second look
+        if floor is None or not toes["lift"]:
+            break
+        offsets = {s: d.copy() for s, d in offsets.items()}
+        for side, lift in toes["lift"].items():
+            offsets[side][:, 2] += lift
+            total[side] = total.get(side, 0.0) + lift
+        traj, moved = move_feet(skeleton, start, offsets)
+        traj, toes = pin_toes(skeleton, traj, floor, planted)
+    moved["lift"] = total
+    return traj, moved
 
 
 def _keep_tip_up(omega, tip, head, floor, shares=(1.0, 0.75, 0.5, 0.25, 0.0)):
