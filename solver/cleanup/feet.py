@@ -130,7 +130,23 @@ def _heading(v):
     return np.arctan2(v[..., 1], v[..., 0])
 
 
-def foot_offsets(points, fps, floor=None, skate=True, planted=None):
+def own_level(low, on):
+    """A foot's own level (m) above the floor: the low percentile of its contacts' lowest heights
+    `low` (F,) over the contact frames `on`, where at least three contacts all sit higher (a
+    marker or a sole placed higher), else 0."""
+    lows = [low[a:b].min() for a, b in contact_runs(on)]
+    lows = [x for x in lows if np.isfinite(x)]
+    return max(0.0, float(np.percentile(lows, FLOOR_PERCENTILE))) if len(lows) >= 3 else 0.0
+
+
+def own_levels(points, planted, floor):
+    """{side: own_level} of each foot, its heights taken above a flat `floor` (m): the capture's
+    own floor, so a ground that is not flat under the feet is not taken for a foot placed higher."""
+    return {side: own_level(heights_above(p, floor).min(axis=1), planted[side].any(axis=1))
+            for side, p in points.items()}
+
+
+def foot_offsets(points, fps, floor=None, skate=True, planted=None, levels=None):
     """{side: (F, 7)} how to move each foot: a translation (0:3), a turn about the vertical (3)
     and the point it turns about (4:7). Horizontally (skate): while a point of the foot is
     planted, back to where that point landed (the ball while it is down, else the toe tip, so the
@@ -139,7 +155,9 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
     (or at the foot's own level, the low percentile of its contacts, where that is higher); a
     contact more than HEIGHT_ON above that stands on something else and is left; a contact
     through the floor is lifted whole. No frame's foot goes below the floor. Faded in and out around each contact. `planted`: the contacts
-    (planted_points) when already known, e.g. found before the floor repair flattened them."""
+    (planted_points) when already known, e.g. found before the floor repair flattened them.
+    `levels`: each foot's own level (own_levels) when known, e.g. measured on the capture's flat
+    floor before the body was put on a ground that is not flat; else measured here."""
     ramp = max(1, int(round(RAMP_SECONDS * fps)))
     planted = planted_points(points, fps) if planted is None else planted
     out = {}
@@ -169,9 +187,7 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
             # a foot whose contacts all sit higher than the other's (a marker or a sole placed
             # higher) keeps its own level above the floor rather than being pushed to it
             # (seen over several contacts: a single one that hovers is lowered)
-            lows = [low[a:b].min() for a, b in contact_runs(on)]
-            lows = [x for x in lows if np.isfinite(x)]
-            level = max(0.0, float(np.percentile(lows, FLOOR_PERCENTILE))) if len(lows) >= 3 else 0.0
+            level = own_level(low, on) if levels is None else levels.get(side, 0.0)
             for a, b in contact_runs(on):
                 gap = low[a:b].min() - level
                 # a contact far above the floor stands on something else: left where it is
