@@ -478,9 +478,10 @@ def hold_feet(skeleton, traj, offsets, floor=None, planted=None):
     return traj, moved
 
 
-def _keep_tip_up(omega, tip, head, floor, shares=(1.0, 0.75, 0.5, 0.25, 0.0)):
-    """omega (F, 3) scaled down, frame by frame, to the largest share that keeps the toe tip
-    (head + turned tip) on or above the ground; frames already under it keep their turn."""
+def _keep_tip_up(omega, tip, head, floor, iterations=12):
+    """omega (F, 3) scaled down, frame by frame, to the largest share (found by bisection, so it
+    changes smoothly from frame to frame) that keeps the toe tip (head + turned tip) on or above
+    the ground; frames already under it keep their turn."""
     out = omega.copy()
     angle = np.linalg.norm(omega, axis=1)
     moving = np.flatnonzero(angle > 1e-9)
@@ -490,14 +491,15 @@ def _keep_tip_up(omega, tip, head, floor, shares=(1.0, 0.75, 0.5, 0.25, 0.0)):
         turn = _axis_rotation(_unit(omega[moving]), share * angle[moving])
         moved = head[moving] + np.einsum("fij,fj->fi", turn, tip[moving])
         return heights_above(moved[:, None], floor)[:, 0] >= -1e-4
-    unturned = above(0.0)
-    chosen = np.zeros(len(moving))
-    done = ~unturned  # a tip under the ground without the turn: keep the turn (it lifts)
-    chosen[done] = 1.0
-    for share in shares:
-        ok = ~done & above(share)
-        chosen[ok] = share
-        done |= ok
+    ones = np.ones(len(moving))
+    chosen = ones.copy()  # a tip under the ground without the turn keeps the turn (it lifts)
+    cut = above(0.0 * ones) & ~above(ones)
+    lo, hi = np.zeros(len(moving)), ones.copy()
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        ok = above(mid)
+        lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
+    chosen[cut] = lo[cut]
     out[moving] = omega[moving] * chosen[:, None]
     return out
 
