@@ -13,9 +13,11 @@ glitches repaired first (raw capture has flips of its own). Each clip is corrupt
 each cleaned with only the repair it calls for (seeded per clip):
 
 - glitches: three single-frame rotation flips of 90-180 deg on random bones, a root position
-  spike of 10-30 cm, a held dropout and a zeroed dropout of 2-10 frames each. Per kind: detected
+  spike of 10-30 cm (times a random direction's length / sqrt 3), a held dropout and a zeroed dropout of 2-10 frames each. Per kind: detected
   (an event on that bone covering that frame) and repaired (every joint within 2 deg of the
-  original on those frames, the root within 5 mm); elsewhere, the largest change.
+  original on those frames, the root within 5 mm); elsewhere, the largest change. Per flip and
+  dropout also its oracle bound (oracle_fill_deg): the best of several fills from the frames left,
+  picked per joint knowing the truth; a gap over 2 deg there can't be repaired to 2 deg by them.
 - jitter: 1 deg (per axis, Gaussian) on every joint and 5 mm on the root. The joint angle error
   against the original (RMS and max, deg) and the bone-tail position error (RMS, mm) before and
   after.
