@@ -36,7 +36,6 @@ point below the floor; the clean clip within 0.5 deg RMS.
 import argparse
 import datetime
 import json
-import os
 import sys
 import time
 from pathlib import Path

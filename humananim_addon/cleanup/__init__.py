@@ -1,5 +1,7 @@
-"""Clean Up Capture in Blender (issue 26): the active action (or a file's) read as trajectories,
-repaired by solver.cleanup, written as a NEW action (the source untouched) with the contacts found
+"""Clean Up Capture in Blender (issue 26): the active action (or a file's) read as trajectories
+through the rig layer (on a control rig, the deform bones as Blender evaluates them), repaired by
+solver.cleanup, written as a NEW action (the source untouched; on a control rig, its controls
+keyed) with the contacts found
 as pose markers the Motion Queue reads ("foot.L=supporting" where a foot lands, "foot.L=angular"
 where it lifts), and the repair report stored on the armature for the panel. One home for the
 operator and the command line."""
