@@ -1,5 +1,7 @@
-"""Clean Up Capture in Blender (issue 26): the active action (or a file's) read as trajectories,
-repaired by solver.cleanup, written as a NEW action (the source untouched) with the contacts found
+"""Clean Up Capture in Blender (issue 26): the active action (or a file's) read as trajectories
+through the rig layer (on a control rig, the deform bones as Blender evaluates them), repaired by
+solver.cleanup, written as a NEW action (the source untouched; on a control rig, its controls
+keyed) with the contacts found
 as pose markers the Motion Queue reads ("foot.L=supporting" where a foot lands, "foot.L=angular"
 where it lifts), and the repair report stored on the armature for the panel. One home for the
 operator and the command line."""
@@ -12,8 +14,7 @@ import bpy
 from ...solver.cleanup import Options, clean_up
 from ...solver.errors import MotionError
 from .. import action_api
-from ..actions import read_action, write_action
-from ..armature import skeleton_from_armature
+from ..rig.capability import RigView
 
 PROPERTY = "humananim_cleanup"  # the last clean-up report, JSON, on the armature object
 
@@ -23,24 +24,28 @@ def clean_action(obj, scene, action, options=None, name=None):
     changed and the QA measures before and after)."""
     t0 = time.perf_counter()
     options = options or Options()
-    skeleton = skeleton_from_armature(obj, scene)
-    traj = read_action(obj, scene, skeleton, action)
+    # a control rig: the deform bones as Blender evaluates them, the result keyed on its controls
+    rig = RigView(obj, scene)
+    traj = rig.read(action)
     if traj.frame_count < 3:
         raise MotionError(f"'{action.name}' has {traj.frame_count} frames: cleaning needs at least 3")
-    cleaned, report = clean_up(skeleton, traj, options)
-    result = write_result(obj, skeleton, cleaned, name or f"{action.name}.clean", action)
+    cleaned, report = clean_up(rig.skeleton, traj, options)
+    result = write_result(rig, cleaned, name or f"{action.name}.clean", action)
     markers = write_contact_markers(result, report.get("contacts", {}))
     summary = {"command": "cleanup", "armature": obj.name, "source_action": action.name, "action": result.name,
                "frame_range": [float(traj.frames[0]), float(traj.frames[-1])], "fps": traj.fps,
-               "markers": markers, "report": report, "ms": round(1000 * (time.perf_counter() - t0), 1)}
+               "markers": markers, "report": report, "ms": round(1000 * (time.perf_counter() - t0), 1),
+               **rig.summary()}
     obj[PROPERTY] = json.dumps(report)
     return summary
 
 
-def write_result(obj, skeleton, traj, name, source):
-    """The cleaned motion written back as a NEW action on the deform skeleton: the one place the
-    clean-up writes to Blender, so a rig layer (write-back to a rig's controls) can hook it."""
-    return write_action(obj, skeleton, traj, name, source=source)
+def write_result(rig, traj, name, source):
+    """The cleaned motion written back as a NEW action through the rig layer (rig.capability's
+    RigView): on a plain FK skeleton its bones keyed, on a control rig its controls keyed and
+    Blender's evaluation of the deform bones checked against the cleaned pose (a rig that can't
+    show it is refused, nothing written). The one place the clean-up writes to Blender."""
+    return rig.write(traj, name, "ACTION", source)
 
 
 def ground_from_object(ground_obj, depsgraph=None):

@@ -81,6 +81,7 @@ def clean_up(skeleton, traj, options=None):
         report["repairs"].append(entry)
     report.pop("planted", None)  # arrays: not part of the report
     report.pop("surface", None)
+    report.pop("levels", None)
     return traj, report
 
 
@@ -124,6 +125,9 @@ def _floor(skeleton, traj, o, report):
     report["planted"] = feet.planted_points(points, traj.fps)
     contacts = {s: d.any(axis=1) for s, d in report["planted"].items()}
     found = feet.find_floor(points, contacts)  # world Z of the feet's floor
+    # a foot placed higher (a marker or a sole) is seen on the capture's own flat floor, before
+    # the body is put on a ground whose bumps would look like one
+    report["levels"] = feet.own_levels(points, report["planted"], found)
     surface = ground_surface.as_ground(found if o.ground is None else o.ground)
     # the body follows the ground's rise and fall under the planted feet (constant on a flat
     # floor), then the feet's floor is put on it
@@ -139,7 +143,8 @@ def _floor(skeleton, traj, o, report):
     flat = isinstance(surface, ground_surface.Flat)
     report.update(floor_m=found, ground_m=surface.z if flat else None, surface=surface)
     points = _points(skeleton, traj)
-    offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=False, planted=report["planted"])
+    offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=False, planted=report["planted"],
+                                levels=report["levels"])
     traj, moved = feet.move_feet(skeleton, traj, offsets)
     after = _points(skeleton, traj)
     heights = {s: feet.heights_above(p, surface).min(axis=1) for s, p in after.items()}
@@ -160,11 +165,12 @@ def _skate(skeleton, traj, o, report):
     report["contacts"] = {s: [[float(traj.frames[a]), float(traj.frames[b - 1])] for a, b in feet.contact_runs(c)]
                           for s, c in contacts.items()}
     surface = report.get("surface")
-    offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=True, planted=planted)
-    traj, moved = feet.move_feet(skeleton, traj, offsets)
-    traj, _ = feet.pin_toes(skeleton, traj, surface, planted)
+    offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=True, planted=planted,
+                                levels=report.get("levels"))
+    traj, moved = feet.hold_feet(skeleton, traj, offsets, surface, planted)
     slide = {s: float(100 * np.linalg.norm(d[:, :2], axis=1).max()) for s, d in offsets.items()}
     return traj, {"contacts": report["contacts"], "largest_correction_cm": slide,
+                  "toe_lift_cm": {s: round(float(100 * v.max()), 2) for s, v in moved["lift"].items()},
                   "pelvis_lowered_cm": round(float(100 * moved["pelvis_drop"].max()), 2)}
 
 

@@ -130,7 +130,23 @@ def _heading(v):
     return np.arctan2(v[..., 1], v[..., 0])
 
 
-def foot_offsets(points, fps, floor=None, skate=True, planted=None):
+def own_level(low, on):
+    """A foot's own level (m) above the floor: the low percentile of its contacts' lowest heights
+    `low` (F,) over the contact frames `on`, where at least three contacts all sit higher (a
+    marker or a sole placed higher), else 0."""
+    lows = [low[a:b].min() for a, b in contact_runs(on)]
+    lows = [x for x in lows if np.isfinite(x)]
+    return max(0.0, float(np.percentile(lows, FLOOR_PERCENTILE))) if len(lows) >= 3 else 0.0
+
+
+def own_levels(points, planted, floor):
+    """{side: own_level} of each foot, its heights taken above a flat `floor` (m): the capture's
+    own floor, so a ground that is not flat under the feet is not taken for a foot placed higher."""
+    return {side: own_level(heights_above(p, floor).min(axis=1), planted[side].any(axis=1))
+            for side, p in points.items()}
+
+
+def foot_offsets(points, fps, floor=None, skate=True, planted=None, levels=None):
     """{side: (F, 7)} how to move each foot: a translation (0:3), a turn about the vertical (3)
     and the point it turns about (4:7). Horizontally (skate): while a point of the foot is
     planted, back to where that point landed (the ball while it is down, else the toe tip, so the
@@ -139,7 +155,9 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
     (or at the foot's own level, the low percentile of its contacts, where that is higher); a
     contact more than HEIGHT_ON above that stands on something else and is left; a contact
     through the floor is lifted whole. No frame's foot goes below the floor. Faded in and out around each contact. `planted`: the contacts
-    (planted_points) when already known, e.g. found before the floor repair flattened them."""
+    (planted_points) when already known, e.g. found before the floor repair flattened them.
+    `levels`: each foot's own level (own_levels) when known, e.g. measured on the capture's flat
+    floor before the body was put on a ground that is not flat; else measured here."""
     ramp = max(1, int(round(RAMP_SECONDS * fps)))
     planted = planted_points(points, fps) if planted is None else planted
     out = {}
@@ -169,9 +187,7 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None):
             # a foot whose contacts all sit higher than the other's (a marker or a sole placed
             # higher) keeps its own level above the floor rather than being pushed to it
             # (seen over several contacts: a single one that hovers is lowered)
-            lows = [low[a:b].min() for a, b in contact_runs(on)]
-            lows = [x for x in lows if np.isfinite(x)]
-            level = max(0.0, float(np.percentile(lows, FLOOR_PERCENTILE))) if len(lows) >= 3 else 0.0
+            level = own_level(low, on) if levels is None else levels.get(side, 0.0)
             for a, b in contact_runs(on):
                 gap = low[a:b].min() - level
                 # a contact far above the floor stands on something else: left where it is
@@ -370,14 +386,17 @@ def move_feet(skeleton, traj, offsets, tolerance=1e-5):
     return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
 
 
-MAX_TOE_TURN_DEG = 60.0
+MAX_TOE_TURN_DEG = 90.0  # about the toes' own range of extension
 
 
 def pin_toes(skeleton, traj, floor=None, planted=None):
     """Trajectories whose toe tips stay where they landed while they are down (the foot's hold,
     foot_offsets, keeps the ball, or the toe from where the hold passed to it): each toe bone
     turned about its head (the ball) to put its tip back, faded out over RAMP_SECONDS after the
-    contact, by at most MAX_TOE_TURN_DEG. Returns (trajectories, {side: frames moved})."""
+    contact, by at most MAX_TOE_TURN_DEG. Where the held tip would be under the ground (the ball
+    lower than at landing), it is put on the ground as near as it reaches, and moved["lift"][side]
+    (F,) says how far the foot would have to rise to keep the tip where it landed (hold_feet does).
+    Returns (trajectories, {side: frames moved, "lift": {side: (F,) m}})."""
     from ..trajectories import Trajectories
     sk, fps = skeleton, traj.fps
     world = traj.world_frames(sk)
@@ -385,13 +404,14 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
     planted = planted_points(points, fps) if planted is None else planted
     ramp = max(1, int(round(RAMP_SECONDS * fps)))
     quats = traj.rotations.copy()
-    moved = {}
+    moved = {"lift": {}}
     for side, p in points.items():
         toe, foot = sk.role_index(f"toe.{side}"), sk.role_index(f"foot.{side}")
         if toe is None or p.shape[1] < 2 or sk.parents[toe] != foot:
             continue
         F = len(p)
         omega = np.zeros((F, 3))
+        lift = np.zeros(F)
         head = world[:, toe, :3, 3]
         for a, b in contact_runs(planted[side][:, 1]):  # while the tip is down
             now = p[a:b, 1] - head[a:b]
@@ -404,6 +424,7 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
                 tip = head[a:b] + want
                 low = want[:, 2] - heights_above(tip[:, None], floor)[:, 0]  # the tip's lowest offset
                 lifted = want[:, 2] < low
+                lift[a:b][lifted] = low[lifted] - want[lifted, 2]  # how far the foot would have to rise
                 want[lifted, 2] = np.minimum(low[lifted], reach[lifted])
                 side_room = np.sqrt(np.maximum(reach[lifted] ** 2 - want[lifted, 2] ** 2, 0.0))
                 want[lifted, :2] = _unit(want[lifted, :2]) * side_room[:, None]
@@ -413,6 +434,9 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
             end = min(F, b + ramp)
             fade = np.arange(1, end - b + 1) / (ramp + 1)
             omega[b:end] = omega[b - 1] * (1.0 - fade * fade * (3 - 2 * fade))[:, None]  # eased out
+            lift[b:end] = lift[b - 1] * (1.0 - fade * fade * (3 - 2 * fade))
+        if lift.any():
+            moved["lift"][side] = lift
         if floor is not None:  # where a turn (e.g. fading out after the contact) would put the
             # tip under the ground, the turn is cut back as far as needed
             omega = _keep_tip_up(omega, p[:, 1] - head, head, floor)
@@ -428,9 +452,36 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
     return Trajectories(traj.frames, traj.fps, quats, traj.translations, traj.armature_to_world), moved
 
 
-def _keep_tip_up(omega, tip, head, floor, shares=(1.0, 0.75, 0.5, 0.25, 0.0)):
-    """omega (F, 3) scaled down, frame by frame, to the largest share that keeps the toe tip
-    (head + turned tip) on or above the ground; frames already under it keep their turn."""
+LIFT_PASSES = 3
+
+
+def hold_feet(skeleton, traj, offsets, floor=None, planted=None):
+    """Feet moved by offsets (foot_offsets: move_feet) and toe tips held (pin_toes). Where a held
+    toe tip would have to go under the ground (the captured ball sinking while the tip is down),
+    the foot is raised by that much (eased out after the contact) and solved again, so the tip
+    stays where it landed, on the ground, rather than sliding over it. Returns (trajectories,
+    {side: frames moved, "pelvis_drop": (F,) m, "lift": {side: (F,) m}})."""
+    start = traj
+    traj, moved = move_feet(skeleton, start, offsets)
+    traj, toes = pin_toes(skeleton, traj, floor, planted)
+    total = {}
+    for _ in range(LIFT_PASSES):  # the raised foot turns the leg a little: a second look
+        if floor is None or not toes["lift"]:
+            break
+        offsets = {s: d.copy() for s, d in offsets.items()}
+        for side, lift in toes["lift"].items():
+            offsets[side][:, 2] += lift
+            total[side] = total.get(side, 0.0) + lift
+        traj, moved = move_feet(skeleton, start, offsets)
+        traj, toes = pin_toes(skeleton, traj, floor, planted)
+    moved["lift"] = total
+    return traj, moved
+
+
+def _keep_tip_up(omega, tip, head, floor, iterations=12):
+    """omega (F, 3) scaled down, frame by frame, to the largest share (found by bisection, so it
+    changes smoothly from frame to frame) that keeps the toe tip (head + turned tip) on or above
+    the ground; frames already under it keep their turn."""
     out = omega.copy()
     angle = np.linalg.norm(omega, axis=1)
     moving = np.flatnonzero(angle > 1e-9)
@@ -440,14 +491,15 @@ def _keep_tip_up(omega, tip, head, floor, shares=(1.0, 0.75, 0.5, 0.25, 0.0)):
         turn = _axis_rotation(_unit(omega[moving]), share * angle[moving])
         moved = head[moving] + np.einsum("fij,fj->fi", turn, tip[moving])
         return heights_above(moved[:, None], floor)[:, 0] >= -1e-4
-    unturned = above(0.0)
-    chosen = np.zeros(len(moving))
-    done = ~unturned  # a tip under the ground without the turn: keep the turn (it lifts)
-    chosen[done] = 1.0
-    for share in shares:
-        ok = ~done & above(share)
-        chosen[ok] = share
-        done |= ok
+    ones = np.ones(len(moving))
+    chosen = ones.copy()  # a tip under the ground without the turn keeps the turn (it lifts)
+    cut = above(0.0 * ones) & ~above(ones)
+    lo, hi = np.zeros(len(moving)), ones.copy()
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        ok = above(mid)
+        lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
+    chosen[cut] = lo[cut]
     out[moving] = omega[moving] * chosen[:, None]
     return out
 

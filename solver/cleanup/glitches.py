@@ -237,10 +237,17 @@ def position_spikes(p, fps, strength=1.0):
     # stands out however fast the body travels
     pad = np.pad(steps, ((3, 3), (0, 0)), mode="edge")
     around = np.stack([pad[k:k + len(steps)] for k in (0, 1, 2, 4, 5, 6)])
-    step = np.linalg.norm(steps - np.median(around, axis=0), axis=1)
+    departure = steps - np.median(around, axis=0)
+    step = np.linalg.norm(departure, axis=1)
     limit = max(MAX_ROOT_ACCEL_M_S2 / fps ** 2, 0.01) / max(strength, 1e-3)
     events, bad = [], np.zeros(len(p), bool)
-    bursts = _bursts(step, limit, limit / 3)
+    # the change of velocity from one step to the next: a jump out and straight back changes it
+    # by twice the jump
+    change = np.zeros(len(step) + 1)
+    change[1:-1] = np.linalg.norm(np.diff(departure, axis=0), axis=1)
+    bursts = [(a, b) for a, b in _runs(step > limit / 3)
+              if (step[a:b] > limit).any() or (change[a:b + 1] > limit).any()]
+    bursts = [(a, b - 1) for a, b in bursts]
     for i, (a, b) in enumerate(bursts):
         if bad[a + 1]:
             continue

@@ -49,6 +49,13 @@ def noise_scale(residual, fps=None):
     top = top_band_size(residual)
     if top is not None:
         size = np.minimum(size, top)
+    # jitter is also uncorrelated from frame to frame, while motion, however fast, carries on:
+    # the part of the residual that alternates (the lag-1 autocovariance of its second
+    # differences, negative for white noise, positive for motion) is a third cap
+    if fps is not None:
+        alternating = alternating_size(residual)
+        if alternating is not None:
+            size = np.minimum(size, alternating)
     # and a capture's jitter is spread over the whole body, while fast motion (a wave, a kick) is
     # in a few joints: no joint's noise is taken to be more than BODY_SPREAD times the body's median
     if size.size >= 5:
@@ -56,7 +63,7 @@ def noise_scale(residual, fps=None):
     return size[None, :, None]
 
 
-BODY_SPREAD = 2.0
+BODY_SPREAD = 1.5
 
 
 TOP_BAND = 0.75  # the top of the spectrum: above this share of the Nyquist frequency
@@ -82,6 +89,32 @@ def top_band_size(residual):
     if len(residual) < 40:
         return None
     return np.median(np.linalg.norm(_top_pass(residual), axis=-1), axis=0) / _TOP_GAIN
+
+
+def _alternating(residual):
+    """(K,) minus the lag-1 autocovariance of the second differences of residual (F, K, d), per
+    channel, summed over the components: 4 d s^2 for white noise of size s per component, less
+    for motion (whose second differences change slowly)."""
+    second = np.diff(residual, 2, axis=0)
+    return -np.mean(np.sum(second[1:] * second[:-1], axis=-1), axis=0)
+
+
+def _alternating_gain():
+    """_alternating of unit white noise, in the size unit of noise_scale (the median length of a
+    3-vector of unit normal components), from a fixed sample."""
+    noise = np.random.default_rng(1).standard_normal((20000, 1, 3))
+    return float(_alternating(noise)[0]) / np.median(np.linalg.norm(noise, axis=-1)) ** 2
+
+
+_ALT_GAIN = _alternating_gain()
+
+
+def alternating_size(residual):
+    """(K,) the residual's size as white noise from its frame-to-frame alternation (0 where it
+    does not alternate at all); None if too short."""
+    if len(residual) < 40:
+        return None
+    return np.sqrt(np.maximum(_alternating(residual), 0.0) / _ALT_GAIN)
 
 
 def garrote(residual, sigmas=None, fps=None):

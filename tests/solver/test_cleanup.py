@@ -91,6 +91,30 @@ def test_position_spike_repaired():
     assert np.abs(out - tr.translations[:, :1]).max() < 0.002
 
 
+def test_small_one_frame_position_spike_found_by_its_change_of_velocity():
+    """5.5 cm out and straight back in one frame at 30 fps: each step is under the 5 g limit,
+    the change of velocity (twice the jump) is not."""
+    sk, tr = clip(4)
+    p = tr.translations[:, :1].copy()
+    p[60, 0] += [0.0, 0.055, 0.0]
+    _, out, events = glitches.repair(tr.rotations, p, tr.fps)
+    assert ("spike", ("position", 0), 60, 60) in events
+    assert np.abs(out - tr.translations[:, :1]).max() < 0.002
+
+
+def test_noise_size_from_alternation_white_noise_and_motion():
+    """White noise alternates from frame to frame (its size is found); a fast smooth motion does
+    not (next to nothing is taken for noise)."""
+    rng = np.random.default_rng(3)
+    noise = 0.01 * rng.standard_normal((600, 1, 3))
+    size = jitter.alternating_size(noise)[0]
+    median_length = 0.01 * np.median(np.linalg.norm(rng.standard_normal((20000, 3)), axis=1))
+    assert size == pytest.approx(median_length, rel=0.15)
+    t = np.arange(600) / 30.0
+    wave = 0.3 * np.stack((np.sin(2 * np.pi * 3 * t), np.cos(2 * np.pi * 3 * t), 0 * t), axis=1)[:, None]
+    assert jitter.alternating_size(wave)[0] < 0.05 * median_length
+
+
 def test_quaternion_signs_made_continuous():
     sk, tr = clip()
     q = tr.rotations.copy()

@@ -91,6 +91,33 @@ def test_feet_put_on_a_bumpy_ground(walk):
                 assert heights[side][a:b].min() == pytest.approx(0.0, abs=0.002)
                 contacts += 1
     assert contacts >= (10 if walk == "bandai" else 1)
-    # CMU 131_01's toe tips dip under the floor while planted: holding one where it landed and
-    # above the bumps can't both hold, and the ground wins (docs/cleanup.md, Limits)
-    assert feet.planted_slide(sk, out, planted) < (0.002 if walk == "bandai" else 0.01)
+    # CMU 131_01's toe tips would dip under the ground while planted: the foot is raised instead,
+    # so they stay where they landed (feet.hold_feet)
+    assert feet.planted_slide(sk, out, planted) < 0.002
+
+
+STANDING = WALK.parent / "dataset-1_guide_active_001.bvh"
+
+
+def test_a_standing_figure_on_bumps_is_not_taken_for_a_foot_placed_higher():
+    """Standing in place, each foot over its own bump: every contact that the flat repair puts on
+    a flat floor is put on the bumps (the feet's own level is measured on the capture's floor)."""
+    global WALK
+    if not STANDING.exists():
+        pytest.skip(f"{STANDING} is not there")
+    WALK, walk = STANDING, WALK
+    try:
+        sk, tr = bandai_walk()
+    finally:
+        WALK = walk
+    _, field = grid()
+    out, _ = clean_up(sk, tr, Options(glitches=False, jitter=False, ground=field))
+    flat_out, _ = clean_up(sk, tr, Options(glitches=False, jitter=False, ground=0.0))
+    planted = feet.planted_points(feet.foot_points(sk, tr.world_frames(sk)), tr.fps)
+    heights = {s: feet.heights_above(p, field).min(axis=1) for s, p in feet.foot_points(sk, out.world_frames(sk)).items()}
+    flat = {s: p[..., 2].min(axis=1) for s, p in feet.foot_points(sk, flat_out.world_frames(sk)).items()}
+    on_floor = [(s, a, b) for s, down in planted.items() for a, b in feet.contact_runs(down.any(axis=1))
+                if flat[s][a:b].min() < 0.002]
+    assert len(on_floor) >= 4
+    for side, a, b in on_floor:
+        assert heights[side][a:b].min() == pytest.approx(0.0, abs=0.002), (side, a, b)
