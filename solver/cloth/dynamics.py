@@ -30,31 +30,29 @@ CHEBYSHEV_RHO = 0.95
 CHEBYSHEV_FROM = 2  # (the first two sweeps plain)
 
 
-def _flat3(particles):
-    """Flat coordinate indices (3 per particle, in order) for np.bincount over an (N, 3) array."""
-    return (3 * np.asarray(particles, dtype=np.int64)[:, None] + np.arange(3)).ravel()
+class ParticleSum:
+    """A sum over items (springs, edges) into particles: for values (N, k) per item,
+    out[first] += w_first values and out[second] += w_second values.
 
+    The plain formula is np.add.at(out, first, w_first[:, None] * values) and the same for
+    second; kept instead as a compiled CSR product (particles x items) whose entries per row are
+    in a fixed order, particle by particle, items ascending (or `descending`), which saves 22 % of
+    the time of the skirt on walking legs, collision and smoothing included (benchmarks/microopt.py,
+    cloth_scatter_plan)."""
 
-def _scatter_plan(first, second, w_first, w_second, descending=False):
-    """A sum over items (springs, edges) into particles, +w_first at the first particle and
-    w_second at the second, as one np.bincount: (flat coordinate indices, item of each entry,
-    weights (2N, 1)). The entries go particle by particle, items in ascending (or descending)
-    order: the order in which the sparse products this replaces added them, so the sums (and
-    the whole simulation, which amplifies last-bit differences) stay bit for bit the same."""
-    item = np.r_[np.arange(len(first)), np.arange(len(second))]
-    particle = np.r_[first, second]
-    order = np.lexsort((-item if descending else item, particle))
-    return _flat3(particle[order]), item[order], np.r_[w_first, w_second][order][:, None]
+    def __init__(self, first, second, w_first, w_second, particles, descending=False):
+        item = np.r_[np.arange(len(first)), np.arange(len(second))]
+        particle = np.r_[first, second]
+        order = np.lexsort((-item if descending else item, particle))
+        weight = np.r_[w_first, w_second].astype(float)[order]
+        indptr = np.r_[0, np.cumsum(np.bincount(particle, minlength=particles))]
+        self.matrix = sparse.csr_matrix((weight, item[order].astype(np.int32), indptr.astype(np.int32)),
+                                        shape=(particles, len(first)))
 
-
-def _plan_matrix(plan, particles):
-    """The sum of a scatter plan as a CSR matrix (particles x items) whose entries per row are
-    in the plan's order: a compiled sparse product adds them as the np.bincount did."""
-    idx, item, w = plan
-    particle = idx[::3] // 3
-    indptr = np.r_[0, np.cumsum(np.bincount(particle, minlength=particles))]
-    return sparse.csr_matrix((w[:, 0].astype(float), item.astype(np.int32), indptr.astype(np.int32)),
-                             shape=(particles, int(item.max()) + 1 if len(item) else 0))
+    def into(self, values, out):
+        """The sums of `values` (N, k) written into `out` (particles, k); returns out."""
+        out[...] = self.matrix @ values
+        return out
 
 
 class ClothDynamics:
@@ -86,39 +84,20 @@ class ClothDynamics:
         wsum = np.where(self._movable_edge, self.inv_mass[e0] + self.inv_mass[e1], 1.0)
         self._share0, self._share1 = self.inv_mass[e0] / wsum, self.inv_mass[e1] / wsum
         # a correction along each edge, shared by the inverse masses: +share0 at the first
-        # particle, -share1 at the second
-        # (numpy's per-call cost dominates at tens of particles, so sums over edges into particles
-        # are single calls: np.bincount over precomputed flat indices, or scipy's compiled sparse
-        # product on a matrix whose entries are in the same order)
-        self._spread_plan = _scatter_plan(e0, e1, self._share0, -self._share1)
-        # a sweep's moves and counts in one sparse product of the (E, 4) rows [correction x y z,
-        # edge off]: rows 0..P-1 of the matrix spread the corrections by the shares, rows
-        # P..2P-1 count the off edges that move each particle (entries per row in edge order)
-        idx, item, w = self._spread_plan
-        particle, share = idx[::3] // 3, w[:, 0]
-        keep = share != 0.0
-        self._sweep_rows = np.empty((len(e0), 4))
-        # (the over-relaxation RELAX is in the moves' entries: a particle's move is their sum
-        # over the count)
-        self._sweep_matrix = sparse.csr_matrix(
-            (np.r_[RELAX * share[keep], np.ones(keep.sum())],
-             (np.r_[particle[keep], p_count + particle[keep]], np.r_[item[keep], item[keep]])),
-            shape=(2 * p_count, len(e0)))
-        self._sweep_matrix.sort_indices()
-        # its two halves alone: the velocity sweeps' spread, and how many given edges move a particle
-        self._spread_matrix, self._reach_matrix = self._sweep_matrix[:p_count], self._sweep_matrix[p_count:]
-        # the sweeps' products with their outputs kept (a sweep is ~20 numpy calls: each counts)
+        # particle, -share1 at the second, over-relaxed by RELAX (a particle's move is the sum of
+        # its edges' over their count); the count: the edges given that move each particle
+        self._move = ParticleSum(e0, e1, RELAX * self._share0, -RELAX * self._share1, p_count)
+        self._count = ParticleSum(e0, e1, self._share0 != 0.0, self._share1 != 0.0, p_count)
         edge_difference = difference_matrix(e0, e1, p_count)
         self._edge_diff = Product(edge_difference, 3)
-        self._sweep = Product(self._sweep_matrix, 4)
-        self._spread = Product(self._spread_matrix, 3)
-        self._reach = Product(self._reach_matrix, 1)  # how many of given edges (E, 1) move a particle
         self._times_off = np.zeros(len(e0))  # per edge, the sweeps in which it was off
         self._floor_off = self._floor_m * (1.0 - SLACK)
         self._limit_off = self._limit_m * (1.0 + SLACK)
-        self._sweep_moves, self._sweep_count = self._sweep.out[:p_count, :3], self._sweep.out[p_count:, 3]
+        # the sweeps' buffers: each edge's correction and whether it is off, each particle's
+        # summed moves, count of edges off, its scale and step
+        self._rows_d, self._rows_off = np.empty((len(e0), 3)), np.empty(len(e0))
+        self._sweep_moves, self._sweep_count = np.empty((p_count, 3)), np.empty((p_count, 1))
         self._sweep_scale, self._sweep_step = np.empty((p_count, 1)), np.empty((p_count, 3))
-        self._rows_d, self._rows_off = self._sweep_rows[:, :3], self._sweep_rows[:, 3]
         self._tether_data = self._tethers()
         self._corner_sum = CornerSum(mesh.faces, p_count)
         self._prepare(edge_difference)
@@ -176,10 +155,9 @@ class ClothDynamics:
         self._s0, self._s1 = np.r_[self._e0, self._b0], np.r_[self._e1, self._b1]
         self._srest = np.r_[mesh.rest_length, mesh.bend_rest]
         # a spring's force (on its first particle) goes +f to the first, -f to the second, each
-        # divided by its mass (pinned ones: 0); one bincount over the flat coordinates
-        self._acc_plan = _scatter_plan(self._s0, self._s1, self.inv_mass[self._s0], -self.inv_mass[self._s1],
-                                       descending=True)
-        self._acc_matrix = _plan_matrix(self._acc_plan, len(self.mass))
+        # divided by its mass (pinned ones: 0)
+        self._acc = ParticleSum(self._s0, self._s1, self.inv_mass[self._s0], -self.inv_mass[self._s1],
+                                len(self.mass), descending=True)
         self._free_f = self.free.astype(float)[:, None]
         # gravity and air damping act on the free particles: free_f (g - c v) as g_f - c_f v
         self._gravity_f = self._free_f * self.gravity
@@ -193,7 +171,6 @@ class ClothDynamics:
         state_diff.sort_indices()
         self._state_diff = Product(state_diff, 3)
         self._springs = len(self._s0)
-        self._acc = Product(self._acc_matrix, 3)
         self._drag_of = 0.5 * AIR_DENSITY * p.drag * mesh.area * self.inv_mass
         self._edges = len(self._e0)
         self._scale_springs()
@@ -292,9 +269,9 @@ class ClothDynamics:
         x, v = x.copy(), v.copy()
         floor, limit, low_off, high_off = self._floor_m, self._limit_m, self._floor_off, self._limit_off
         self._tether(x, v)
-        rows_d, rows_off, sweep, diff = self._rows_d, self._rows_off, self._sweep, self._edge_diff
+        rows_d, rows_off, diff = self._rows_d, self._rows_off, self._edge_diff
         moves, count, scale, step = self._sweep_moves, self._sweep_count, self._sweep_scale, self._sweep_step
-        rows, times_off = self._sweep_rows, self._times_off
+        times_off = self._times_off
         times_off.fill(0.0)
         # the accelerated sweeps keep x_{k-1}: three buffers of their own, swapped, not copied
         prev, spare = (np.empty_like(x), np.empty_like(x)) if frame_end else (None, None)
@@ -315,8 +292,9 @@ class ClothDynamics:
             over /= length
             over *= rows_off
             np.multiply(d, over[:, None], out=rows_d)
-            sweep(rows)  # each particle's summed moves (RELAX included) and its edges off
-            np.maximum(count, 1.0, out=scale[:, 0])
+            self._move.into(rows_d, moves)  # each particle's summed moves (RELAX included)
+            self._count.into(rows_off[:, None], count)  # and its edges off
+            np.maximum(count, 1.0, out=scale)
             if frame_end:
                 new = np.divide(moves, scale, out=spare)
                 new += x  # the plain sweep's x_hat
@@ -341,12 +319,11 @@ class ClothDynamics:
         # stay: the clip bounds
         low = np.where(squeezed, -np.inf, 0.0)
         high = np.where(stretched, np.inf, 0.0)
-        reach = self._reach(corrected[:, None].astype(float))
+        reach = self._count.into(corrected[:, None].astype(float), np.empty_like(count))
         np.maximum(reach, 1.0, out=reach)
-        spread = self._spread
         for _ in range(VELOCITY_SWEEPS_END if frame_end else VELOCITY_SWEEPS):
             rate = np.clip(rowdot(diff(v), u), low, high)  # (low <= high everywhere)
-            v += spread(rate[:, None] * u) / reach
+            v += self._move.into(rate[:, None] * u, step) / reach
         return x, v, int(np.count_nonzero(corrected))
 
     def _tethers(self):

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import lapack
+from scipy.linalg import cho_factor, cho_solve
 from scipy.spatial.transform import Rotation
 
 from ..body_roles import sided
@@ -270,22 +270,21 @@ def null_space_step(jac, dx, dz=None, active=None, epsilon=0.02, lam_max=0.05):
     rows, n = jac.shape
     wide = n >= rows
     g = jac @ jac.T if wide else jac.T @ jac
-    smin2 = lapack.dsyevd(g, compute_v=0)[0][0] if len(g) else 0.0
+    smin2 = np.linalg.eigvalsh(g)[0] if len(g) else 0.0
     eps2 = epsilon * epsilon
     lam2 = 0.0 if smin2 >= eps2 else lam_max ** 2 * (1.0 - max(smin2, 0.0) / eps2)
     g.flat[::len(g) + 1] += lam2
     if dz is not None:
         dz = np.asarray(dz, float)
-    if wide:  # dq = J^T y with (J J^T + l^2) y = dx (- J dz for the secondary task)
-        rhs = dx if dz is None else dx - jac @ dz
-        _, y, info = lapack.dposv(g, rhs)
-        dq = jac.T @ y
-    else:
-        rhs = jac.T @ (dx if dz is None else dx - jac @ dz)
-        _, dq, info = lapack.dposv(g, rhs)
-    if info:  # not positive definite to rounding (no damping on an exactly singular J): the SVD
-        jp = damped_pinv(jac, epsilon, lam_max)
-        dq = jp @ (dx if dz is None else dx - jac @ dz)
+    task = dx if dz is None else dx - jac @ dz
+    try:  # (check_finite=False: a NaN goes on as LAPACK's own would)
+        factor = cho_factor(g, check_finite=False)
+        if wide:  # dq = J^T y with (J J^T + l^2) y = dx (- J dz for the secondary task)
+            dq = jac.T @ cho_solve(factor, task, check_finite=False)
+        else:
+            dq = cho_solve(factor, jac.T @ task, check_finite=False)
+    except np.linalg.LinAlgError:  # not positive definite to rounding (no damping on an exactly singular J): the SVD
+        dq = damped_pinv(jac, epsilon, lam_max) @ task
     if dz is not None:
         dq = dq + dz
     return dq if active is None else dq * active

@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import lapack
 
 from ..dynamics.balance import _turn, closest_boundary_xy, convex_hull, inside_xy, monotone_chain
 from ..dynamics.inertia_matrix import composite_inertias
@@ -295,10 +294,7 @@ def falling(state, wrench, mmp):
     alpha = -torque / float(axis @ whole_body_inertia(state, point) @ axis)
     m, d = state.model, state.data
     base = np.zeros(m.nv)
-    # np.linalg.solve's LU (gesv) without numpy.linalg's per-call overhead
-    rhs = np.concatenate((alpha, np.cross(point, alpha)))
-    _, _, x, info = lapack.dgesv(d.motion[0], rhs)
-    base[:6] = x if info == 0 else np.linalg.solve(d.motion[0], rhs)
+    base[:6] = np.linalg.solve(d.motion[0], np.concatenate((alpha, np.cross(point, alpha))))
     return Falling(np.asarray(mmp, float), _supporting_foot(state, mmp), alpha, base)
 
 

@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import lapack
 
 from ..dynamics import spatial
 from ..dynamics.ground_contact import default_contacts
@@ -342,25 +341,18 @@ def _split(centres, px, py):
 def joint_stress(tau, limits, tolerance=0.0):
     """Eq. 2.9: tau - tau_max above the range, tau - tau_min below it, zero inside (nv,)."""
     low, high = limits
-    s = tau - np.minimum(np.maximum(tau, low), high)  # np.clip, without its dispatch cost
+    s = tau - np.clip(tau, low, high)
     s[np.abs(s) <= tolerance] = 0.0
     return s
 
 
 def pinv(a, rcond):
-    """np.linalg.pinv(a, rcond) of a small matrix through LAPACK's gesdd directly (the same
-    factorisation without numpy.linalg's per-call overhead): singular values at or below rcond
-    times the largest are cut."""
+    """np.linalg.pinv(a, rcond): singular values at or below rcond times the largest are cut; an
+    empty matrix gives the zero matrix of the transposed shape."""
     a = np.asarray(a, float)
     if a.size == 0:
         return np.zeros(a.shape[::-1])
-    u, s, vt, info = lapack.dgesdd(a, full_matrices=0)
-    if info != 0:
-        return np.linalg.pinv(a, rcond=rcond)
-    large = s > rcond * s.max()
-    inv = np.zeros_like(s)
-    inv[large] = 1.0 / s[large]
-    return vt.T.dot(inv[:, None] * u.T)
+    return np.linalg.pinv(a, rcond=rcond)
 
 
 # ---- eq. 2.17-2.18: passive control -------------------------------------------------------------

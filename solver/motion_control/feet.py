@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import lapack
+from scipy.linalg import cho_factor, cho_solve
 from scipy.ndimage import gaussian_filter1d
 
 from ..dynamics import kinematics
@@ -359,14 +359,12 @@ class PlantedFeet:
         known = self._dls_factors.get(id(jac))
         if known is None or known[0] is not jac:
             jj = jac.dot(jac.T)
-            factor, info = lapack.dpotrf(jj + self.damping(jj))
-            if info != 0:
-                raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
+            try:  # (check_finite=False: a NaN goes on to the bake's errstate check, as LAPACK's own)
+                factor = cho_factor(jj + self.damping(jj), check_finite=False)
+            except np.linalg.LinAlgError:
+                raise np.linalg.LinAlgError("a planted leg's Jacobian is singular") from None
             known = self._dls_factors[id(jac)] = (jac, factor)
-        x, info = lapack.dpotrs(known[1], r)
-        if info != 0:
-            raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
-        return jac.T.dot(x)
+        return jac.T.dot(cho_solve(known[1], r, check_finite=False))
 
     def damping(self, jj):
         """lambda^2 I for the damped least squares of a leg with J J' = jj: foot_damping, growing
@@ -376,7 +374,7 @@ class PlantedFeet:
         degrees, the next step's the other way, and a standing figure's knees thrashed after a
         10 N s push."""
         band2, extra = self.singular
-        low = lapack.dsyevd(jj, compute_v=0)[0][0]  # the smallest eigenvalue of J J': sigma_min^2
+        low = np.linalg.eigvalsh(jj)[0]  # the smallest eigenvalue of J J': sigma_min^2
         if low >= band2:
             return self.eye6
         return self.eye6 + (extra * (1.0 - max(low, 0.0) / band2)) * np.eye(6)

@@ -1,0 +1,488 @@
+#!/usr/bin/env python3
+"""Does each micro-optimisation in solver/ earn its place? The time of the capability it serves,
+with the trick beside the same capability with the plain, readable formula instead.
+
+    python3 benchmarks/microopt.py                 # a table
+    python3 benchmarks/microopt.py --json          # one JSON object (also benchmarks/results/microopt.json)
+    python3 benchmarks/microopt.py --rounds 9      # alternating rounds per trick (default 5)
+    python3 benchmarks/microopt.py --only cloth    # the tricks whose name or capability contains this
+
+The rule (docs/physics.md, the developers' guide): a trick stays in product code only where it
+saves at least 5 % of its capability's time, with a comment naming the plain formula; otherwise
+the plain formula is the product code. This file holds both versions of every trick it judges
+(the trick and the plain one), so it measures the same pair whichever of the two the product
+code holds: per trick, every module attribute or method that holds the product's version is
+set to the trick's, then to the plain one's, in turn.
+
+What is timed is the capability, not the kernel: CPU time (time.process_time: the machine is
+shared) of
+- Dynamic Control: bakes of benchmarks/control.py's cases figure_15kg (comfort control acting)
+  and cmu (the CMU walk 131_01, dynamic control on about a third of the steps, a few frames out
+  of balance, so the falling rotation too);
+- grasp: complete grasps (solver.hands.grasp.grasp) of every fifth object of benchmarks/grasp.py's
+  cases on the Rigify metarig;
+- flexible: benchmarks/flexible.py's thesis workload (the 11-point table under pose control,
+  1,200 steps), semi-implicit and implicit-midpoint integrators;
+- cloth: the solver alone (no Blender): the thesis-size skirt (66 particles, smoothing level 2) on
+  the tests' walking capsule legs (tests/solver/cloth_scenes.py), 60 frames at 30 fps.
+Each round times the whole workload with the trick and with the plain version, unit by unit (one
+bake, one grasp, one simulation with each version in turn, the order alternating from unit to
+unit), so a swing of the machine's load falls on both; the figure per trick is the median over
+the rounds of (time with the trick / time with the plain version), with the smallest and largest
+round's ratio as its spread. saving = 1 - that median.
+"""
+
+import argparse
+import importlib
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve, lapack
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests" / "solver"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from machine import claim, emit, result  # noqa: E402
+
+# (modules by import_module: the motion_control package's names balance_control and
+# comfort_control are functions)
+cloth_dynamics = importlib.import_module("humananim.solver.cloth.dynamics")
+flexible_kernel = importlib.import_module("humananim.solver.flexible.kernel")
+ik = importlib.import_module("humananim.solver.hands.ik")
+balance_control = importlib.import_module("humananim.solver.motion_control.balance_control")
+comfort_control = importlib.import_module("humananim.solver.motion_control.comfort_control")
+feet = importlib.import_module("humananim.solver.motion_control.feet")
+importlib.import_module("humananim.solver.motion_control.controller")  # its imports are patched too
+importlib.import_module("humananim.solver.hands.grasp")
+
+AIM = 0.05  # a trick must save at least this share of its capability's time
+
+
+# ==== the two versions of every trick ==========================================================
+
+# -- comfort_control.pinv: the pseudo-inverse of eq. 2.21 ----------------------------------------
+
+def pinv_trick(a, rcond):
+    """LAPACK's gesdd called directly."""
+    a = np.asarray(a, float)
+    if a.size == 0:
+        return np.zeros(a.shape[::-1])
+    u, s, vt, info = lapack.dgesdd(a, full_matrices=0)
+    if info != 0:
+        return np.linalg.pinv(a, rcond=rcond)
+    large = s > rcond * s.max()
+    inv = np.zeros_like(s)
+    inv[large] = 1.0 / s[large]
+    return vt.T.dot(inv[:, None] * u.T)
+
+
+def pinv_plain(a, rcond):
+    a = np.asarray(a, float)
+    if a.size == 0:
+        return np.zeros(a.shape[::-1])
+    return np.linalg.pinv(a, rcond=rcond)
+
+
+# -- comfort_control.joint_stress: eq. 2.9 --------------------------------------------------------
+
+def joint_stress_trick(tau, limits, tolerance=0.0):
+    """np.minimum(np.maximum()) for np.clip."""
+    low, high = limits
+    s = tau - np.minimum(np.maximum(tau, low), high)
+    s[np.abs(s) <= tolerance] = 0.0
+    return s
+
+
+def joint_stress_plain(tau, limits, tolerance=0.0):
+    low, high = limits
+    s = tau - np.clip(tau, low, high)
+    s[np.abs(s) <= tolerance] = 0.0
+    return s
+
+
+# -- balance_control.falling: the base's acceleration of the rotation about the MMP --------------
+
+def _falling(solve):
+    bc = balance_control
+
+    def falling(state, wrench, mmp):
+        point = bc._on_ground(mmp, state.ground_height)
+        torque = bc.moment_about(wrench, point)
+        torque[2] = 0.0
+        size = np.linalg.norm(torque)
+        if size < 1e-9:
+            return None
+        axis = torque / size
+        alpha = -torque / float(axis @ bc.whole_body_inertia(state, point) @ axis)
+        m, d = state.model, state.data
+        base = np.zeros(m.nv)
+        base[:6] = solve(d.motion[0], np.concatenate((alpha, np.cross(point, alpha))))
+        return bc.Falling(np.asarray(mmp, float), bc._supporting_foot(state, mmp), alpha, base)
+    return falling
+
+
+def _gesv(a, b):
+    _, _, x, info = lapack.dgesv(a, b)
+    return x if info == 0 else np.linalg.solve(a, b)
+
+
+falling_trick, falling_plain = _falling(_gesv), _falling(np.linalg.solve)
+
+
+# -- feet.PlantedFeet.dls / .damping: the planted legs' damped least squares ---------------------
+
+def dls_trick(self, jac, r):
+    """LAPACK's potrf / potrs called directly."""
+    known = self._dls_factors.get(id(jac))
+    if known is None or known[0] is not jac:
+        jj = jac.dot(jac.T)
+        factor, info = lapack.dpotrf(jj + self.damping(jj))
+        if info != 0:
+            raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
+        known = self._dls_factors[id(jac)] = (jac, factor)
+    x, info = lapack.dpotrs(known[1], r)
+    if info != 0:
+        raise np.linalg.LinAlgError("a planted leg's Jacobian is singular")
+    return jac.T.dot(x)
+
+
+def dls_plain(self, jac, r):
+    known = self._dls_factors.get(id(jac))
+    if known is None or known[0] is not jac:
+        jj = jac.dot(jac.T)
+        try:
+            factor = cho_factor(jj + self.damping(jj), check_finite=False)
+        except np.linalg.LinAlgError:
+            raise np.linalg.LinAlgError("a planted leg's Jacobian is singular") from None
+        known = self._dls_factors[id(jac)] = (jac, factor)
+    return jac.T.dot(cho_solve(known[1], r, check_finite=False))
+
+
+def _damping(smallest_eigenvalue):
+    def damping(self, jj):
+        band2, extra = self.singular
+        low = smallest_eigenvalue(jj)
+        if low >= band2:
+            return self.eye6
+        return self.eye6 + (extra * (1.0 - max(low, 0.0) / band2)) * np.eye(6)
+    return damping
+
+
+damping_trick = _damping(lambda jj: lapack.dsyevd(jj, compute_v=0)[0][0])
+damping_plain = _damping(lambda jj: np.linalg.eigvalsh(jj)[0])
+
+
+# -- hands.ik.null_space_step: the grasp's IK step (eq. 2-1) -------------------------------------
+
+def _null_space_step(smallest_eigenvalue, spd_solve):
+    def null_space_step(jac, dx, dz=None, active=None, epsilon=0.02, lam_max=0.05):
+        if active is not None:
+            jac = jac * active
+            if dz is not None:
+                dz = np.asarray(dz, float) * active
+        rows, n = jac.shape
+        wide = n >= rows
+        g = jac @ jac.T if wide else jac.T @ jac
+        smin2 = smallest_eigenvalue(g) if len(g) else 0.0
+        eps2 = epsilon * epsilon
+        lam2 = 0.0 if smin2 >= eps2 else lam_max ** 2 * (1.0 - max(smin2, 0.0) / eps2)
+        g.flat[::len(g) + 1] += lam2
+        if dz is not None:
+            dz = np.asarray(dz, float)
+        rhs = dx if dz is None else dx - jac @ dz
+        x = spd_solve(g, rhs if wide else jac.T @ rhs)
+        if x is None:  # not positive definite to rounding (no damping on an exactly singular J): the SVD
+            dq = ik.damped_pinv(jac, epsilon, lam_max) @ rhs
+        else:
+            dq = jac.T @ x if wide else x
+        if dz is not None:
+            dq = dq + dz
+        return dq if active is None else dq * active
+    return null_space_step
+
+
+def _posv(g, b):
+    _, x, info = lapack.dposv(g, b)
+    return None if info else x
+
+
+def _cho(g, b):
+    try:
+        return cho_solve(cho_factor(g, check_finite=False), b, check_finite=False)
+    except np.linalg.LinAlgError:
+        return None
+
+
+null_space_step_trick = _null_space_step(lambda g: lapack.dsyevd(g, compute_v=0)[0][0], _posv)
+null_space_step_plain = _null_space_step(lambda g: np.linalg.eigvalsh(g)[0], _cho)
+
+
+# -- flexible.lapack.CholeskySolver: the kernel's Cholesky solve a step --------------------------
+
+class CholeskyInPlace:
+    """LAPACK's posv / potrs on the buffers themselves (overwrite_a, overwrite_b; A seen
+    transposed, a Fortran view of the same symmetric memory): no copies."""
+
+    def __init__(self, A, b):
+        self.A, self.At, self.b = A, A.T, b
+
+    def solve(self):
+        factor, x, info = lapack.dposv(self.At, self.b, lower=0, overwrite_a=1, overwrite_b=1)
+        if info:
+            return False
+        if x is not self.b:
+            self.b[...] = x
+        self._factor = factor
+        return True
+
+    def resolve(self):
+        x = lapack.dpotrs(self._factor, self.b, lower=0, overwrite_b=1)[0]
+        if x is not self.b:
+            self.b[...] = x
+
+
+class CholeskyPlain:
+    """x = cho_solve(cho_factor(A), b), written back into b."""
+
+    def __init__(self, A, b):
+        self.A, self.b = A, b
+
+    def solve(self):
+        try:
+            self._factor = cho_factor(self.A, check_finite=False)
+        except np.linalg.LinAlgError:  # not positive definite
+            return False
+        self.b[...] = cho_solve(self._factor, self.b, check_finite=False)
+        return True
+
+    def resolve(self):
+        self.b[...] = cho_solve(self._factor, self.b, check_finite=False)
+
+
+# -- cloth.dynamics: sums over springs / edges into particles ------------------------------------
+
+def _scatter_plan(first, second, w_first, w_second, descending=False):
+    """The trick's plan: entries particle by particle, items ascending (descending), as flat
+    coordinate indices, items and weights."""
+    item = np.r_[np.arange(len(first)), np.arange(len(second))]
+    particle = np.r_[first, second]
+    order = np.lexsort((-item if descending else item, particle))
+    flat = (3 * particle[order][:, None] + np.arange(3)).ravel()
+    return flat, item[order], np.r_[w_first, w_second][order][:, None]
+
+
+def _plan_matrix(plan, particles):
+    from scipy import sparse
+    idx, item, w = plan
+    particle = idx[::3] // 3
+    indptr = np.r_[0, np.cumsum(np.bincount(particle, minlength=particles))]
+    return sparse.csr_matrix((w[:, 0].astype(float), item.astype(np.int32), indptr.astype(np.int32)),
+                             shape=(particles, int(item.max()) + 1 if len(item) else 0))
+
+
+class SumPlanned:
+    """The trick: a compiled CSR product whose entries per row are in a fixed (the scatter
+    plan's) order, into an output kept between calls."""
+
+    def __init__(self, first, second, w_first, w_second, particles, descending=False):
+        self.matrix = _plan_matrix(_scatter_plan(first, second, w_first, w_second, descending), particles)
+
+    def into(self, values, out):
+        out[...] = self.matrix @ values
+        return out
+
+
+class SumAddAt:
+    """The plain formula: out[first] += w_first values; out[second] += w_second values (np.add.at)."""
+
+    def __init__(self, first, second, w_first, w_second, particles, descending=False):
+        self.first, self.second = first, second
+        self.w_first, self.w_second = np.asarray(w_first, float)[:, None], np.asarray(w_second, float)[:, None]
+
+    def into(self, values, out):
+        out[...] = 0.0
+        np.add.at(out, self.first, self.w_first * values)
+        np.add.at(out, self.second, self.w_second * values)
+        return out
+
+
+# ==== which version the product code holds, and switching ======================================
+
+class Trick:
+    """One trick: the product code's names it lives under, its version and the plain one."""
+
+    def __init__(self, name, capability, plain_formula, targets, trick, plain):
+        self.name, self.capability, self.plain_formula = name, capability, plain_formula
+        self.targets, self.versions = targets, {"trick": trick, "plain": plain}
+
+    def use(self, version):
+        """Every target (owner, attribute) set to `version` ('trick' or 'plain')."""
+        for owner, attr in self.targets:
+            setattr(owner, attr, self.versions[version])
+
+
+def _holders(name, original):
+    """Every (module, name) of the loaded solver modules that holds `original` (the defining
+    module and every one that imported it)."""
+    return [(mod, name) for key, mod in sorted(sys.modules.items())
+            if key.startswith("humananim.solver") and getattr(mod, name, None) is original]
+
+
+def tricks():
+    cc, bc = comfort_control, balance_control
+    out = [
+        Trick("comfort_pinv_gesdd", "control", "np.linalg.pinv(a, rcond)",
+              _holders("pinv", cc.pinv), pinv_trick, pinv_plain),
+        Trick("comfort_joint_stress_min_max", "control", "tau - np.clip(tau, low, high)",
+              _holders("joint_stress", cc.joint_stress), joint_stress_trick, joint_stress_plain),
+        Trick("balance_falling_gesv", "control", "np.linalg.solve(I_base, rhs)",
+              _holders("falling", bc.falling), falling_trick, falling_plain),
+        Trick("feet_dls_potrf_potrs", "control", "cho_solve(cho_factor(J J' + lambda^2 I), r) (check_finite=False)",
+              [(feet.PlantedFeet, "dls")], dls_trick, dls_plain),
+        Trick("feet_damping_syevd", "control", "np.linalg.eigvalsh(J J')[0]",
+              [(feet.PlantedFeet, "damping")], damping_trick, damping_plain),
+        Trick("ik_null_space_step_syevd_posv", "grasp",
+              "np.linalg.eigvalsh(G)[0]; cho_solve(cho_factor(G + l^2 I), rhs)",
+              _holders("null_space_step", ik.null_space_step), null_space_step_trick, null_space_step_plain),
+        Trick("flexible_cholesky_in_place", "flexible", "b[:] = cho_solve(cho_factor(A), b)",
+              [(flexible_kernel, "CholeskySolver")], CholeskyInPlace, CholeskyPlain),
+        Trick("cloth_scatter_plan", "cloth", "np.add.at(out, first, w_first f); np.add.at(out, second, w_second f)",
+              [(cloth_dynamics, "ParticleSum")], SumPlanned, SumAddAt),
+    ]
+    return out
+
+
+# ==== the capabilities ==========================================================================
+
+def control_workload():
+    import control as control_bench
+    from humananim.solver.motion_control import controller as ctl
+    chosen = [c for c in control_bench.cases(ctl) if c[0] in ("figure_15kg", "cmu")]
+    return [lambda sk=sk, motion=motion, settings=settings: ctl.control(sk, motion, settings)
+            for _, sk, motion, settings in chosen]
+
+
+def grasp_workload():
+    from hands_cases import metarig, object_cases
+    from humananim.solver.hands import grasp as G
+    sk, basis, a2w = metarig()
+    shapes = [case[3] for case in object_cases()[::5]]
+    G.grasp(sk, basis, a2w, shapes[0])  # per-skeleton caches filled once, as in a session
+    return [lambda shape=shape: G.grasp(sk, basis, a2w, shape) for shape in shapes]
+
+
+def flexible_workload():
+    import flexible as flexible_bench
+    from humananim.solver.flexible import Ground, ModeGains, Settings, Simulator
+    from humananim.solver.flexible.demo import table_body
+    from humananim.solver.flexible.simulate import State
+    body = table_body(count=11)
+    gains = ModeGains.from_frequency(body, 3.0, 0.3)
+    start = State.rest(4, t=(0, 0, 0.3))
+
+    def run(integrator):  # the simulator made inside: the kernel takes its solver class when built
+        sim = Simulator(body, gains, Settings(dt=0.01, integrator=integrator, ground=Ground.flat(), cond_every=0),
+                        flexible_bench.table_controller(body))
+        sim.run(start, 12.0)
+    return [lambda: run("semi_implicit"), lambda: run("implicit")]
+
+
+def cloth_workload(frames=60):
+    from cloth_scenes import walk, walking_skirt
+    from humananim.solver.cloth import ClothSimulation, preset
+
+    def run():  # the simulation is made inside: its dynamics take their particle sums when built
+        mesh, pinned, capsules = walking_skirt()
+        sim = ClothSimulation(mesh, preset("COTTON"), pinned, [capsules], level=2, fps=30)
+        for _ in walk(sim, mesh.rest[pinned], capsules, [capsules], frames):
+            pass
+    return [run, run]
+
+
+WORKLOADS = {"control": control_workload, "grasp": grasp_workload, "flexible": flexible_workload,
+             "cloth": cloth_workload}
+
+
+# ==== measuring =================================================================================
+
+def cpu_seconds(fn):
+    t0 = time.process_time()
+    fn()
+    return time.process_time() - t0
+
+
+def measure(trick, units, rounds):
+    """times[version][round][unit]: CPU seconds of each unit of the workload (one bake, one grasp,
+    one simulation) with each version, run in turn, the order alternating from unit to unit, so a
+    swing of the machine's load falls on both. The product code's version is restored after."""
+    held = [(owner, attr, getattr(owner, attr)) for owner, attr in trick.targets]
+    times = {"trick": [], "plain": []}
+    try:
+        for version in ("trick", "plain"):  # a warm-up of each (imports, caches)
+            trick.use(version)
+            units[0]()
+        flip = 0
+        for _ in range(rounds):
+            for version in times:
+                times[version].append([])
+            for unit in units:
+                for version in (("trick", "plain"), ("plain", "trick"))[flip]:
+                    trick.use(version)
+                    times[version][-1].append(cpu_seconds(unit))
+                flip ^= 1
+    finally:
+        for owner, attr, value in held:
+            setattr(owner, attr, value)
+    return times
+
+
+def figures(trick, times):
+    """The median over the rounds of (workload time with the trick / with the plain version), its
+    spread, and beside it the ratio of the best times (each unit's fastest run of each version,
+    summed: the load a shared machine adds only ever slows a run down)."""
+    trick_s = [sum(r) for r in times["trick"]]
+    plain_s = [sum(r) for r in times["plain"]]
+    ratios = [t / p for t, p in zip(trick_s, plain_s)]
+    ratio = statistics.median(ratios)
+    best = sum(map(min, zip(*times["trick"]))) / sum(map(min, zip(*times["plain"])))
+    return {"trick": trick.name, "capability": trick.capability, "plain_formula": trick.plain_formula,
+            "capability_ms_with_trick": 1e3 * statistics.median(trick_s),
+            "capability_ms_plain": 1e3 * statistics.median(plain_s),
+            "ratio_trick_over_plain": ratio, "ratio_min": min(ratios), "ratio_max": max(ratios),
+            "ratio_of_best_times": best, "saving_percent": 100.0 * (1.0 - ratio), "rounds": len(ratios),
+            "worth_keeping": bool(1.0 - ratio >= AIM)}
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", action="store_true", help="print one JSON object (and write benchmarks/results/microopt.json)")
+    parser.add_argument("--rounds", type=int, default=5, help="alternating rounds per trick (default 5)")
+    parser.add_argument("--only", default="", help="only the tricks whose name or capability contains this")
+    args = parser.parse_args(argv)
+    chosen = [t for t in tricks() if args.only in t.name or args.only in t.capability]
+    runs, rows = {}, []
+    for trick in chosen:
+        if trick.capability not in runs:
+            runs[trick.capability] = WORKLOADS[trick.capability]()
+        row = figures(trick, measure(trick, runs[trick.capability], max(1, args.rounds)))
+        rows.append(row)
+        if not args.json:
+            print(f"{row['trick']:32s} {row['capability']:9s} {row['capability_ms_with_trick']:8.1f} ms "
+                  f"/ {row['capability_ms_plain']:8.1f} ms plain = {row['ratio_trick_over_plain']:.3f} "
+                  f"({row['ratio_min']:.3f}-{row['ratio_max']:.3f}; best times {row['ratio_of_best_times']:.3f}), "
+                  f"saves {row['saving_percent']:5.1f} %"
+                  f" -> {'keep' if row['worth_keeping'] else 'plain'}", flush=True)
+    if args.json:
+        found = [claim(f"{r['trick']}: {r['capability']} time with the trick / with {r['plain_formula']} "
+                       f"(median of {r['rounds']} alternating rounds, spread {r['ratio_min']:.3f}-{r['ratio_max']:.3f})",
+                       r["ratio_trick_over_plain"], "ratio", "saves >= 5 % of the capability's time",
+                       r["worth_keeping"]) for r in rows]
+        emit(result("microopt", found, tricks=rows))
+
+
+if __name__ == "__main__":
+    main()

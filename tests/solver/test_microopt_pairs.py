@@ -1,0 +1,116 @@
+"""benchmarks/microopt.py times each micro-optimisation beside its plain formula: the two versions
+of every pair must compute the same thing (else the benchmark compares different work), and the
+product code's version must be one of them. Nothing here looks at a time."""
+
+import importlib.util
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from humananim.solver.cloth.dynamics import ParticleSum
+from humananim.solver.hands import ik
+from humananim.solver.motion_control import feet
+from humananim.solver.motion_control.comfort_control import joint_stress, pinv
+
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+
+
+@pytest.fixture(scope="module")
+def micro():
+    spec = importlib.util.spec_from_file_location("benchmarks_microopt", BENCHMARKS / "microopt.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_every_trick_is_switched_where_the_product_code_holds_it(micro):
+    for trick in micro.tricks():
+        assert trick.targets, f"{trick.name}: no product code holds it"
+        held = [getattr(owner, attr) for owner, attr in trick.targets]
+        trick.use("plain")
+        assert all(getattr(owner, attr) is trick.versions["plain"] for owner, attr in trick.targets)
+        for (owner, attr), value in zip(trick.targets, held):
+            setattr(owner, attr, value)
+
+
+def test_pseudo_inverse_pair_cuts_the_same_singular_values(micro):
+    rng = np.random.default_rng(1)
+    a = rng.standard_normal((3, 8))
+    a[2] = a[0] + 1e-9 * rng.standard_normal(8)  # nearly rank 2: the cut decides
+    for rcond in (1e-6, 1e-12, 0.05):
+        want = micro.pinv_trick(a, rcond)
+        assert np.allclose(micro.pinv_plain(a, rcond), want, atol=1e-9)
+        assert np.allclose(pinv(a, rcond), want, atol=1e-9)
+    assert micro.pinv_plain(np.zeros((0, 4)), 1e-6).shape == (4, 0)
+
+
+def test_joint_stress_pair_is_equal(micro):
+    rng = np.random.default_rng(2)
+    tau = rng.standard_normal(40) * 3
+    limits = (-np.ones(40) - rng.random(40), np.ones(40) + rng.random(40))
+    want = micro.joint_stress_trick(tau, limits, 0.1)
+    assert np.array_equal(micro.joint_stress_plain(tau, limits, 0.1), want)
+    assert np.array_equal(joint_stress(tau, limits, 0.1), want)
+
+
+def test_planted_legs_pairs_give_the_same_step(micro):
+    rng = np.random.default_rng(3)
+    jac, r = rng.standard_normal((6, 7)), rng.standard_normal(6)
+    jac[5] = jac[4] + 1e-3 * jac[3]  # near singular: the adaptive damping acts
+    legs = SimpleNamespace(singular=(0.05 ** 2, 0.1 ** 2), eye6=1e-4 * np.eye(6), _dls_factors={})
+    for damping in (micro.damping_trick, micro.damping_plain):
+        assert np.allclose(damping(legs, jac @ jac.T), micro.damping_trick(legs, jac @ jac.T))
+    legs.damping = lambda jj: micro.damping_plain(legs, jj)
+    want = micro.dls_trick(legs, jac, r)
+    legs._dls_factors = {}
+    assert np.allclose(micro.dls_plain(legs, jac, r), want, atol=1e-10)
+    legs._dls_factors = {}
+    assert np.allclose(feet.PlantedFeet.dls(legs, jac, r), want, atol=1e-10)
+
+
+@pytest.mark.parametrize("shape", [(6, 12), (3, 4), (6, 4), (6, 6)])
+def test_ik_step_pair_is_the_same_step(micro, shape):
+    rng = np.random.default_rng(4)
+    jac, dx, dz = rng.standard_normal(shape), rng.standard_normal(shape[0]), rng.standard_normal(shape[1])
+    jac[-1] = jac[0] * 1e-3  # a nearly singular row: damped
+    active = (rng.random(shape[1]) > 0.2).astype(float)
+    want = micro.null_space_step_trick(jac, dx, dz, active)
+    assert np.allclose(micro.null_space_step_plain(jac, dx, dz, active), want, atol=1e-10)
+    assert np.allclose(ik.null_space_step(jac, dx, dz, active), want, atol=1e-10)
+    singular = np.zeros(shape)  # no damping can make it positive definite: the SVD fallback
+    assert np.allclose(ik.null_space_step(singular, dx, dz), micro.null_space_step_trick(singular, dx, dz))
+
+
+def test_cholesky_pair_solves_in_the_buffers(micro):
+    rng = np.random.default_rng(5)
+    m = rng.standard_normal((7, 7))
+    spd = m @ m.T + 7 * np.eye(7)
+    b0 = rng.standard_normal(7)
+    outs = []
+    for cls in (micro.CholeskyInPlace, micro.CholeskyPlain):
+        A, b = spd.copy(), b0.copy()
+        solver = cls(A, b)
+        assert solver.solve()
+        first = b.copy()
+        b[:] = b0
+        solver.resolve()
+        outs.append((first, b.copy()))
+        assert not cls(-np.eye(7), b0.copy()).solve()  # not positive definite
+    want = np.linalg.solve(spd, b0)
+    for first, again in outs:
+        assert np.allclose(first, want) and np.allclose(again, want)
+
+
+def test_particle_sum_pair_and_the_product_code_add_alike(micro):
+    rng = np.random.default_rng(6)
+    first, second = rng.integers(0, 10, 30), rng.integers(0, 10, 30)
+    w0, w1 = rng.random(30), -rng.random(30)
+    values = rng.standard_normal((30, 3))
+    want = np.zeros((10, 3))
+    np.add.at(want, first, w0[:, None] * values)
+    np.add.at(want, second, w1[:, None] * values)
+    for cls in (micro.SumPlanned, micro.SumAddAt, ParticleSum):
+        out = np.full((10, 3), np.nan)
+        assert np.allclose(cls(first, second, w0, w1, 10).into(values, out), want)
