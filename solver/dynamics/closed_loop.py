@@ -138,11 +138,7 @@ def simulate(skeleton, trajectories, settings=None):
 def iter_simulate(skeleton, trajectories, settings=None):
     """simulate() as steps: yields the fraction of frames done, returns the Result."""
     st = settings or Settings()
-    if st.weld_static_helpers:
-        skeleton = weld_static_helpers(skeleton, trajectories)
-    if st.lump_made_up_tails:
-        skeleton = lump_made_up_tails(skeleton)
-    _require_connected_body(skeleton)
+    skeleton = simulated_skeleton(skeleton, trajectories, st)
     run = _Run.prepare(skeleton, trajectories, st)
     rec = _Recording(trajectories.frame_count, run.model)
     q, v = run.qd[0].copy(), run.vd[0].copy()
@@ -322,6 +318,18 @@ def motion_floor(skeleton, trajectories, contacts=None):
     qs = desired_motion(model, skeleton, trajectories)[0]
     heights = kinematics.batch_point_positions(model, qs, contacts.joints, contacts.points)[..., 2]
     return float((heights - contacts.radii).min())
+
+
+def simulated_skeleton(skeleton, trajectories, settings):
+    """The skeleton a simulation or a dynamic control runs on (both build theirs here): static
+    massless helpers welded and made-up tails lumped into their parent, as `settings` (closed_loop's
+    Settings or motion_control's ControlSettings) ask; refused if its bodies don't connect."""
+    if settings.weld_static_helpers:
+        skeleton = weld_static_helpers(skeleton, trajectories)
+    if settings.lump_made_up_tails:
+        skeleton = lump_made_up_tails(skeleton)
+    _require_connected_body(skeleton)
+    return skeleton
 
 
 def weld_static_helpers(skeleton, trajectories, tolerance=1e-3):
