@@ -191,3 +191,9 @@ def test_dynamic_control_lumps_a_made_up_tail_as_simulate_does():
     # its made-up mass distribution moves the ZMP
     assert kept.model.joint_kind[hand] != "kinematic"
     assert np.nanmax(np.linalg.norm(kept.zmp - as_lumped.zmp, axis=1)) > 5e-4
+    # a made-up tail that carries a load keeps its segment (the load needs the hand's reach), in
+    # both: Simulate's loads are {bone: kg}, Dynamic Control's Load tuples
+    from humananim.solver.motion_control import Load
+    for settings in (Settings(loads={"hand.L": 3.0}), ControlSettings(loads=(Load("hand.L", 3.0),))):
+        loaded = simulated_skeleton(read, tr, settings)
+        assert loaded.mass[hand] == read.mass[hand] and loaded.lengths[hand] == read.lengths[hand]
