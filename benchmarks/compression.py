@@ -9,7 +9,17 @@ largest errors as their per-frame tolerances, so every method is at or under Ble
 The Hermite keys are also written into the action as Blender keyframes and evaluated by Blender,
 to check that Blender plays them exactly as computed.
 
+Keeping planted feet (the Compress command's --feet-mm, default 2.5 mm): HumanAnim's whole
+Compress command (humananim_addon.sequence.compress, Hermite keys, 0.5 deg / 0.5 cm) on each clip
+as Blender's importer reads it, three ways in turn in the same run: without the feet, with the
+legs' tolerance scale searched on the measured errors (key_reduction.scale_to_error, the
+command's), and with it found by halving five times (key_reduction.fit_to_error, each step
+reducing the legs' channels again). Each is timed in CPU seconds of the process (the command runs on
+one thread; a loaded host stretches wall time far more), the fastest of --repeat, with its key count
+and planted-foot error; --feet-clip adds clips (e.g. the Bandai Namco corpus beside the repo).
+
 Run with a Python that has the bpy module:  python benchmarks/compression.py [--json] [--clip FILE]
+[--feet-clip FILE] [--feet-only]
 (--json prints one object and writes benchmarks/results/compression.json; see machine.py).
 """
 
@@ -234,6 +244,65 @@ def run_clip(path, repeat):
     return rows
 
 
+FEET_MM = 2.5
+
+
+def run_feet(path, repeat):
+    """The Compress command on one clip without the feet, with the scale searched on the errors
+    and with it halved: (seconds, keys, ratio, planted-foot error mm, tolerance scale) each."""
+    import importlib
+    from humananim.humananim_addon import sequence
+    command = importlib.import_module("humananim.humananim_addon.sequence.compress")
+    obj = import_clip(path)
+    scene = bpy.context.scene
+    source = obj.animation_data.action
+    sel = sequence.select_channels(obj, scene, source)
+    ways = {"none": (0.0, key_reduction.scale_to_error), "errors": (FEET_MM, key_reduction.scale_to_error),
+            "halving": (FEET_MM, key_reduction.fit_to_error)}
+    row = {"clip": os.path.basename(path), "frames": int(len(sequence.action_frames(source)))}
+    best = dict.fromkeys(ways, np.inf)
+    for _ in range(repeat):
+        for name, (feet_mm, search) in ways.items():  # in turn, so that load changes hit all three alike
+            command.FEET_SEARCH = search
+            try:
+                t0 = time.process_time()
+                s = quietly(sequence.compress, obj, scene, source, sel, feet_mm=feet_mm)
+                best[name] = min(best[name], time.process_time() - t0)
+            finally:
+                command.FEET_SEARCH = key_reduction.scale_to_error
+            row.update({f"{name}_keys": s["keys_after"], f"{name}_ratio": s["ratio"],
+                        f"{name}_feet_error_mm": s.get("feet_error_mm"), f"{name}_scale": s.get("feet_tolerance_scale")})
+    row.update({f"{name}_s": round(best[name], 3) for name in ways})
+    return row
+
+
+def feet_summary(rows):
+    total = {name: sum(r[f"{name}_s"] for r in rows) for name in ("none", "errors", "halving")}
+    keys = {name: sum(r[f"{name}_keys"] for r in rows) for name in ("errors", "halving")}
+    return {"feet_clips": [r["clip"] for r in rows], "feet_rows": rows,
+            "feet_errors_vs_none_time": total["errors"] / total["none"],
+            "feet_halving_vs_none_time": total["halving"] / total["none"],
+            "feet_errors_vs_halving_time": total["errors"] / total["halving"],
+            "feet_errors_vs_halving_keys": keys["errors"] / keys["halving"],
+            "feet_max_error_mm": max(r["errors_feet_error_mm"] or 0.0 for r in rows)}
+
+
+def feet_claims(s):
+    return [
+        claim(f"Compress keeping planted feet ({FEET_MM} mm), scale searched on the errors: time against without "
+              "the feet", s["feet_errors_vs_none_time"], "x", None, None),
+        claim(f"Compress keeping planted feet ({FEET_MM} mm), scale halved five times: time against without the "
+              "feet", s["feet_halving_vs_none_time"], "x", None, None),
+        claim("Compress keeping planted feet: time, scale searched on the errors against halved, same clips in the "
+              "same run", s["feet_errors_vs_halving_time"], "ratio", "faster than halving (< 1)",
+              s["feet_errors_vs_halving_time"] < 1.0),
+        claim("Compress keeping planted feet: keys, scale searched on the errors against halved",
+              s["feet_errors_vs_halving_keys"], "ratio", "within 2 %", abs(s["feet_errors_vs_halving_keys"] - 1) <= 0.02),
+        claim("Compress keeping planted feet: largest planted-foot error, scale searched on the errors",
+              s["feet_max_error_mm"], "mm", f"at most {FEET_MM} mm", s["feet_max_error_mm"] <= FEET_MM),
+    ]
+
+
 def summary(rows):
     dec = [r for r in rows if r["blender_op"] == "decimate" and r["blender_setting"] == 0.01]
     cln = [r for r in rows if r["blender_op"] == "clean" and r["blender_setting"] == 0.005]
@@ -297,13 +366,30 @@ def main():
     parser.add_argument("--clip", action="append", help="BVH file (default: both CMU clips)")
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--feet-clip", action="append", default=[], help="more BVH files for the planted feet")
+    parser.add_argument("--feet-only", action="store_true", help="only the planted feet's timing")
     args = parser.parse_args()
+    import humananim
+    humananim.register()  # the Compress command reads the rig's role settings
+    feet = feet_summary([run_feet(clip, args.repeat) for clip in (args.clip or CLIPS) + args.feet_clip])
     rows = []
-    for clip in args.clip or CLIPS:
+    for clip in ([] if args.feet_only else args.clip or CLIPS):
         rows += run_clip(clip, args.repeat)
-    figures = {"rows": rows, **summary(rows)}
+    figures = {"rows": rows, **summary(rows)} if rows else {}
     if args.json:
-        emit(result("compression", claims(figures), clips=sorted({r["clip"] for r in rows}), **figures))
+        emit(result("compression", (claims(figures) if rows else []) + feet_claims(feet),
+                    clips=sorted({r["clip"] for r in rows}), **figures, **feet))
+        return 0
+    print(f"{'clip':30} {'frames':>6} | {'no feet s':>9} | {'errors s':>8} {'keys':>6} {'mm':>5} {'scale':>6} | "
+          f"{'halving s':>9} {'keys':>6} {'mm':>5} {'scale':>6}")
+    for r in feet["feet_rows"]:
+        print(f"{r['clip'][:30]:30} {r['frames']:6d} | {r['none_s']:9.2f} | {r['errors_s']:8.2f} {r['errors_keys']:6d} "
+              f"{r['errors_feet_error_mm'] or 0:5.2f} {r['errors_scale'] or 1:6.3f} | {r['halving_s']:9.2f} "
+              f"{r['halving_keys']:6d} {r['halving_feet_error_mm'] or 0:5.2f} {r['halving_scale'] or 1:6.3f}")
+    print(f"keeping feet: {feet['feet_errors_vs_none_time']:.2f}x the time without (halving: "
+          f"{feet['feet_halving_vs_none_time']:.2f}x); on the errors / halving: time "
+          f"{feet['feet_errors_vs_halving_time']:.2f}, keys {feet['feet_errors_vs_halving_keys']:.3f}\n")
+    if not rows:
         return 0
     head = (f"{'clip':15} {'Blender':16} {'keys':>6} {'deg':>6} {'cm':>6} {'tail+10':>7} | "
             f"{'Hermite':>7} {'deg':>6} {'cm':>6} {'tail+10':>7} {'ratio':>5} | {'Pyramid':>7} {'deg':>6} {'cm':>6}")

@@ -79,10 +79,6 @@ def blend(obj, scene, action_a, action_b, start, window=0, method="MULTIRESOLUTI
         for k, w in zip(plain_idx, widths):
             values[k], at = res[:, at:at + w], at + w
     frames = fa[0] + np.arange(len(values[0]), dtype=float)
-    out = Output(obj, action_a, f"{action_a.name}.blend", replace)
-    write_groups(out, groups_a, frames, values)
-    out.copy_unprocessed(sel.others)
-    out.finish()
     w = multiresolution_blend.blend_weights(len(fa), s, len(fb), transition)
     moving = np.flatnonzero((w > 0.0) & (w < 1.0))
     # the frames the blend changes: where B's weight in the result (the blend of a channel that
@@ -90,7 +86,16 @@ def blend(obj, scene, action_a, action_b, start, window=0, method="MULTIRESOLUTI
     share = (multiresolution_blend.multiresolution_blend if how == "multiresolution"
              else multiresolution_blend.weighted_sum_blend)(np.zeros((len(fa), 1)), np.ones((len(fb), 1)), s, **kw)[:, 0]
     near = (share > 1e-3) & (share < 1.0 - 1e-3)
-    held = _hold_feet(obj, scene, out, layout, frames, near)
+    feet = _FeetHold.of(obj, scene, layout, near)
+    held = feet.on_blend(layout, values, sel.others, frames) if feet and not feet.exact else None
+    out = Output(obj, action_a, f"{action_a.name}.blend", replace)
+    write_groups(out, groups_a, frames, values)
+    out.copy_unprocessed(sel.others)
+    out.finish()
+    if feet and feet.exact:  # constraints or drivers: the pose is Blender's to evaluate
+        held = feet.on_action(out, frames)
+    if feet:
+        feet.write_extra(out, frames)
     summary = _base_summary(obj, action_a, Selection(action_a, groups_a, sel.note, sel.others), out)
     summary.update(command="blend", action_b=action_b.name, start=float(fa[0] + s), method=how, mask=mask.lower(),
                    frames=[float(frames[0]), float(frames[-1])],
@@ -101,46 +106,130 @@ def blend(obj, scene, action_a, action_b, start, window=0, method="MULTIRESOLUTI
     return summary
 
 
-def _hold_feet(obj, scene, out, layout, frames, transition):
+class _FeetHold:
     """The planted feet held through the transition (solver.sequence.planted_feet) and the legs'
-    channels of the result rewritten, on the contacts of the result. Only when the
-    blend covered every bone the legs' IK moves (else None, nothing changed)."""
-    from ..actions import bone_path, read_action, rotation_channels
-    from ..armature import skeleton_from_armature
-    if obj.type != "ARMATURE" or not transition.any():
-        return None
-    skeleton = skeleton_from_armature(obj, scene, require=False)
-    if not any(skeleton.role_index(f"foot.{side}") is not None for side in ("L", "R")):
-        return None
-    span = (float(frames[0]), float(frames[-1]))
-    traj = read_action(obj, scene, skeleton, out.action, frame_range=span)
-    if len(traj.frames) != len(frames):
-        return None
-    # contacts found on the result (low and slow in it); where the inputs plant a foot in
-    # different places the blend carries it fast, not planted, and it is left as blended
-    held, report = planted_feet.hold_planted_feet(skeleton, traj, transition)
-    paths = {g.data_path for g in layout}
-    changed = [j for j in range(len(skeleton.names))
-               if not np.allclose(np.abs(np.einsum("fi,fi->f", held.rotations[:, j], traj.rotations[:, j])), 1.0,
-                                  atol=1e-9)]
-    root = skeleton.root
-    lowered = report["pelvis_lowered_cm"] > 0.0
-    if any(bone_path(skeleton.names[j]) + ".rotation_quaternion" not in paths
-           and bone_path(skeleton.names[j]) + ".rotation_euler" not in paths
-           and bone_path(skeleton.names[j]) + ".rotation_axis_angle" not in paths for j in changed):
-        return None  # a leg bone was not blended (channels selected): left as blended
-    for j in changed:
-        bone = skeleton.names[j]
-        prop, values = rotation_channels(held.rotations[:, j], obj.pose.bones[bone].rotation_mode)
-        for i in range(values.shape[1]):
-            set_samples(out.fcurve(f"{bone_path(bone)}.{prop}", i, bone), frames, values[:, i])
-    if lowered and f"{bone_path(skeleton.names[root])}.location" in paths:
-        bone = skeleton.names[root]
-        loc = held.translations[:, root] / skeleton.unit_scale
-        for i in range(3):
-            set_samples(out.fcurve(f"{bone_path(bone)}.location", i, bone), frames, loc[:, i])
-    report["bones"] = [skeleton.names[j] for j in changed]
-    return report
+    channels of the result rewritten, on the contacts of the result. Only when the blend covered
+    every bone the legs' IK moves (else nothing is changed).
+
+    On a plain FK rig the result's poses are the blended channels themselves: the feet are held
+    on them before anything is written (on_blend). Where constraints or drivers make Blender's
+    pose differ from the channels (actions.needs_evaluation), the result is written first and
+    read back through Blender's evaluation (on_action)."""
+
+    @classmethod
+    def of(cls, obj, scene, layout, transition):
+        """The hold for a blend of `layout`'s channels, or None (no feet, nothing changes)."""
+        from ..actions import needs_evaluation
+        from ..armature import skeleton_from_armature
+        if obj.type != "ARMATURE" or not transition.any():
+            return None
+        skeleton = skeleton_from_armature(obj, scene, require=False)
+        if not any(skeleton.role_index(f"foot.{side}") is not None for side in ("L", "R")):
+            return None
+        hold = cls()
+        hold.obj, hold.scene, hold.skeleton, hold.transition = obj, scene, skeleton, transition
+        hold.paths = {g.data_path for g in layout}
+        hold.exact = needs_evaluation(obj)
+        hold._extra = {}  # (data path, index) -> (bone, samples) to key after the blend's curves
+        return hold
+
+    def on_blend(self, layout, values, others, frames):
+        """Holds the feet on the blended `values` (per layout group) and the curves copied as
+        they are (`others`), changing `values` in place; the report, or None."""
+        traj = self._trajectories(layout, values, others, frames)
+        changes = self._changes(traj)
+        if changes is None:
+            return None
+        at = {(g.data_path, i): (k, i) for k, g in enumerate(layout) for i in g.indices}
+        for key, (bone, samples) in list(changes.items()):
+            if key in at:
+                k, i = at.pop(key)
+                values[k] = values[k].copy()
+                values[k][:, i] = samples
+                del changes[key]
+        self._extra = changes  # a held bone's rotation mode keys a property the blend left alone
+        return self.report
+
+    def on_action(self, out, frames):
+        """Holds the feet on the written result as Blender evaluates it and rewrites the legs'
+        curves; the report, or None."""
+        from ..actions import read_action
+        traj = read_action(self.obj, self.scene, self.skeleton, out.action, frame_range=(frames[0], frames[-1]))
+        if len(traj.frames) != len(frames):
+            return None
+        changes = self._changes(traj)
+        if changes is None:
+            return None
+        self._extra = changes
+        return self.report
+
+    def write_extra(self, out, frames):
+        """The held curves not written with the blend's own (all of them after on_action)."""
+        for (path, i), (bone, samples) in self._extra.items():
+            set_samples(out.fcurve(path, i, bone), frames, samples)
+        self._extra = {}
+
+    def _changes(self, traj):
+        """{(data path, index): (bone, samples)} of the held legs, or None when a bone the hold
+        turns was not blended (channels selected: the result is left as blended)."""
+        from ..actions import bone_path, rotation_channels
+        sk, obj = self.skeleton, self.obj
+        # contacts found on the result (low and slow in it); where the inputs plant a foot in
+        # different places the blend carries it fast, not planted, and it is left as blended
+        held, report = planted_feet.hold_planted_feet(sk, traj, self.transition)
+        changed = [j for j in range(len(sk.names))
+                   if not np.allclose(np.abs(np.einsum("fi,fi->f", held.rotations[:, j], traj.rotations[:, j])), 1.0,
+                                      atol=1e-9)]
+        if any(all(f"{bone_path(sk.names[j])}.{prop}" not in self.paths
+                   for prop in ("rotation_quaternion", "rotation_euler", "rotation_axis_angle")) for j in changed):
+            return None
+        out = {}
+        for j in changed:
+            bone = sk.names[j]
+            prop, samples = rotation_channels(held.rotations[:, j], obj.pose.bones[bone].rotation_mode)
+            out.update({(f"{bone_path(bone)}.{prop}", i): (bone, samples[:, i]) for i in range(samples.shape[1])})
+        root = sk.names[sk.root]
+        if report["pelvis_lowered_cm"] > 0.0 and f"{bone_path(root)}.location" in self.paths:
+            loc = held.translations[:, sk.root] / sk.unit_scale
+            out.update({(f"{bone_path(root)}.location", i): (root, loc[:, i]) for i in range(3)})
+        report["bones"] = [sk.names[j] for j in changed]
+        self.report = report
+        return out
+
+    def _trajectories(self, layout, values, others, frames):
+        """The result's Trajectories from its channels as they will be written (the blended
+        values, then the curves copied as they are), the bones' current values where nothing is
+        keyed: what actions.read_action samples from the written action on a plain FK rig."""
+        from ...solver import rotations
+        from ...solver.trajectories import Trajectories
+        from ..actions import bone_channel, scene_fps
+        from ..armature import armature_to_world
+        channels = {}
+        for g, v in zip(layout, values):
+            channel = bone_channel(g.data_path)
+            if channel:
+                channels.update({(*channel, i): v[:, i] for i in g.indices})
+        for fc in others:
+            channel = bone_channel(fc.data_path)
+            if channel and not fc.mute:
+                channels[(*channel, fc.array_index)] = np.array([fc.evaluate(f) for f in frames])
+        sk, n = self.skeleton, len(frames)
+
+        def sample(bone, prop, current):
+            return np.column_stack([channels.get((bone, prop, i), np.full(n, value)) for i, value in enumerate(current)])
+        trans, quats = np.zeros((n, sk.joint_count, 3)), np.zeros((n, sk.joint_count, 4))
+        for j, name in enumerate(sk.names):
+            pb = self.obj.pose.bones[name]
+            if not sk.connected[j]:  # Blender ignores a connected bone's location
+                trans[:, j] = sample(name, "location", pb.location)
+            if pb.rotation_mode == "QUATERNION":
+                quats[:, j] = rotations.normalize(sample(name, "rotation_quaternion", pb.rotation_quaternion))
+            elif pb.rotation_mode == "AXIS_ANGLE":
+                quats[:, j] = rotations.from_axis_angle(sample(name, "rotation_axis_angle", pb.rotation_axis_angle))
+            else:
+                quats[:, j] = rotations.from_euler(sample(name, "rotation_euler", pb.rotation_euler), pb.rotation_mode)
+        return Trajectories(frames, scene_fps(self.scene), rotations.make_continuous(quats), trans * sk.unit_scale,
+                            armature_to_world(self.obj, self.scene))
 
 
 def _frames_in(action, frame_range):

@@ -138,11 +138,7 @@ def simulate(skeleton, trajectories, settings=None):
 def iter_simulate(skeleton, trajectories, settings=None):
     """simulate() as steps: yields the fraction of frames done, returns the Result."""
     st = settings or Settings()
-    if st.weld_static_helpers:
-        skeleton = weld_static_helpers(skeleton, trajectories)
-    if st.lump_made_up_tails:
-        skeleton = lump_made_up_tails(skeleton)
-    _require_connected_body(skeleton)
+    skeleton = simulated_skeleton(skeleton, trajectories, st)
     run = _Run.prepare(skeleton, trajectories, st)
     rec = _Recording(trajectories.frame_count, run.model)
     q, v = run.qd[0].copy(), run.vd[0].copy()
@@ -324,6 +320,21 @@ def motion_floor(skeleton, trajectories, contacts=None):
     return float((heights - contacts.radii).min())
 
 
+def simulated_skeleton(skeleton, trajectories, settings):
+    """The skeleton a simulation or a dynamic control runs on (both build theirs here): static
+    massless helpers welded and made-up tails lumped into their parent, as `settings` (closed_loop's
+    Settings or motion_control's ControlSettings) ask; refused if its bodies don't connect. A
+    made-up tail that carries a load keeps its segment: the load needs the hand's reach (the
+    anthropometric model puts its centre in the palm whatever the bone's length)."""
+    if settings.weld_static_helpers:
+        skeleton = weld_static_helpers(skeleton, trajectories)
+    if settings.lump_made_up_tails:
+        loaded = [getattr(load, "bone", load) for load in settings.loads]  # Settings: {bone: kg}; ControlSettings: Loads
+        skeleton = lump_made_up_tails(skeleton, keep=loaded)
+    _require_connected_body(skeleton)
+    return skeleton
+
+
 def weld_static_helpers(skeleton, trajectories, tolerance=1e-3):
     """The skeleton with no free axis on massless joints whose rotation stays within
     `tolerance` radians of its first frame (they keep that rotation, welded)."""
@@ -355,14 +366,16 @@ def made_up_tails(skeleton, short=2e-3, tolerance=0.01):
     return out
 
 
-def lump_made_up_tails(skeleton):
+def lump_made_up_tails(skeleton, keep=()):
     """The skeleton with every made-up-tail leaf (made_up_tails) lumped into its parent: its
     mass a point at its head added to the parent's segment (mass, centre of mass and inertia by
     the parallel axis theorem), its own mass and length zero. It then follows the source motion
     (a kinematic bone of build_model) and has no contact points of its own (the parent's carry
-    the body), so that no segment, lever or sole point rests on a tail the file never gave."""
+    the body), so that no segment, lever or sole point rests on a tail the file never gave.
+    Bones in `keep` (names or indices) stay as they are."""
     lumped = made_up_tails(skeleton)
     lumped &= skeleton.mass > 0.0
+    lumped[[skeleton.index(b) if isinstance(b, str) else int(b) for b in keep]] = False
     if not lumped.any():
         return skeleton
     sk = skeleton

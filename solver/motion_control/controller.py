@@ -56,7 +56,7 @@ import numpy as np
 
 from ..body_roles import SIDES
 from ..dynamics import kinematics
-from ..dynamics.closed_loop import SimulationError, _require_connected_body, _to_trajectories, weld_static_helpers
+from ..dynamics.closed_loop import SimulationError, _to_trajectories, simulated_skeleton
 from ..progress import run_to_end
 from .balance_control import balance_error, support_polygon
 from .body import LoadedBodies
@@ -124,8 +124,7 @@ class ControlLoop:
     def __init__(self, skeleton, trajectories, st):
         tr = trajectories
         self.st, self.tr = st, tr
-        sk = weld_static_helpers(skeleton, tr) if st.weld_static_helpers else skeleton
-        _require_connected_body(sk)
+        sk = simulated_skeleton(skeleton, tr, st)
         self.sk = sk
         total = sk.total_mass + sum(float(l.mass) for l in st.loads)
         self.bodies = LoadedBodies(sk, st, tr.basis()[0], self._q0, st.kinematic_fraction * total)

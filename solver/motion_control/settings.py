@@ -95,6 +95,7 @@ class ControlSettings:
     # 2.4 kN of the ground) turns into 1e4 rad/s^2 of a light neck
     max_dynamic_acceleration: float = 200.0
     weld_static_helpers: bool = True
+    lump_made_up_tails: bool = True  # as closed_loop.Settings: an End Site at zero offset has no segment
     min_horizon: float = None  # tracking (TrackingController)
     max_horizon: float = 0.5
     # the input is taken as feasible for the performer (Oshita: "our method assumes that input

@@ -362,6 +362,41 @@ def evaluate_hermite(keys: Keys, t):
     return np.where(t >= kt[-1], kv[-1], out)
 
 
+def scale_to_error(reduce, measure, target, tries=5, close=0.85, resolution=1.0 / 32.0):
+    """Keys from `reduce(scale)` whose `measure(keys)` is at most `target`, as fit_to_error, with
+    the scale found on the errors instead of by halving: an error that the channel errors add up
+    to (a planted foot's, a bone tail's) grows about in proportion to the channel tolerances, so
+    each try takes the scale where the line through the nearest measured (scale, error) points on
+    either side of the target (at first (0, 0): keys on every sample make no error, and (1, error
+    at 1)) reaches the middle of [close * target, target]. Stops at the first scale whose error is
+    within that window, or once the scales that pass and fail are `resolution` apart, after at
+    most `tries` reductions beyond the first. Returns (keys, scale, error); when no scale tried
+    meets the target, the last one's result."""
+    keys = reduce(1.0)
+    error = measure(keys)
+    if error <= target:
+        return keys, 1.0, error
+    (s0, e0), (s1, e1) = (0.0, 0.0), (1.0, error)
+    aim = 0.5 * (1.0 + close) * target
+    best, last = None, (keys, 1.0, error)
+    for _ in range(tries):
+        width = s1 - s0
+        s = s0 + (aim - e0) * width / (e1 - e0) if e1 > e0 else s0 + 0.5 * width
+        s = min(max(s, s0 + 0.1 * width), s1 - 0.1 * width)  # inside the bracket, never stalling at its end
+        keys = reduce(s)
+        error = measure(keys)
+        last = (keys, s, error)
+        if error <= target:
+            (s0, e0), best = (s, error), last
+            if error >= close * target:
+                break
+        else:
+            s1, e1 = s, error
+        if best is not None and s1 - s0 <= resolution:
+            break
+    return best if best is not None else last
+
+
 def fit_to_error(reduce, measure, target, steps=7):
     """Keys from `reduce(scale)` (a per-channel tolerance scaled by `scale` in (0, 1]) whose
     `measure(keys)` is at most `target`, found by bisection on the scale: for errors such as a

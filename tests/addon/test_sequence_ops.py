@@ -264,6 +264,49 @@ def test_blend_is_continuous_across_the_window(cmu_pair):
     assert all(np.array_equal(before[k], after[k]) for k in before)
 
 
+def test_blend_holds_the_feet_as_on_its_result_read_back_from_blender(cmu_pair, monkeypatch):
+    """The planted feet are held on the blend's own poses before the action is written. The
+    reference is the way it was done before, recorded here in the same run: the blend written
+    unheld, read back from Blender as trajectories and held there. Same result within 0.1 deg on
+    every bone and 1 mm on every joint."""
+    from humananim.humananim_addon.actions import read_action
+    from humananim.humananim_addon.armature import skeleton_from_armature
+    from humananim.solver import rotations
+    from humananim.solver.sequence import planted_feet
+    obj, a, b = cmu_pair
+    scene = bpy.context.scene
+    hold = planted_feet.hold_planted_feet
+    seen = {}
+
+    def unheld(skeleton, traj, transition, *args, **kw):
+        seen.update(traj=traj, transition=transition.copy())
+        return traj, hold(skeleton, traj, transition, *args, **kw)[1]
+    monkeypatch.setattr(planted_feet, "hold_planted_feet", unheld)
+    sequence.blend(obj, scene, a, b, 900, window=120)
+    monkeypatch.undo()
+    skeleton = skeleton_from_armature(obj, scene, require=False)
+    span = (seen["traj"].frames[0], seen["traj"].frames[-1])
+    read_back = read_action(obj, scene, skeleton, obj.animation_data.action, frame_range=span)
+    # the poses the feet are held on are the ones Blender shows for the written blend
+    assert np.degrees(rotations.angle_between(seen["traj"].rotations, read_back.rotations)).max() < 1e-4
+    assert np.abs(seen["traj"].translations - read_back.translations).max() < 1e-6
+    expected, report = hold(skeleton, read_back, seen["transition"])
+    assert report["held"]["L"] or report["held"]["R"]
+    s = sequence.blend(obj, scene, a, b, 900, window=120)
+    assert s["feet"]["held"] == report["held"] and s["feet"]["bones"]
+    got = read_action(obj, scene, skeleton, obj.animation_data.action, frame_range=span)
+    assert np.degrees(rotations.angle_between(got.rotations, expected.rotations)).max() < 0.1
+    heads = [t.world_frames(skeleton)[..., :3, 3] for t in (got, expected)]
+    assert np.linalg.norm(heads[0] - heads[1], axis=-1).max() < 1e-3
+    # a rig with constraints is held on Blender's evaluation of the written result: the same here
+    # (a constraint with no influence), the other way
+    obj.pose.bones["LeftShoulder"].constraints.new("COPY_ROTATION").influence = 0.0
+    s = sequence.blend(obj, scene, a, b, 900, window=120)
+    assert s["feet"]["held"] == report["held"]
+    evaluated = read_action(obj, scene, skeleton, obj.animation_data.action, frame_range=span)
+    assert np.degrees(rotations.angle_between(evaluated.rotations, expected.rotations)).max() < 0.1
+
+
 def test_blend_of_two_nla_strips(cmu_pair):
     obj, a, b = cmu_pair
     ad = obj.animation_data

@@ -155,3 +155,45 @@ def test_a_made_up_tail_is_lumped_into_its_parent():
     sk2, tr = motion(0.3)
     result = simulate(copied, tr)
     assert np.all(np.isfinite(result.trajectories.rotations))
+
+
+def test_dynamic_control_lumps_a_made_up_tail_as_simulate_does():
+    """Dynamic Control builds its body where Simulate does (closed_loop.simulated_skeleton): a
+    leaf whose tail the file never gave is lumped into its parent there too, so controlling the
+    skeleton as read gives the motion of controlling it lumped (same mass model, and the leaf
+    follows the source instead of spinning on a lever the file never gave)."""
+    from dataclasses import replace
+    from humananim.solver.dynamics.closed_loop import lump_made_up_tails, simulated_skeleton
+    from humananim.solver.motion_control import ControlSettings, control
+    sk, tr = motion(0.3)
+    hand, forearm = sk.index("hand.L"), sk.index("forearm.L")
+    rest, lengths = sk.rest.copy(), np.asarray(sk.lengths, float).copy()
+    rest[hand, :3, :3] = rest[forearm, :3, :3]  # Blender's guess for an End Site at zero offset
+    lengths[hand] = lengths[forearm]
+    read = replace(sk, rest=rest, lengths=lengths)
+    lumped = lump_made_up_tails(read)
+    built = simulated_skeleton(read, tr, ControlSettings())
+    assert np.array_equal(built.mass, lumped.mass) and np.array_equal(built.inertia, lumped.inertia)
+    assert built.lengths[hand] == 0.0
+    as_read = control(read, tr)
+    as_lumped = control(lumped, tr)
+    assert np.allclose(as_read.trajectories.rotations, as_lumped.trajectories.rotations, atol=1e-9)
+    assert np.allclose(as_read.trajectories.translations, as_lumped.trajectories.translations, atol=1e-9)
+    # the lumped hand turns with the source relative to its forearm: no spin of its own
+    spin = rotations.angle_between(as_read.trajectories.rotations[:, hand], tr.rotations[:, hand])
+    assert spin.max() < 1e-6
+    kept = control(read, tr, ControlSettings(lump_made_up_tails=False))
+    assert np.allclose(as_read.zmp, as_lumped.zmp, atol=1e-9, equal_nan=True)
+    assert np.allclose(as_read.stress, as_lumped.stress, atol=1e-9)
+    assert np.array_equal(as_read.model.spatial_inertia, as_lumped.model.spatial_inertia)
+    assert as_read.model.joint_kind[hand] == "kinematic"
+    # and the setting is what does it: not lumped, the copied tail is a segment of its own, and
+    # its made-up mass distribution moves the ZMP
+    assert kept.model.joint_kind[hand] != "kinematic"
+    assert np.nanmax(np.linalg.norm(kept.zmp - as_lumped.zmp, axis=1)) > 5e-4
+    # a made-up tail that carries a load keeps its segment (the load needs the hand's reach), in
+    # both: Simulate's loads are {bone: kg}, Dynamic Control's Load tuples
+    from humananim.solver.motion_control import Load
+    for settings in (Settings(loads={"hand.L": 3.0}), ControlSettings(loads=(Load("hand.L", 3.0),))):
+        loaded = simulated_skeleton(read, tr, settings)
+        assert loaded.mass[hand] == read.mass[hand] and loaded.lengths[hand] == read.lengths[hand]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from humananim.solver.dynamics import build_model, default_contacts, kinematics
-from humananim.solver.dynamics.closed_loop import desired_motion
+from humananim.solver.dynamics.closed_loop import desired_motion, lump_made_up_tails
 from humananim.solver.motion_control import Impulse, Load, control
 from humananim.solver.motion_control.controller import ControlSettings
 
@@ -16,7 +16,10 @@ from corpus_clips import load
 
 
 def depth_below_ground(sk, traj, ground):
-    """(F,) how far the lowest contact sphere of the body reaches below the ground (m, >= 0)."""
+    """(F,) how far the lowest contact sphere of the body reaches below the ground (m, >= 0): the
+    body control simulates, whose made-up tails (Bandai's zero End Sites) are lumped into their
+    parent and carry no sphere (closed_loop.simulated_skeleton)."""
+    sk = lump_made_up_tails(sk)
     model = build_model(sk, reference_basis=traj.basis()[0])
     contacts = default_contacts(model)
     qs = desired_motion(model, sk, traj)[0]
