@@ -12,6 +12,7 @@ The parts, each a module with a plain interface:
   comfort_control.py  stress against strength, passive and comfort control (ControlState)
   balance_control.py  ZMP, support polygon, balance control, the falling rotation
   dynamic_control.py  comfort and balance in the thesis's order, one step
+  modes.py            the modes over time: a part's kind with hysteresis, the blend of a mode change
   pushes.py           impulses and pushing forces
   collisions.py       swept collider contacts, projected Gauss-Seidel, the ground's impulses
   falling.py          the falling criterion (capture point) and the fallen body (ragdoll)

@@ -2,14 +2,15 @@
 changes, so that a signal hovering at a switching point does not flip the output from one step to
 the next.
 
-A control step's mode is which controls acted, in order (ControlLog.actions: passive control of the
-upper body; comfort or balance control of the arms, the back and the legs) and how much of the
-tracking's return was kept (ControlLoop._slower_return). Two mechanisms keep it from chattering:
+A control step's mode is the kind (comfort or balance) acting on each part (arms, back, legs) and
+how much of the tracking's return was kept (ControlLoop._slower_return); a control starting or
+stopping to act is no mode change, its change starts from or ends at zero by itself. Two mechanisms keep it from chattering:
 
 - **Hysteresis of a part's kind** (comfort or balance): the kind that acted on a part in the last
   step keeps acting until the other kind's candidate is larger by Settings.mode_margin (10 %)
   (comfort_control.largest_with_kind with `previous`); ModeMemory remembers the kinds.
-- **A blend over `blend_time`** (ControlSettings.mode_blend_time, 0.1 s): when the mode changes, the
+- **A blend over `blend_time`** (ControlSettings.mode_blend_time; off, 0 s, by default: at 0.1 s
+  the delayed feedback made the thesis's 15 kg box squat fall): when the mode changes, the
   change dynamic control makes to the tracking acceleration (c = a - a_tracking) continues from
   what it was and reaches the new mode's over blend_time, linearly:
 
