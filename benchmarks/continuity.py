@@ -21,7 +21,9 @@ measure: the largest change between neighbouring inputs, where it lies, the medi
 the jumps above 3x the median (a floor of one resolution of the measure: 0.05 deg, 0.5 mm, one
 frame) that do not lie at a declared threshold. The declared thresholds are where the outcome
 changes (stands -> falls: the fall is the reaction); docs/physics.md describes them.
-The aim: no undeclared jump.
+The aim: no undeclared jump. --mode-blend-time and --saturation-band bake every sweep with the
+controller's mode blend (ControlSettings.mode_blend_time) and the strength's smooth saturation
+(comfort_control.Settings.saturation_band) set (both off by default).
 """
 
 import argparse
@@ -37,6 +39,7 @@ sys.path.insert(0, str(HERE))
 
 from humananim.solver import rotations  # noqa: E402
 from humananim.solver.motion_control import ControlSettings, Impulse, Load, control  # noqa: E402
+from humananim.solver.motion_control.comfort_control import Settings as CriteriaSettings  # noqa: E402
 from humananim.solver.trajectories import Trajectories  # noqa: E402
 from machine import claim, emit, result  # noqa: E402
 
@@ -118,19 +121,22 @@ def jumps(rows):
     return out
 
 
-def run(sample=False):
+def run(sample=False, blend_time=0.0, band=0.0):
     load_step, push_step, frame_step = (2.0, 10.0, 6) if sample else (0.25, 2.0, 1)
+
+    def settings(**kw):
+        return ControlSettings(mode_blend_time=blend_time, criteria=CriteriaSettings(saturation_band=band), **kw)
     out = {}
     for name, (sk, tr) in scenes().items():
         out[f"load_{name}"] = sweep(sk, tr, np.arange(0.0, 20.0 + 1e-9, load_step),
-                                    lambda kg, sk=sk: ControlSettings(loads=box(sk, kg)))
+                                    lambda kg, sk=sk: settings(loads=box(sk, kg)))
         if name in ("squat", "cmu_walk"):
             out[f"push_{name}"] = sweep(sk, tr, np.arange(0.0, 80.0 + 1e-9, push_step),
-                                        lambda p, sk=sk: ControlSettings(impulses=chest_push(sk, 0.5, p)))
+                                        lambda p, sk=sk: settings(impulses=chest_push(sk, 0.5, p)))
         if name == "cmu_walk":
             frames = np.arange(int(0.4 * tr.fps), int(0.9 * tr.fps) + 1, frame_step)
             out[f"push_frame_{name}"] = sweep(sk, tr, frames,
-                                              lambda f, sk=sk, tr=tr: ControlSettings(
+                                              lambda f, sk=sk, tr=tr: settings(
                                                   impulses=chest_push(sk, f / tr.fps, 20.0)))
     return out
 
@@ -139,9 +145,11 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object and write it to results/")
     parser.add_argument("--sample", action="store_true", help="coarse steps (2 kg, 10 N s, 6 frames)")
+    parser.add_argument("--mode-blend-time", type=float, default=0.0, help="s (ControlSettings.mode_blend_time)")
+    parser.add_argument("--saturation-band", type=float, default=0.0, help="share of strength (Settings.saturation_band)")
     args = parser.parse_args(argv)
     t0 = time.process_time()
-    sweeps = run(args.sample)
+    sweeps = run(args.sample, args.mode_blend_time, args.saturation_band)
     analysis = {name: jumps(rows) for name, rows in sweeps.items()}
     undeclared = sum(len(a[k]["undeclared"]) for a in analysis.values() for k in RESOLUTION if k in a)
     claims = [claim("continuity sweeps: jumps above 3x the median neighbour change, not at a declared threshold",
@@ -153,6 +161,7 @@ def main(argv=None):
                                     a[key]["largest"] / max(a[key]["median"], RESOLUTION[key]), "x",
                                     "<= 3 (or at a threshold)", None))
     report = result("continuity", claims, sample=args.sample, cpu_s=round(time.process_time() - t0, 1),
+                    mode_blend_time=args.mode_blend_time, saturation_band=args.saturation_band,
                     analysis=analysis, sweeps=sweeps)
     if args.json:
         emit(report)

@@ -44,6 +44,15 @@ class Settings:
     max_part_acceleration: float = 20.0  # rad/s^2: most the arms or back turn for balance
     zmp_tolerance: float = 1e-4  # m: a ZMP this close to the support polygon is balanced
     torque_tolerance: float = 1e-6  # N m: stress below this is none
+    # the strength's smooth saturation (saturated_stress): a joint's torque saturates over a knee
+    # of +-saturation_band times its strength around the strength, so the stress (and with it
+    # comfort and passive control) grows smoothly with the load instead of starting at a kink;
+    # 0 (default): eq. 2.9's hard clip. 0.05 leaves the thesis's 15 kg box squat's back bent after
+    # the squat (docs/physics.md, "Predictable results")
+    saturation_band: float = 0.0
+    # hysteresis of a part's mode (largest_with_kind): the other kind's candidate takes over only
+    # when its demand is this share larger than the acting kind's (a tie does not flip per step)
+    mode_margin: float = 0.1
 
 
 # ---- the body's parts -------------------------------------------------------------------------
@@ -171,6 +180,7 @@ class ControlState:
     torque_memo: dict = field(default_factory=dict)  # acceleration bytes -> required_torques
     balance_memo: dict = field(default_factory=dict)  # (wrench bytes, id(polygon)) -> balance_error
     _limits: tuple = None
+    _knees: tuple = None
     _pelvis_jacobian: np.ndarray = None
     momentum_rate: np.ndarray = None  # (6, nv) balance_control._momentum_rate
     subtree_mass_com: tuple = None  # balance_control._subtree_mc
@@ -194,6 +204,16 @@ class ControlState:
         if self._limits is None:
             self._limits = self._make_limits()
         return self._limits
+
+    @property
+    def knees(self):
+        """(low, high) (nv,) where each DOF's smooth saturation starts: its limits pulled in by
+        Settings.saturation_band of themselves (saturated_stress)."""
+        if self._knees is None:
+            keep = 1.0 - self.settings.saturation_band
+            low, high = self.limits
+            self._knees = (low * keep, high * keep)
+        return self._knees
 
     def _make_limits(self):
         m = self.model
@@ -346,6 +366,39 @@ def joint_stress(tau, limits, tolerance=0.0):
     return s
 
 
+def saturated_stress(tau, limits, knees, tolerance=0.0):
+    """Eq. 2.9 with a smooth saturation of the strength. A DOF with strength tau_max (tau_min
+    alike) delivers sat(tau): tau up to the knee k = tau_max - w (w = band * |tau_max|, knees =
+    the limits pulled in by w), then k + e - e^2 / (4 w) for an excess e = tau - k in [0, 2 w],
+    tau_max beyond. The stress tau - sat(tau) is
+
+        0 for e <= 0,   e^2 / (4 w) for 0 < e < 2 w,   tau - tau_max for e >= 2 w,
+
+    continuous with its slope (C1): comfort and passive control start gently near the strength
+    instead of at a kink, and never let a joint deliver more than its strength. band = 0 is
+    joint_stress."""
+    s = joint_stress(tau, knees)  # the excess over the knee, signed
+    over = np.flatnonzero(s)
+    if len(over):
+        (low, high), (klow, khigh) = limits, knees
+        e = np.abs(s[over])
+        w = np.where(s[over] > 0.0, high[over] - khigh[over], klow[over] - low[over])  # (> 0)
+        quadratic = e * e / (4.0 * np.where(w > 0.0, w, np.inf))  # (w = 0: the hard clip)
+        s[over] = np.copysign(np.where(e < 2.0 * w, quadratic, e - w), s[over])
+    if tolerance:
+        s[np.abs(s) <= tolerance] = 0.0
+    return s
+
+
+def stress_of(state, tau):
+    """The stress (nv,) of torques `tau` on a ControlState: saturated_stress with the state's
+    saturation band (Settings.saturation_band), or eq. 2.9's hard clip (joint_stress) at 0."""
+    tol = state.settings.torque_tolerance
+    if state.settings.saturation_band <= 0.0:
+        return joint_stress(tau, state.limits, tol)
+    return saturated_stress(tau, state.limits, state.knees, tol)
+
+
 def pinv(a, rcond):
     """np.linalg.pinv(a, rcond): singular values at or below rcond times the largest are cut; an
     empty matrix gives the zero matrix of the transposed shape."""
@@ -365,7 +418,7 @@ def passive_control(state, a, dofs=None):
     dofs = state.parts.upper if dofs is None else np.asarray(dofs, int)
     delta = np.zeros(state.model.nv)
     tol = state.settings.torque_tolerance
-    stress = joint_stress(required_torques(state, a)[0], state.limits, tol)[dofs]
+    stress = stress_of(state, required_torques(state, a)[0])[dofs]
     k = dofs[stress != 0.0]
     if not len(k):
         return delta
@@ -375,9 +428,12 @@ def passive_control(state, a, dofs=None):
     passive = np.zeros(state.model.nv, bool)
     passive[k] = True
     target = np.clip(required_torques(state, a)[0], *state.limits)
+    if state.settings.saturation_band > 0.0:  # held at what the joint delivers: sat(tau), not the clip
+        tau0 = required_torques(state, a)[0]
+        target = tau0 - stress_of(state, tau0)
     for _ in range(state.settings.passive_rounds):
         tau = required_torques(state, a + delta)[0]
-        stress = joint_stress(tau, state.limits, tol)
+        stress = stress_of(state, tau)
         new = np.zeros_like(passive)
         new[dofs] = stress[dofs] != 0.0
         target[new & ~passive] = (tau - stress)[new & ~passive]
@@ -441,7 +497,7 @@ def comfort_candidates(state, part, a):
         # further, which needs more torque: CMU 131_01 with 6 kg per hand, knee collapsed 85 deg
         return []
     domain = state.parts.lower if part == "legs" else state.parts.upper
-    stress = joint_stress(required_torques(state, a)[0], state.limits, state.settings.torque_tolerance)
+    stress = stress_of(state, required_torques(state, a)[0])
     rows = domain[stress[domain] != 0.0]
     if not len(rows):
         return []
@@ -487,11 +543,12 @@ class ControlLog:
             self.actions.append((part, kind))
 
 
-def control_sequence(state, a0, criteria, passive=True, log=None):
+def control_sequence(state, a0, criteria, passive=True, log=None, memory=None):
     """Oshita's steps 3-5: passive control of the upper body, active control of the arms then the
     back, recomputed passive control, then the legs through the pelvis. `criteria` maps a kind
     ("comfort", "balance") to f(state, part, a_active, a_current) -> list of candidate part
-    accelerations. Returns the output acceleration."""
+    accelerations; `memory` (modes.ModeMemory, optional): the kinds that acted on each part in the
+    last step (hysteresis, largest_with_kind). Returns the output acceleration."""
     log = log or ControlLog(state.model.nv)
     active = np.array(a0, float)
     stress = passive_control(state, active) if passive else np.zeros_like(active)
@@ -500,7 +557,8 @@ def control_sequence(state, a0, criteria, passive=True, log=None):
         if part == "legs" and passive:  # step 4's recomputation of the passive change
             stress = passive_control(state, active)
             log.record("upper", "passive", stress)
-        best = largest_with_kind(state, part, criteria, active, active + stress)
+        previous = memory.previous(part) if memory is not None else None
+        best = largest_with_kind(state, part, criteria, active, active + stress, previous)
         if best is None:
             continue
         kind, x = best
@@ -510,15 +568,24 @@ def control_sequence(state, a0, criteria, passive=True, log=None):
     return active + stress, log
 
 
-def largest_with_kind(state, part, criteria, active, current):
+def largest_with_kind(state, part, criteria, active, current, previous=None):
     """The part's candidate of the largest demand, with its kind, or None. The demands are compared
     before the cap (bounded): capped first, two saturated candidates would tie at the cap and the
-    last bit would choose (the 15 kg squat parted from itself under gravity x (1 + 1e-14))."""
+    last bit would choose (the 15 kg squat parted from itself under gravity x (1 + 1e-14)).
+    Hysteresis: the candidate of the `previous` kind (the one that acted last step) stays unless
+    another is larger by Settings.mode_margin of it."""
     if not len(getattr(state.parts, part, ())) and part != "legs":
         return None
     found = [(kind, c) for kind, f in criteria.items() for c in f(state, part, active, current)]
-    found = [(k, c) for k, c in found if c is not None and np.count_nonzero(c)]
-    return max(found, key=lambda kc: _norm(kc[1])) if found else None
+    found = [(k, c, _norm(c)) for k, c in found if c is not None and np.count_nonzero(c)]
+    if not found:
+        return None
+    kind, c, size = max(found, key=lambda kcn: kcn[2])
+    if previous is not None and kind != previous:
+        held = [(k, c1, n) for k, c1, n in found if k == previous]
+        if held and size <= (1.0 + state.settings.mode_margin) * held[0][2]:
+            kind, c = held[0][:2]
+    return kind, c
 
 
 def _norm(x):
@@ -545,11 +612,10 @@ def comfort_control(state, a_tracking):
     """Comfort control alone: Δθ'' relieving joint stress in the thesis's order (exactly zero when
     nothing is stressed)."""
     a0 = np.asarray(a_tracking, float)
-    tol = state.settings.torque_tolerance
-    stress = joint_stress(required_torques(state, a0)[0], state.limits, tol)
+    stress = stress_of(state, required_torques(state, a0)[0])
     log = ControlLog(state.model.nv)
     if not stress.any():
         return ComfortResult(np.zeros_like(a0), stress, stress, None, log)
     out, log = control_sequence(state, a0, {"comfort": comfort_criterion}, log=log)
     tau = required_torques(state, out)[0]
-    return ComfortResult(out - a0, stress, joint_stress(tau, state.limits, tol), tau, log)
+    return ComfortResult(out - a0, stress, stress_of(state, tau), tau, log)

@@ -12,6 +12,7 @@ The parts, each a module with a plain interface:
   comfort_control.py  stress against strength, passive and comfort control (ControlState)
   balance_control.py  ZMP, support polygon, balance control, the falling rotation
   dynamic_control.py  comfort and balance in the thesis's order, one step
+  modes.py            the modes over time: a part's kind with hysteresis, the blend of a mode change
   pushes.py           impulses and pushing forces
   collisions.py       swept collider contacts, projected Gauss-Seidel, the ground's impulses
   falling.py          the falling criterion (capture point) and the fallen body (ragdoll)
@@ -61,11 +62,12 @@ from ..progress import run_to_end
 from .balance_control import balance_error, support_polygon
 from .body import LoadedBodies
 from .collisions import Collisions
-from .comfort_control import joint_stress, required_torques
+from .comfort_control import joint_stress, required_torques, stress_of
 from .contacts import contact_floor, support_intervals
 from .dynamic_control import control_state, dynamic_control, stress_by_bone
 from .falling import KNOCKED_OVER, FallCriterion, fall_steps, ragdoll_velocity
 from .feet import PlantedFeet, foot_skate, frame_index, rolling_anchor, sole_points
+from .modes import ModeBlend, ModeMemory
 from .pushes import Push, apply_impulses, push_forces
 from .settings import Collider, ControlResult, ControlSettings, Impulse, Load
 from .tracking import TrackingController
@@ -157,6 +159,7 @@ class ControlLoop:
         self.feet = PlantedFeet(st, self.tracking, m.create_data(), self.support_in, weights, roll)
         self.feet.precompute_targets(self.body)
         self.collisions = Collisions(st, self.ground, self.dt_frame)
+        self.modes, self.mode_blend = ModeMemory(), ModeBlend(st.mode_blend_time)
         self.q = self.tracking.q_d[0].copy()
         self.v = self.tracking.v_d[0].copy()
         self.t = 0.0
@@ -185,7 +188,9 @@ class ControlLoop:
                                ground_height=self.ground, parts=body.parts, settings=self.st.criteria,
                                constants=body.constants, soles=[input_soles[0][f], input_soles[1][f]])
             tau, wrench = required_torques(cs, tk.a_d[f])
-            tau_x[f] = np.abs(joint_stress(tau, cs.limits))
+            # beyond the knee of the strength's smooth saturation (comfort_control.saturated_stress):
+            # widened by this, the knee lies at the input's torque
+            tau_x[f] = np.abs(joint_stress(tau, cs.knees)) / (1.0 - cs.settings.saturation_band)
             zmp_x[f] = balance_error(cs, wrench)[2]
             capture[f] = self.fall.capture_error(cs)
         return _window_max(tau_x), _window_max(zmp_x), _window_max(capture)
@@ -267,10 +272,18 @@ class ControlLoop:
             if record:
                 self._record_diagnostics(f, cs, a_track)
             return a_track, cs, None
-        res = dynamic_control(cs, a_track)
+        res = dynamic_control(cs, a_track, self.modes)
+        scale = None
         if res.falling is not None:
-            a_track, res = self._slower_return(body, cs, t, a_raw, a_track, res, held, targets)
-        a = a_track + _bounded(res.delta, st.max_dynamic_acceleration) if res.acted else a_track
+            a_slower, res, scale = self._slower_return(body, cs, t, a_raw, a_track, res, held, targets)
+        else:
+            a_slower = a_track
+        a = a_slower + _bounded(res.delta, st.max_dynamic_acceleration) if res.acted else a_slower
+        self.modes.remember(res.log.actions)
+        # blended across a change of a part's kind or of the return's scale (modes.ModeBlend); a
+        # control that starts or stops acting starts from or ends at no change by itself
+        if self.mode_blend.blend_time > 0.0:
+            a = a_track + self.mode_blend.blend((self.modes.state(), scale), a - a_track, dt)
         if record:
             self._record_result(f, cs, res)
         fi = self.frame_index(t)
@@ -322,20 +335,21 @@ class ControlLoop:
     def _slower_return(self, body, cs, t, a_raw, a_track, res, feet, targets):
         """When balance control cannot keep the ZMP in the support polygon, return to the input
         more slowly before giving in to a fall: the tracking's feedback (its acceleration beyond the
-        input's own) scaled by each of RETURN_SCALES until one balances. Only while the figure can
+        input's own) scaled by each of RETURN_SCALES until one balances; (a, result, that scale or
+        None). Only while the figure can
         still stop on its feet (capture point within the support polygon, or no further out than
         the input's own): a figure pushed beyond that falls, as in the thesis."""
         if not self.fall.can_stop(cs, self.frame_index(t)):  # it cannot stop without a step: it falls
-            return a_track, res
+            return a_track, res, None
         a_d = self.tracking.desired_state(t)[2]
         for scale in RETURN_SCALES:
             a = a_d + scale * (a_raw - a_d)
             if targets is not None:
                 a = self.feet.constrain(body, cs.q, cs.v, a, feet, targets)
-            out = dynamic_control(cs, a)
+            out = dynamic_control(cs, a, self.modes)
             if out.falling is None:
-                return a, out
-        return a_track, res
+                return a, out, scale
+        return a_track, res, None
 
     # ---- the record ----
 
@@ -371,7 +385,7 @@ class ControlLoop:
     def _record_diagnostics(self, f, cs, a):
         rec = self.record
         tau, wrench = required_torques(cs, a)
-        rec.stress[f] = stress_by_bone(cs.model, joint_stress(tau, cs.limits, cs.settings.torque_tolerance))
+        rec.stress[f] = stress_by_bone(cs.model, stress_of(cs, tau))
         poly = support_polygon(cs)
         rec.polygon[f] = poly
         p, mmp, dist = balance_error(cs, wrench, poly)

@@ -19,7 +19,7 @@ import numpy as np
 
 from .balance_control import (Falling, balance_criterion, balance_error, falling, support_polygon)
 from .comfort_control import (ControlLog, ControlState, body_parts, comfort_criterion, control_sequence,
-                              joint_stress, required_torques)
+                              required_torques, stress_of)
 
 
 @dataclass
@@ -40,23 +40,24 @@ class DynamicResult:
         return bool(self.log.actions)
 
 
-def dynamic_control(state, a_tracking):
-    """One control step on a ControlState (see comfort_control.ControlState)."""
+def dynamic_control(state, a_tracking, memory=None):
+    """One control step on a ControlState (see comfort_control.ControlState); `memory`
+    (modes.ModeMemory): the kinds that acted on each part in the last step (hysteresis)."""
     a0 = np.asarray(a_tracking, float)
     tol = state.settings
     tau, wrench = required_torques(state, a0)
-    stress = joint_stress(tau, state.limits, tol.torque_tolerance)
+    stress = stress_of(state, tau)
     polygon = support_polygon(state)
     p0, mmp, dist = balance_error(state, wrench, polygon)
     log = ControlLog(state.model.nv)
     if not np.count_nonzero(stress) and dist <= tol.zmp_tolerance:  # step 2: nothing to do
         return DynamicResult(a0, np.zeros(len(a0)), stress, stress, p0, p0, mmp, polygon, None, log)
     criteria = {"comfort": comfort_criterion, "balance": balance_criterion}
-    out, log = control_sequence(state, a0, criteria, log=log)
+    out, log = control_sequence(state, a0, criteria, log=log, memory=memory)
     tau, wrench = required_torques(state, out)
     p, mmp, dist = balance_error(state, wrench, polygon)
     fall = falling(state, wrench, mmp) if mmp is not None and dist > tol.zmp_tolerance else None
-    return DynamicResult(out, out - a0, stress, joint_stress(tau, state.limits, tol.torque_tolerance),
+    return DynamicResult(out, out - a0, stress, stress_of(state, tau),
                          p0, p, mmp, polygon, fall, log)
 
 

@@ -94,6 +94,11 @@ class ControlSettings:
     # (excess torque) / H_ii, which a glitch of a captured motion (CMU 131_01's first frames ask
     # 2.4 kN of the ground) turns into 1e4 rad/s^2 of a light neck
     max_dynamic_acceleration: float = 200.0
+    # s over which a change of control mode (a part's kind, comfort or balance; how much of the
+    # tracking's return is kept) is blended (modes.ModeBlend); 0 (default): switched at once. 0.1 s
+    # is the intended value, but the blend delays the feedback: the thesis's 15 kg box squat then
+    # falls (docs/physics.md, "Predictable results")
+    mode_blend_time: float = 0.0
     weld_static_helpers: bool = True
     lump_made_up_tails: bool = True  # as closed_loop.Settings: an End Site at zero offset has no segment
     min_horizon: float = None  # tracking (TrackingController)
