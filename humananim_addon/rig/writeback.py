@@ -314,6 +314,24 @@ def _set_world(obj, name, target, rest_local=None):
     return float(np.abs(np.array(pb.matrix_basis, dtype=float) - old).max())
 
 
+def _plain_child(obj, name):
+    """True when the bone's frame is its parent's frame times its rest offset times its basis (full
+    inheritance, local location, no constraint), so it can be placed from the parent's new frame."""
+    b, pb = obj.data.bones[name], obj.pose.bones[name]
+    return (b.parent is not None and b.use_inherit_rotation and b.inherit_scale == "FULL" and b.use_local_location
+            and not any(not c.mute for c in pb.constraints))
+
+
+def _set_basis(pb, parent, rest_local, target):
+    """Sets the basis so that the bone shows `target` under a parent showing `parent` (units)."""
+    from mathutils import Matrix
+    old = np.array(pb.matrix_basis, dtype=float)
+    b = np.linalg.solve(parent @ rest_local, target)
+    b[:3, :3] /= np.linalg.norm(b[:3, :3], axis=0)
+    pb.matrix_basis = Matrix(b.tolist())
+    return float(np.abs(b - old).max())
+
+
 def _plane_error(obj, skeleton, h, solved):
     """(axis point, axis direction, signed angle) turning the limb's bend (`_bend_vector`: the
     knee's side of the root-end line, and the upper bone's turn) as Blender shows it into the
@@ -375,10 +393,16 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
     rest_local = {h.control: _rest_local(obj, h.control) for h in plan.handles}
     out = {h.control: np.empty((len(frames), 4, 4)) for h in plan.handles}
     saved_switch = {k: pbs[k[0]][k[1]] for k in plan.switches}
+    saved_basis = {h.control: pbs[h.control].matrix_basis.copy() for h in plan.handles}  # the rig's pose, left as found
     turning = [h for h in plan.handles if h.kind != "carry"]
     secant = {h.control: _Secant() for h in turning}
     targets = [h for h in plan.handles if h.kind == "carry" and h.chain]  # IK targets
     pelvis = next((h for h in plan.handles if h.kind == "carry" and h.joint == skeleton.role_index("pelvis")), None)
+    # a control whose parent is another plain control placed in the same pass is placed from that
+    # parent's new frame, not from its evaluation: an FK chain settles in one pass, not one per bone
+    plain = {h.control: _plain_child(obj, h.control) for h in plan.handles}
+    controls = {h.control for h in plan.handles}
+    reset_pelvis = pelvis is not None and any(a.name in controls for a in pbs[pelvis.control].parent_recursive)
     keep = scene.frame_current
     try:
         for k, f in enumerate(frames):
@@ -391,17 +415,23 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
             reach = {h.control: np.zeros(3) for h in targets}
             missed, last_shift, stuck = {}, {}, set()
             for _ in range(24):
-                change = 0.0
+                change, placed = 0.0, {}
                 for h in plan.handles:
                     if h.kind == "carry":
                         t = units[k, h.joint] @ h.offset
                         if h.control in reach:
                             t[:3, 3] += reach[h.control]
-                        change = max(change, _set_world(obj, h.control, t, rest_local[h.control]))
+                        parent = pbs[h.control].parent
+                        if parent is not None and parent.name in placed and plain[h.control]:
+                            moved = _set_basis(pbs[h.control], placed[parent.name], rest_local[h.control], t)
+                        else:
+                            moved = _set_world(obj, h.control, t, rest_local[h.control])
+                        change = max(change, moved)
+                        placed[h.control] = t
                     else:
                         change = max(change, _turn(obj, h, units[k], secant[h.control].turn, start,
                                                    rest_local[h.control]))
-                if pelvis is not None:  # again: a spine control that also turns the pelvis (Rigify's FK
+                if reset_pelvis:  # again: a spine control that also turns the pelvis (Rigify's FK
                     view_layer.update()  # spine) is undone, the pelvis ends each pass where the solve puts it
                     change = max(change, _set_world(obj, pelvis.control, units[k, pelvis.joint] @ pelvis.offset,
                                                     rest_local[pelvis.control]))
@@ -434,6 +464,8 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
     finally:
         for (b, p), v in saved_switch.items():
             pbs[b][p] = v
+        for c, m in saved_basis.items():
+            pbs[c].matrix_basis = m
         scene.frame_set(keep)
     return out
 
