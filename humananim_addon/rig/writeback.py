@@ -271,17 +271,25 @@ def _about_axis(rotation, axis, have, want):
 
 
 def as_ik_shows(skeleton, solved, limbs):
-    """`solved` (F, J, 4, 4, armature space) with each IK limb's upper and lower bones turned about
-    their own axes into the plane an IK chain shows them in (`limbs` from `ik_limbs`): a two-bone
-    IK bends its chain in one plane, through the knee and, on a straight leg, where the upper
-    bone's own turn puts it, so a pose whose thigh or shin is rolled otherwise can't be shown.
-    Joint positions and every other bone are unchanged."""
+    """`solved` (F, J, 4, 4, armature space) with each IK limb's upper and lower bones turned into
+    the plane an IK chain shows them in (`limbs` from `ik_limbs`): a two-bone IK bends its chain in
+    one plane, through the knee and, on a straight leg, where the upper bone's own turn puts it
+    (`_bend_vector`), so a pose whose thigh or shin is rolled otherwise can't be shown. The knee
+    turns about the hip-ankle line into that plane (by a fraction of a degree but on a nearly
+    straight leg), each bone about its own axis; hip and ankle and every other bone unchanged."""
     out = np.array(solved, dtype=float, copy=True)
     rest = skeleton.rest
     for (u, m, e), bend in limbs:
         heads = [out[:, j, :3, 3] for j in (u, m, e)]
         x, y = _bend_vector(heads, out[:, u, :3, :3], bend)
-        normal = np.cross(x, y)
+        # the knee (elbow) turned about the root-end line into that plane: on a nearly straight limb
+        # its own side of the line is noise, and the IK puts it where the pole says
+        hip = heads[0]
+        swing = _about_axis(np.broadcast_to(np.eye(3), x.shape[:-1] + (3, 3)), x, heads[1] - hip, y)
+        for j in (u, m):
+            out[:, j, :3, :3] = swing @ out[:, j, :3, :3]
+        out[:, m, :3, 3] = hip + np.einsum("fij,fj->fi", swing, heads[1] - hip)
+        normal = np.cross(x, y / np.linalg.norm(y, axis=-1, keepdims=True))
         rest_frame = _chain_frame([rest[j, :3, 3] for j in (u, m, e)])
         for j, child in ((u, m), (m, e)):
             along = out[:, child, :3, 3] - out[:, j, :3, 3]

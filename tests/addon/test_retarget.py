@@ -61,6 +61,8 @@ def test_a_walk_retargeted_onto_a_control_rig_keeps_its_feet_planted(empty_scene
     report = summary["mismatch_per_role"]
     assert max(mm for mm, _ in report.values()) < 1.0, report
     assert max(deg for r, (_, deg) in report.items() if r.split(".")[0] not in ("thigh", "shin")) < 1.0, report
+    # the retarget turns the IK legs into the plane the IK shows them in: thighs and shins too now
+    assert max(deg for _, deg in report.values()) < 0.5, report
     assert set(summary["mismatch_per_role"]) >= {"pelvis", "foot.L", "foot.R", "hand.L", "hand.R", "head"}
     points, pelvis = _shown_feet(target, result, src_traj.frames)
     assert job.held_slide(points, planted) <= SLIDE_MM / 1000
