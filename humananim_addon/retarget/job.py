@@ -214,8 +214,9 @@ def retarget(source, target, scene, action=None, frame_range=None, name=None, ou
 
 def ik_bends(view, traj):
     """`traj` with the thighs and shins (upper arms and forearms) of the target's IK limbs turned
-    about their own axes into the plane the rig's IK bends them in (rig.writeback.as_ik_shows): the
-    retargeted pose is one the rig can show, joint positions unchanged."""
+    into the plane the rig's IK bends them in (rig.writeback.as_ik_shows: the knee about the
+    hip-ankle line, each bone about its own axis; hips and ankles unchanged), so the retargeted
+    pose is one the rig can show."""
     from ..rig.writeback import as_ik_shows, ik_limbs
     limbs = ik_limbs(view.obj, view.skeleton) if view.control_rig else []
     if not limbs:
