@@ -200,6 +200,7 @@ def retarget(source, target, scene, action=None, frame_range=None, name=None, ou
     rot, trans = traj.rotations.copy(), traj.translations.copy()
     rot[:, keep], trans[:, keep] = planted_traj.rotations, planted_traj.translations
     traj = Trajectories(traj.frames, traj.fps, rot, trans, traj.armature_to_world)
+    traj = ik_bends(tgt_view, traj)
     result = tgt_view.write(traj, name or f"{action.name}.{target.name}", output)
     # the source's action is "source_motion", not "source_action": the motion QA would read it on the target
     summary = {"command": "retarget", "armature": target.name, "source": source.name, "source_motion": action.name,
@@ -209,6 +210,27 @@ def retarget(source, target, scene, action=None, frame_range=None, name=None, ou
                "ms": round(1000 * (time.perf_counter() - t0), 1)}
     target[PROPERTY] = json.dumps(summary)
     return summary
+
+
+def ik_bends(view, traj):
+    """`traj` with the thighs and shins (upper arms and forearms) of the target's IK limbs turned
+    into the plane the rig's IK bends them in (rig.writeback.as_ik_shows: the knee about the
+    hip-ankle line, each bone about its own axis; hips and ankles unchanged), so the retargeted
+    pose is one the rig can show."""
+    from ..rig.writeback import as_ik_shows, ik_limbs
+    limbs = ik_limbs(view.obj, view.skeleton) if view.control_rig else []
+    if not limbs:
+        return traj
+    skel = view.skeleton
+    world = as_ik_shows(skel, skel.world_frames(traj.basis()), limbs)
+    changed = sorted({j for (u, m, _), _ in limbs for j in (u, m, *skel.children(u), *skel.children(m))})
+    rot = traj.rotations.copy()
+    for j in changed:
+        p = skel.parents[j]
+        base = skel.rest_local[j] if p < 0 else world[:, p] @ skel.rest_local[j]
+        rot[:, j] = rotations.from_matrix(np.linalg.solve(base, world[:, j])[:, :3, :3])
+    rot[:, changed] = rotations.make_continuous(rot[:, changed])
+    return Trajectories(traj.frames, traj.fps, rot, traj.translations, traj.armature_to_world)
 
 
 def role_skeleton(skel):

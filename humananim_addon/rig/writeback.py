@@ -36,7 +36,8 @@ class Handle:
     """One control to key. kind 'carry': placed where joint's solved frame puts it (`offset`: the
     control's rest in the joint's rest); 'pole': an IK pole placed in the limb's plane (`local`:
     its rest position in the limb's rest frame); 'twist': the top of a pole-less IK chain, turned
-    about the hip-ankle line. `chain`: the limb's (upper, lower, end) joints."""
+    about the hip-ankle line. `chain`: the limb's (upper, lower, end) joints; `bend`: the direction
+    the middle joint bends to in rest (unit, in the upper bone's rest frame)."""
 
     control: str
     kind: str
@@ -44,6 +45,7 @@ class Handle:
     offset: np.ndarray = None
     chain: tuple = ()
     local: np.ndarray = None
+    bend: np.ndarray = None
 
 
 @dataclass
@@ -97,12 +99,33 @@ def _nearest_first(obj, name):
     return [n for n, _ in sorted(up.items(), key=lambda kv: kv[1]) if n != name]
 
 
-def _chain_frame(heads):
-    """Frames (..., 4, 4) with origin at the limb's root, x to its end, y toward its middle joint."""
+BEND_WEIGHT = 0.01  # share of the limb's length the upper bone's bend direction counts for beside the knee's offset
+
+
+def _bend_vector(heads, upper_rotation=None, bend=None):
+    """The direction (..., 3) from the limb's root-end line to its middle joint, unnormalised: the
+    middle joint's offset from that line plus BEND_WEIGHT x the limb's length along the upper
+    bone's own bend direction (`upper_rotation` @ `bend`). On a bent limb the offset decides; on a
+    straight one (a leg the foot repair stretched) the upper bone's turn about its axis does, where
+    the middle joint alone says nothing (the pole then flipped by up to 90 deg)."""
     h, k, a = heads
     x = a - h
-    x = x / np.linalg.norm(x, axis=-1, keepdims=True)
-    u = (k - h) - np.sum((k - h) * x, axis=-1, keepdims=True) * x
+    length = np.linalg.norm(x, axis=-1, keepdims=True)
+    x = x / length
+
+    def perp(v):
+        return v - np.sum(v * x, axis=-1, keepdims=True) * x
+    u = perp(k - h)
+    if bend is not None:
+        u = u + BEND_WEIGHT * length * perp(upper_rotation @ bend)
+    return x, u
+
+
+def _chain_frame(heads, upper_rotation=None, bend=None):
+    """Frames (..., 4, 4) with origin at the limb's root, x to its end, y toward its middle joint
+    (as `_bend_vector` gives it)."""
+    h = heads[0]
+    x, u = _bend_vector(heads, upper_rotation, bend)
     y = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-12)
     out = np.zeros(h.shape[:-1] + (4, 4))
     out[..., :3, 0], out[..., :3, 1], out[..., :3, 2], out[..., :3, 3] = x, y, np.cross(x, y), h
@@ -200,19 +223,79 @@ def _ik_limb(obj, skeleton, joints, used):
         return []
     heads = [_rest(obj, n)[:3, 3] for n in (upper, lower, end)]
     frame = _chain_frame(heads)
+    bend = _rest(obj, upper)[:3, :3].T @ frame[:3, 1]  # the rest bend, in the upper bone's frame
     out = [Handle(end_ctl, "carry", joints[2], np.linalg.solve(_rest(obj, end), _rest(obj, end_ctl)), tuple(joints))]
     pole = con.pole_subtarget if con.pole_target == obj else ""
     if pole:
         ctl = next((c for c in [pole] + _nearest_first(obj, pole) if rc.is_control(obj, c)), None)
         if ctl is not None and ctl not in used:
             local = np.linalg.solve(frame, np.append(_rest(obj, ctl)[:3, 3], 1.0))
-            out.append(Handle(ctl, "pole", joints[2], chain=tuple(joints), local=local))
+            out.append(Handle(ctl, "pole", joints[2], chain=tuple(joints), local=local, bend=bend))
         return out
     top, n = obj.pose.bones[owner], con.chain_count
     while n > 1 and top.parent is not None:
         top, n = top.parent, n - 1
     if _shown(obj, top.name) and not all(top.lock_rotation):
-        out.append(Handle(top.name, "twist", joints[2], chain=tuple(joints)))
+        out.append(Handle(top.name, "twist", joints[2], chain=tuple(joints), bend=bend))
+    return out
+
+
+def ik_limbs(obj, skeleton):
+    """[(upper, lower, end) joints, upper bone's rest bend] of the limbs an active IK constraint
+    bends (whatever the pole), with the rest bend (unit, upper bone's rest frame: `Handle.bend`)."""
+    out = []
+    for limb in _LIMBS:
+        for s in ("L", "R"):
+            joints = [skeleton.role_index(f"{r}.{s}") for r in limb]
+            if None in joints or _active_ik(obj, skeleton.names[joints[1]]) is None:
+                continue
+            heads = [_rest(obj, skeleton.names[j])[:3, 3] for j in joints]
+            bend = _rest(obj, skeleton.names[joints[0]])[:3, :3].T @ _chain_frame(heads)[:3, 1]
+            out.append((tuple(joints), bend))
+    return out
+
+
+def _about_axis(rotation, axis, have, want):
+    """`rotation` (F, 3, 3) turned about `axis` (F, 3, unit) so that `have` (F, 3) points, around
+    that axis, where `want` does."""
+    def perp(v):
+        return v - np.sum(v * axis, axis=-1, keepdims=True) * axis
+    a, b = perp(have), perp(want)
+    angle = np.arctan2(np.sum(np.cross(a, b) * axis, axis=-1), np.sum(a * b, axis=-1))
+    c, s = np.cos(angle)[:, None, None], np.sin(angle)[:, None, None]
+    k = np.zeros(axis.shape[:-1] + (3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+    k -= np.swapaxes(k, -1, -2)
+    turn = np.eye(3) + s * k + (1 - c) * (k @ k)
+    return turn @ rotation
+
+
+def as_ik_shows(skeleton, solved, limbs):
+    """`solved` (F, J, 4, 4, armature space) with each IK limb's upper and lower bones turned into
+    the plane an IK chain shows them in (`limbs` from `ik_limbs`): a two-bone IK bends its chain in
+    one plane, through the knee and, on a straight leg, where the upper bone's own turn puts it
+    (`_bend_vector`), so a pose whose thigh or shin is rolled otherwise can't be shown. The knee
+    turns about the hip-ankle line into that plane (by a fraction of a degree but on a nearly
+    straight leg), each bone about its own axis; hip and ankle and every other bone unchanged."""
+    out = np.array(solved, dtype=float, copy=True)
+    rest = skeleton.rest
+    for (u, m, e), bend in limbs:
+        heads = [out[:, j, :3, 3] for j in (u, m, e)]
+        x, y = _bend_vector(heads, out[:, u, :3, :3], bend)
+        # the knee (elbow) turned about the root-end line into that plane: on a nearly straight limb
+        # its own side of the line is noise, and the IK puts it where the pole says
+        hip = heads[0]
+        swing = _about_axis(np.broadcast_to(np.eye(3), x.shape[:-1] + (3, 3)), x, heads[1] - hip, y)
+        for j in (u, m):
+            out[:, j, :3, :3] = swing @ out[:, j, :3, :3]
+        out[:, m, :3, 3] = hip + np.einsum("fij,fj->fi", swing, heads[1] - hip)
+        normal = np.cross(x, y / np.linalg.norm(y, axis=-1, keepdims=True))
+        rest_frame = _chain_frame([rest[j, :3, 3] for j in (u, m, e)])
+        for j, child in ((u, m), (m, e)):
+            along = out[:, child, :3, 3] - out[:, j, :3, 3]
+            along /= np.linalg.norm(along, axis=-1, keepdims=True)
+            have = out[:, j, :3, :3] @ (rest[j, :3, :3].T @ rest_frame[:3, 2])
+            out[:, j, :3, :3] = _about_axis(out[:, j, :3, :3], along, have, normal)
     return out
 
 
@@ -239,21 +322,38 @@ def _set_world(obj, name, target, rest_local=None):
     return float(np.abs(np.array(pb.matrix_basis, dtype=float) - old).max())
 
 
-def _plane_error(obj, skeleton, chain, solved_heads):
-    """(axis point, axis direction, signed angle) turning the limb's knee plane as Blender shows
-    it into the solved one, about the shown root-end line; None for a straight limb."""
-    pbs = obj.pose.bones
-    shown = [np.array(pbs[skeleton.names[j]].head, dtype=float) for j in chain]
-    h, k, a = shown
-    x = (a - h) / np.linalg.norm(a - h)
+def _plain_child(obj, name):
+    """True when the bone's frame is its parent's frame times its rest offset times its basis (full
+    inheritance, local location, no constraint), so it can be placed from the parent's new frame."""
+    b, pb = obj.data.bones[name], obj.pose.bones[name]
+    return (b.parent is not None and b.use_inherit_rotation and b.inherit_scale == "FULL" and b.use_local_location
+            and not any(not c.mute for c in pb.constraints))
 
-    def perp(v):
-        return v - np.dot(v, x) * x
-    u, w = perp(k - h), perp(solved_heads[1] - solved_heads[0])
-    if np.linalg.norm(w) < 1e-3 * np.linalg.norm(a - h) or np.linalg.norm(u) < 1e-9:
+
+def _set_basis(pb, parent, rest_local, target):
+    """Sets the basis so that the bone shows `target` under a parent showing `parent` (units)."""
+    from mathutils import Matrix
+    old = np.array(pb.matrix_basis, dtype=float)
+    b = np.linalg.solve(parent @ rest_local, target)
+    b[:3, :3] /= np.linalg.norm(b[:3, :3], axis=0)
+    pb.matrix_basis = Matrix(b.tolist())
+    return float(np.abs(b - old).max())
+
+
+def _plane_error(obj, skeleton, h, solved):
+    """(axis point, axis direction, signed angle) turning the limb's bend (`_bend_vector`: the
+    knee's side of the root-end line, and the upper bone's turn) as Blender shows it into the
+    solved one (`solved`: the skeleton's frames of the frame), about the shown root-end line."""
+    pbs = obj.pose.bones
+    upper = _matrix(pbs[skeleton.names[h.chain[0]]])[:3, :3]
+    shown = [np.array(pbs[skeleton.names[j]].head, dtype=float) for j in h.chain]
+    x, u = _bend_vector(shown, upper, h.bend)
+    w = _bend_vector(solved[list(h.chain), :3, 3], solved[h.chain[0], :3, :3], h.bend)[1]
+    w = w - np.dot(w, x) * x
+    if np.linalg.norm(w) < 1e-9 or np.linalg.norm(u) < 1e-9:
         return None
     angle = np.arctan2(np.dot(np.cross(u, w), x), np.dot(u, w))
-    return h, x, float(angle)
+    return shown[0], x, float(angle)
 
 
 def _rotation_about(point, axis, angle):
@@ -301,10 +401,16 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
     rest_local = {h.control: _rest_local(obj, h.control) for h in plan.handles}
     out = {h.control: np.empty((len(frames), 4, 4)) for h in plan.handles}
     saved_switch = {k: pbs[k[0]][k[1]] for k in plan.switches}
+    saved_basis = {h.control: pbs[h.control].matrix_basis.copy() for h in plan.handles}  # the rig's pose, left as found
     turning = [h for h in plan.handles if h.kind != "carry"]
     secant = {h.control: _Secant() for h in turning}
     targets = [h for h in plan.handles if h.kind == "carry" and h.chain]  # IK targets
     pelvis = next((h for h in plan.handles if h.kind == "carry" and h.joint == skeleton.role_index("pelvis")), None)
+    # a control whose parent is another plain control placed in the same pass is placed from that
+    # parent's new frame, not from its evaluation: an FK chain settles in one pass, not one per bone
+    plain = {h.control: _plain_child(obj, h.control) for h in plan.handles}
+    controls = {h.control for h in plan.handles}
+    reset_pelvis = pelvis is not None and any(a.name in controls for a in pbs[pelvis.control].parent_recursive)
     keep = scene.frame_current
     try:
         for k, f in enumerate(frames):
@@ -317,23 +423,29 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
             reach = {h.control: np.zeros(3) for h in targets}
             missed, last_shift, stuck = {}, {}, set()
             for _ in range(24):
-                change = 0.0
+                change, placed = 0.0, {}
                 for h in plan.handles:
                     if h.kind == "carry":
                         t = units[k, h.joint] @ h.offset
                         if h.control in reach:
                             t[:3, 3] += reach[h.control]
-                        change = max(change, _set_world(obj, h.control, t, rest_local[h.control]))
+                        parent = pbs[h.control].parent
+                        if parent is not None and parent.name in placed and plain[h.control]:
+                            moved = _set_basis(pbs[h.control], placed[parent.name], rest_local[h.control], t)
+                        else:
+                            moved = _set_world(obj, h.control, t, rest_local[h.control])
+                        change = max(change, moved)
+                        placed[h.control] = t
                     else:
                         change = max(change, _turn(obj, h, units[k], secant[h.control].turn, start,
                                                    rest_local[h.control]))
-                if pelvis is not None:  # again: a spine control that also turns the pelvis (Rigify's FK
+                if reset_pelvis:  # again: a spine control that also turns the pelvis (Rigify's FK
                     view_layer.update()  # spine) is undone, the pelvis ends each pass where the solve puts it
                     change = max(change, _set_world(obj, pelvis.control, units[k, pelvis.joint] @ pelvis.offset,
                                                     rest_local[pelvis.control]))
                 view_layer.update()
                 for h in turning:
-                    err = _plane_error(obj, skeleton, h.chain, units[k, list(h.chain), :3, 3])
+                    err = _plane_error(obj, skeleton, h, units[k])
                     if err is None or abs(err[2]) < 5e-5:
                         continue
                     change = max(change, abs(err[2]))
@@ -360,6 +472,8 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
     finally:
         for (b, p), v in saved_switch.items():
             pbs[b][p] = v
+        for c, m in saved_basis.items():
+            pbs[c].matrix_basis = m
         scene.frame_set(keep)
     return out
 
@@ -375,7 +489,7 @@ def _turn(obj, h, units, turn, start, rest_local):
     pb = obj.pose.bones[h.control]
     if h.kind == "pole":
         t = _matrix(pb)
-        t[:3, 3] = (spin @ _chain_frame(heads) @ h.local)[:3]
+        t[:3, 3] = (spin @ _chain_frame(heads, units[h.chain[0], :3, :3], h.bend) @ h.local)[:3]
         return _set_world(obj, h.control, t, rest_local)
     b0 = start.setdefault(h.control, np.array(pb.matrix_basis, dtype=float))
     parent = _matrix(pb.parent) if pb.parent is not None else np.eye(4)
