@@ -39,7 +39,8 @@ def planted_points(points, fps):
     shortest = max(2, int(round(MIN_SECONDS * fps)))
     for side, p in points.items():
         h = p[..., 2] - np.percentile(p[..., 2], 5, axis=0)
-        speed = np.linalg.norm(np.gradient(p[..., :2], axis=0), axis=-1) * fps
+        moving = np.gradient(p[..., :2], axis=0) if len(p) > 1 else np.zeros_like(p[..., :2])  # one frame: still
+        speed = np.linalg.norm(moving, axis=-1) * fps
         down = hysteresis(h < HEIGHT_ON, speed < SPEED_ON, (h > HEIGHT_OFF) | (speed > SPEED_OFF))
         out[side] = np.stack([remove_short_runs(d, shortest) for d in down.T], axis=1)
     return out
@@ -194,7 +195,9 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None, levels=None)
                 d[a:b, 2] = -gap if 0.0 < gap <= HEIGHT_ON else max(-low[a:b].min(), 0.0)
             d[~on, 2] = np.maximum(-low[~on], 0.0)
         moved = on | (d[:, 2] > 0)
-        far = np.convolve(moved.astype(float), np.ones(2 * ramp + 1), "same") == 0
+        # frames more than a ramp from any moved frame ("full" then centred: "same" would be
+        # the kernel's length on a clip shorter than the kernel)
+        far = np.convolve(moved.astype(float), np.ones(2 * ramp + 1))[ramp:ramp + F] == 0
         idx = np.arange(F)
         for c, known in ((0, moved), (1, moved), (2, moved), (3, flat if skate else moved)):
             known = known | far

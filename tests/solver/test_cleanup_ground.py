@@ -121,3 +121,17 @@ def test_a_standing_figure_on_bumps_is_not_taken_for_a_foot_placed_higher():
     assert len(on_floor) >= 4
     for side, a, b in on_floor:
         assert heights[side][a:b].min() == pytest.approx(0.0, abs=0.002), (side, a, b)
+
+
+@pytest.mark.parametrize("frames", [1, 2, 3, 8])
+def test_feet_of_a_clip_shorter_than_the_fade_are_put_on_the_floor(frames):
+    """A clip shorter than the fade around a contact (9 frames at 30 fps), e.g. a few frames
+    retargeted: every foot ends on the floor, none below it."""
+    rng = np.random.default_rng(frames)
+    points = {s: np.cumsum(rng.normal(0.0, 1e-4, (frames, 2, 3)), axis=0) + [0.0, 0.0, 0.02]
+              for s in ("left", "right")}
+    moves = feet.foot_offsets(points, 30.0, floor=0.0)
+    for side, p in points.items():
+        assert moves[side].shape == (frames, 7)
+        lowest = (p[..., 2] + moves[side][:, None, 2]).min(axis=1)
+        assert np.all(lowest >= -1e-9) and np.all(lowest <= 1e-3)
