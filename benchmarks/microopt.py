@@ -56,6 +56,7 @@ cloth_dynamics = importlib.import_module("humananim.solver.cloth.dynamics")
 cloth_fast = importlib.import_module("humananim.solver.cloth.fast")
 importlib.import_module("humananim.solver.cloth.collision")  # its imports are patched too
 importlib.import_module("humananim.solver.cloth.smoothing")
+vectors = importlib.import_module("humananim.solver.vectors")
 dynamics_model = importlib.import_module("humananim.solver.dynamics.model")
 inverse_dynamics = importlib.import_module("humananim.solver.dynamics.inverse_dynamics")
 flexible_kernel = importlib.import_module("humananim.solver.flexible.kernel")
@@ -380,6 +381,22 @@ def _ancestor_pair(function, name):
     return text_pair(function, (f"model.ancestors.dot({name})", f"model.ancestors @ {name}"))
 
 
+# -- vectors.cross: np.cross of (..., 3) stacks -----------------------------------------------------
+
+def cross_trick(a, b):
+    """np.cross without its axis bookkeeping: the components written one by one."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def cross_plain(a, b):
+    return np.cross(a, b)
+
+
 # -- motion_control: per-call savings written inline (the pairs by text_pair) ----------------------
 
 def on_ground_trick(xy, height):
@@ -515,6 +532,10 @@ def tricks():
               _holders("Product", cloth_fast.Product), ProductKept, ProductPlain),
         Trick("cloth_corner_sum_bincount", "cloth", "np.add.at(out, faces.ravel(), values)",
               _holders("CornerSum", cloth_fast.CornerSum), CornerSumBincount, CornerSumAddAt),
+        Trick("vectors_cross_cloth", "cloth", "np.cross(a, b)",
+              _holders("cross", vectors.cross) + _holders("cross_rows", vectors.cross), cross_trick, cross_plain),
+        Trick("vectors_cross_grasp", "grasp", "np.cross(a, b)",
+              _holders("cross", vectors.cross) + _holders("cross_rows", vectors.cross), cross_trick, cross_plain),
         Trick("comfort_required_torques_take", "control", "total[m.dof_body]; m.dof_subtree[bodies]",
               _holders("_required_torques", cc._required_torques),
               *text_pair(cc._required_torques, ("total.take(m.dof_body, axis=0)", "total[m.dof_body]"),

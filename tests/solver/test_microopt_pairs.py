@@ -183,3 +183,12 @@ def test_control_pairs_bake_the_same_motion(micro):
         finally:
             for owner, attr, value in held:
                 setattr(owner, attr, value)
+
+
+def test_cross_pair_is_np_cross(micro):
+    from humananim.solver.vectors import cross
+    rng = np.random.default_rng(9)
+    a, b = rng.standard_normal((7, 3)), rng.standard_normal(3)
+    for fn in (micro.cross_trick, micro.cross_plain, cross):
+        assert np.array_equal(fn(a, b), np.cross(a, b))
+        assert np.array_equal(fn(b, a[:, None, :]), np.cross(b, a[:, None, :]))
