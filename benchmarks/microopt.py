@@ -6,6 +6,7 @@ with the trick beside the same capability with the plain, readable formula inste
     python3 benchmarks/microopt.py --json          # one JSON object (also benchmarks/results/microopt.json)
     python3 benchmarks/microopt.py --rounds 9      # alternating rounds per trick (default 5)
     python3 benchmarks/microopt.py --only cloth    # the tricks whose name or capability contains this
+                                                   # (several: --only cloth_product,feet_dls)
 
 The rule (docs/physics.md, the developers' guide): a trick stays in product code only where it
 saves at least 5 % of its capability's time, with a comment naming the plain formula; otherwise
@@ -320,18 +321,30 @@ class SumAddAt:
 
 # ==== a version of a product function with one expression replaced ===============================
 
-def rewritten(function, *replacements):
+def rewritten(function, *replacements, names=None):
     """`function` compiled again from its own source in its own module's namespace, with each
-    (old, new) text replaced: the plain version of a trick written inline in a long function.
-    Every `old` must occur, so a trick that has left the product code is noticed."""
+    (old, new) text replaced: the other version of a trick written inline in a long function.
+    Every `old` must occur, so a trick that has left the product code is noticed. `names`: what
+    the new text needs that the module no longer imports (the namespace is then a copy)."""
     source = textwrap.dedent(inspect.getsource(function))
     for old, new in replacements:
         if old not in source:
             raise LookupError(f"{function.__qualname__}: {old!r} is not in its source")
         source = source.replace(old, new)
+    module = vars(inspect.getmodule(function))
     namespace = {}
-    exec(compile(source, inspect.getsourcefile(function), "exec"), vars(inspect.getmodule(function)), namespace)
+    exec(compile(source, inspect.getsourcefile(function), "exec"), {**module, **names} if names else module, namespace)
     return namespace[function.__name__]
+
+
+def text_pair(function, *replacements, names=None):
+    """(trick version, plain version) of a product function whose trick is inline: each
+    replacement is (the trick's text, the plain formula's text); whichever of the two the product
+    code holds, the other is made from its source by rewritten()."""
+    source = inspect.getsource(function)
+    if all(trick in source for trick, _ in replacements):
+        return function, rewritten(function, *replacements)
+    return rewritten(function, *[(plain, trick) for trick, plain in replacements], names=names), function
 
 
 # -- dynamics.model.Model.expand: (nb, 6) entries of a velocity-like vector ------------------------
@@ -365,16 +378,6 @@ inertia_plain = _inertia(lambda force, columns: force[:, columns])
 
 
 # -- dynamics.inverse_dynamics: ndarray.dot for the ancestor sums ----------------------------------
-
-def text_pair(function, *replacements):
-    """(trick version, plain version) of a product function whose trick is inline: each
-    replacement is (the trick's text, the plain formula's text); whichever of the two the product
-    code holds, the other is made from its source by rewritten()."""
-    source = inspect.getsource(function)
-    if all(trick in source for trick, _ in replacements):
-        return function, rewritten(function, *replacements)
-    return rewritten(function, *[(plain, trick) for trick, plain in replacements]), function
-
 
 def _ancestor_pair(function, name):
     """(with model.ancestors.dot(x), with model.ancestors @ x)."""
@@ -543,10 +546,11 @@ def tricks():
         Trick("comfort_required_torques_ones", "control", "(S * below).sum(axis=1)",
               _holders("_required_torques", cc._required_torques),
               *text_pair(cc._required_torques, ("(motion_subspace(m, d, state.q) * below).dot(ONES6)",
-                                                "(motion_subspace(m, d, state.q) * below).sum(axis=1)"))),
+                                                "(motion_subspace(m, d, state.q) * below).sum(axis=1)"),
+                         names={"ONES6": vectors.ONES6})),
         Trick("comfort_sole_centres_add_reduce", "control", "soles[s][:, :2].mean(axis=0)",
               _holders("_sole_centres", cc._sole_centres),
-              *text_pair(cc._sole_centres, ("np.add.reduce(soles[s][:, :2], 0) / len(soles[s])",
+              *text_pair(cc._sole_centres, ("(np.add.reduce(soles[s][:, :2], 0) / len(soles[s]))",
                                             "soles[s][:, :2].mean(axis=0)"))),
         Trick("balance_support_polygon_reduce_take", "control", "np.abs(a - b).max(); pts[hull]",
               _holders("_support_polygon", bc._support_polygon),
@@ -670,9 +674,10 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object (and write benchmarks/results/microopt.json)")
     parser.add_argument("--rounds", type=int, default=5, help="alternating rounds per trick (default 5)")
-    parser.add_argument("--only", default="", help="only the tricks whose name or capability contains this")
+    parser.add_argument("--only", default="", help="only the tricks whose name or capability contains this (several: comma-separated)")
     args = parser.parse_args(argv)
-    chosen = [t for t in tricks() if args.only in t.name or args.only in t.capability]
+    wanted = args.only.split(",")
+    chosen = [t for t in tricks() if any(w in t.name or w in t.capability for w in wanted)]
     runs, rows = {}, []
     for trick in chosen:
         if trick.capability not in runs:

@@ -349,8 +349,7 @@ class Data:
     def inertia(self):
         """World spatial inertia (nb, 6, 6) of each body about the origin."""
         if self._inertia is None:
-            # _force[:, force_gather] by take, on fancy indexing's column-by-column layout
-            xf = self._force.T.take(self.model.force_gather, axis=0).T.reshape(self.model.nb, 6, 6)
+            xf = self._force[:, self.model.force_gather].reshape(self.model.nb, 6, 6)
             self._inertia = xf @ self.model.spatial_inertia @ xf.swapaxes(1, 2)
         return self._inertia
 
