@@ -129,9 +129,8 @@ def zmp_xy(wrench, ground_height=0.0):
 
 
 def _on_ground(xy, height):
-    """The ground point (3,) below (x, y): np.append(xy, height) without its dispatch."""
-    x, y = np.asarray(xy, float).tolist()
-    return np.array((x, y, float(height)))
+    """The ground point (3,) below (x, y)."""
+    return np.append(np.asarray(xy, float), float(height))
 
 
 def moment_about(wrench, point):
