@@ -6,6 +6,7 @@ with the trick beside the same capability with the plain, readable formula inste
     python3 benchmarks/microopt.py --json          # one JSON object (also benchmarks/results/microopt.json)
     python3 benchmarks/microopt.py --rounds 9      # alternating rounds per trick (default 5)
     python3 benchmarks/microopt.py --only cloth    # the tricks whose name or capability contains this
+                                                   # (several: --only cloth_product,feet_dls)
 
 The rule (docs/physics.md, the developers' guide): a trick stays in product code only where it
 saves at least 5 % of its capability's time, with a comment naming the plain formula; otherwise
@@ -34,7 +35,9 @@ round's ratio as its spread. saving = 1 - that median.
 
 import argparse
 import importlib
+import inspect
 import statistics
+import textwrap
 import sys
 import time
 from pathlib import Path
@@ -51,6 +54,12 @@ from machine import claim, emit, result  # noqa: E402
 # (modules by import_module: the motion_control package's names balance_control and
 # comfort_control are functions)
 cloth_dynamics = importlib.import_module("humananim.solver.cloth.dynamics")
+cloth_fast = importlib.import_module("humananim.solver.cloth.fast")
+importlib.import_module("humananim.solver.cloth.collision")  # its imports are patched too
+importlib.import_module("humananim.solver.cloth.smoothing")
+vectors = importlib.import_module("humananim.solver.vectors")
+dynamics_model = importlib.import_module("humananim.solver.dynamics.model")
+inverse_dynamics = importlib.import_module("humananim.solver.dynamics.inverse_dynamics")
 flexible_kernel = importlib.import_module("humananim.solver.flexible.kernel")
 ik = importlib.import_module("humananim.solver.hands.ik")
 balance_control = importlib.import_module("humananim.solver.motion_control.balance_control")
@@ -310,6 +319,166 @@ class SumAddAt:
         return out
 
 
+# ==== a version of a product function with one expression replaced ===============================
+
+def rewritten(function, *replacements, names=None):
+    """`function` compiled again from its own source in its own module's namespace, with each
+    (old, new) text replaced: the other version of a trick written inline in a long function.
+    Every `old` must occur, so a trick that has left the product code is noticed. `names`: what
+    the new text needs that the module no longer imports (the namespace is then a copy)."""
+    source = textwrap.dedent(inspect.getsource(function))
+    for old, new in replacements:
+        if old not in source:
+            raise LookupError(f"{function.__qualname__}: {old!r} is not in its source")
+        source = source.replace(old, new)
+    module = vars(inspect.getmodule(function))
+    namespace = {}
+    exec(compile(source, inspect.getsourcefile(function), "exec"), {**module, **names} if names else module, namespace)
+    return namespace[function.__name__]
+
+
+def text_pair(function, *replacements, names=None):
+    """(trick version, plain version) of a product function whose trick is inline: each
+    replacement is (the trick's text, the plain formula's text); whichever of the two the product
+    code holds, the other is made from its source by rewritten()."""
+    source = inspect.getsource(function)
+    if all(trick in source for trick, _ in replacements):
+        return function, rewritten(function, *replacements)
+    return rewritten(function, *[(plain, trick) for trick, plain in replacements], names=names), function
+
+
+# -- dynamics.model.Model.expand: (nb, 6) entries of a velocity-like vector ------------------------
+
+def expand_trick(self, v):
+    """v written into a preallocated (v, 0) buffer (made once per model, its last entry zero)."""
+    buffer = self.__dict__.get("_expand_buffer")
+    if buffer is None:
+        buffer = self._expand_buffer = np.zeros(self.nv + 1)
+    buffer[:-1] = v
+    return buffer[self.v_index]
+
+
+def expand_plain(self, v):
+    return np.append(v, 0.0)[self.v_index]
+
+
+# -- dynamics.model.Data.inertia: each body's world spatial inertia --------------------------------
+
+def _inertia(gather):
+    def inertia(self):
+        if self._inertia is None:
+            xf = gather(self._force, self.model.force_gather).reshape(self.model.nb, 6, 6)
+            self._inertia = xf @ self.model.spatial_inertia @ xf.swapaxes(1, 2)
+        return self._inertia
+    return property(inertia)
+
+
+inertia_trick = _inertia(lambda force, columns: force.T.take(columns, axis=0).T)
+inertia_plain = _inertia(lambda force, columns: force[:, columns])
+
+
+# -- dynamics.inverse_dynamics: ndarray.dot for the ancestor sums ----------------------------------
+
+def _ancestor_pair(function, name):
+    """(with model.ancestors.dot(x), with model.ancestors @ x)."""
+    return text_pair(function, (f"model.ancestors.dot({name})", f"model.ancestors @ {name}"))
+
+
+# -- vectors.cross: np.cross of (..., 3) stacks -----------------------------------------------------
+
+def cross_trick(a, b):
+    """np.cross without its axis bookkeeping: the components written one by one."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def cross_plain(a, b):
+    return np.cross(a, b)
+
+
+# -- motion_control: per-call savings written inline (the pairs by text_pair) ----------------------
+
+def on_ground_trick(xy, height):
+    """np.append without its dispatch: on Python floats."""
+    x, y = np.asarray(xy, float).tolist()
+    return np.array((x, y, float(height)))
+
+
+def on_ground_plain(xy, height):
+    return np.append(np.asarray(xy, float), float(height))
+
+
+def moment_about_trick(wrench, point):
+    """np.cross on Python floats."""
+    (p0, p1, p2) = tuple(float(c) for c in point[:3])
+    (f0, f1, f2) = tuple(float(c) for c in wrench[3:6])
+    return wrench[:3] - np.array([p1 * f2 - p2 * f1, p2 * f0 - p0 * f2, p0 * f1 - p1 * f0])
+
+
+def moment_about_plain(wrench, point):
+    return wrench[:3] - np.cross(np.asarray(point, float)[:3], wrench[3:6])
+
+
+# -- cloth.fast.Product: a fixed sparse product into a kept output ---------------------------------
+
+class ProductKept:
+    """The trick: the product written into an output kept between calls."""
+
+    def __init__(self, matrix, cols):
+        self.matrix, self.cols = matrix.tocsr(), cols
+        self.out = np.zeros((matrix.shape[0], cols))
+
+    def __call__(self, dense):
+        return self.into(dense, self.out)
+
+    def into(self, dense, out):
+        out[...] = self.matrix @ dense
+        return out
+
+
+class ProductPlain:
+    """The plain formula: matrix @ dense, a new array each call."""
+
+    def __init__(self, matrix, cols):
+        self.matrix, self.cols = matrix.tocsr(), cols
+
+    def __call__(self, dense):
+        return self.matrix @ dense
+
+    def into(self, dense, out):
+        out[...] = self.matrix @ dense
+        return out
+
+
+# -- cloth.fast.CornerSum: per-corner values summed at each particle -------------------------------
+
+class CornerSumBincount:
+    """The trick: one np.bincount over flat coordinate indices."""
+
+    def __init__(self, faces, particles):
+        self.idx = (3 * np.asarray(faces).ravel()[:, None] + np.arange(3)).ravel()
+        self.size = 3 * particles
+
+    def __matmul__(self, values):
+        return np.bincount(self.idx, values.ravel(), minlength=self.size).reshape(-1, 3)
+
+
+class CornerSumAddAt:
+    """The plain formula: out = 0; np.add.at(out, faces.ravel(), values)."""
+
+    def __init__(self, faces, particles):
+        self.corners, self.particles = np.asarray(faces).ravel(), particles
+
+    def __matmul__(self, values):
+        out = np.zeros((self.particles, 3))
+        np.add.at(out, self.corners, values)
+        return out
+
+
 # ==== which version the product code holds, and switching ======================================
 
 class Trick:
@@ -352,6 +521,50 @@ def tricks():
               [(flexible_kernel, "CholeskySolver")], CholeskyInPlace, CholeskyPlain),
         Trick("cloth_scatter_plan", "cloth", "np.add.at(out, first, w_first f); np.add.at(out, second, w_second f)",
               [(cloth_dynamics, "ParticleSum")], SumPlanned, SumAddAt),
+        Trick("dynamics_expand_buffer", "control", "np.append(v, 0.0)[v_index]",
+              [(dynamics_model.Model, "expand")], expand_trick, expand_plain),
+        Trick("dynamics_inertia_take", "control", "force[:, force_gather]",
+              [(dynamics_model.Data, "inertia")], inertia_trick, inertia_plain),
+        Trick("dynamics_velocity_terms_dot", "control", "model.ancestors @ u",
+              _holders("velocity_terms", inverse_dynamics.velocity_terms),
+              *_ancestor_pair(inverse_dynamics.velocity_terms, "u")),
+        Trick("dynamics_subtree_wrenches_dot", "control", "model.ancestors @ own",
+              _holders("subtree_wrenches", inverse_dynamics.subtree_wrenches),
+              *_ancestor_pair(inverse_dynamics.subtree_wrenches, "own")),
+        Trick("cloth_product_kept_output", "cloth", "matrix @ dense (a new array each call)",
+              _holders("Product", cloth_fast.Product), ProductKept, ProductPlain),
+        Trick("cloth_corner_sum_bincount", "cloth", "np.add.at(out, faces.ravel(), values)",
+              _holders("CornerSum", cloth_fast.CornerSum), CornerSumBincount, CornerSumAddAt),
+        Trick("vectors_cross_cloth", "cloth", "np.cross(a, b)",
+              _holders("cross", vectors.cross) + _holders("cross_rows", vectors.cross), cross_trick, cross_plain),
+        Trick("vectors_cross_grasp", "grasp", "np.cross(a, b)",
+              _holders("cross", vectors.cross) + _holders("cross_rows", vectors.cross), cross_trick, cross_plain),
+        Trick("comfort_required_torques_take", "control", "total[m.dof_body]; m.dof_subtree[bodies]",
+              _holders("_required_torques", cc._required_torques),
+              *text_pair(cc._required_torques, ("total.take(m.dof_body, axis=0)", "total[m.dof_body]"),
+                         ("m.dof_subtree.take(bodies, axis=0)", "m.dof_subtree[bodies]"))),
+        Trick("comfort_required_torques_ones", "control", "(S * below).sum(axis=1)",
+              _holders("_required_torques", cc._required_torques),
+              *text_pair(cc._required_torques, ("(motion_subspace(m, d, state.q) * below).dot(ONES6)",
+                                                "(motion_subspace(m, d, state.q) * below).sum(axis=1)"),
+                         names={"ONES6": vectors.ONES6})),
+        Trick("comfort_sole_centres_add_reduce", "control", "soles[s][:, :2].mean(axis=0)",
+              _holders("_sole_centres", cc._sole_centres),
+              *text_pair(cc._sole_centres, ("(np.add.reduce(soles[s][:, :2], 0) / len(soles[s]))",
+                                            "soles[s][:, :2].mean(axis=0)"))),
+        Trick("balance_support_polygon_reduce_take", "control", "np.abs(a - b).max(); pts[hull]",
+              _holders("_support_polygon", bc._support_polygon),
+              *text_pair(bc._support_polygon, ("np.maximum.reduce(np.abs(cached[0] - pts), None)",
+                                               "np.abs(cached[0] - pts).max()"),
+                         ("pts.take(cached[1], axis=0)", "pts[cached[1]]"))),
+        Trick("balance_on_ground_floats", "control", "np.append(xy, height)",
+              _holders("_on_ground", bc._on_ground), on_ground_trick, on_ground_plain),
+        Trick("balance_moment_about_floats", "control", "wrench[:3] - np.cross(point, wrench[3:])",
+              _holders("moment_about", bc.moment_about), moment_about_trick, moment_about_plain),
+        Trick("feet_predicted_resolve_max_reduce", "control", "np.abs(turns).max()",
+              [(feet.PlantedFeet, "predicted_resolve")],
+              *text_pair(feet.PlantedFeet.predicted_resolve, ("np.maximum.reduce(np.abs(turns))",
+                                                              "np.abs(turns).max()"))),
     ]
     return out
 
@@ -461,9 +674,10 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object (and write benchmarks/results/microopt.json)")
     parser.add_argument("--rounds", type=int, default=5, help="alternating rounds per trick (default 5)")
-    parser.add_argument("--only", default="", help="only the tricks whose name or capability contains this")
+    parser.add_argument("--only", default="", help="only the tricks whose name or capability contains this (several: comma-separated)")
     args = parser.parse_args(argv)
-    chosen = [t for t in tricks() if args.only in t.name or args.only in t.capability]
+    wanted = args.only.split(",")
+    chosen = [t for t in tricks() if any(w in t.name or w in t.capability for w in wanted)]
     runs, rows = {}, []
     for trick in chosen:
         if trick.capability not in runs:

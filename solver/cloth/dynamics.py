@@ -36,7 +36,7 @@ class ParticleSum:
 
     The plain formula is np.add.at(out, first, w_first[:, None] * values) and the same for
     second; kept instead as a compiled CSR product (particles x items) whose entries per row are
-    in a fixed order, particle by particle, items ascending (or `descending`), which saves 22 % of
+    in a fixed order, particle by particle, items ascending (or `descending`), which saves 20-22 % of
     the time of the skirt on walking legs, collision and smoothing included (benchmarks/microopt.py,
     cloth_scatter_plan)."""
 

@@ -1,4 +1,4 @@
-"""Small helpers for the cloth's hot loops: dot products, fixed sparse products, corner sums."""
+"""Small helpers for the cloth's loops: dot products, fixed sparse products, corner sums."""
 
 import numpy as np
 
@@ -14,20 +14,17 @@ def rowdot(a, b):
 
 
 class Product:
-    """`matrix @ dense` for one fixed CSR matrix and (N, cols) C-contiguous float64 operands, into
-    an output kept between calls (overwritten by the next call: use it before calling again).
-    The hot loops call a few such products tens of times a frame, into outputs they keep."""
+    """`matrix @ dense` for one fixed CSR matrix, made once (the hot loops call a few such
+    products tens of times a frame)."""
 
     def __init__(self, matrix, cols):
-        matrix = matrix.tocsr()
-        self.matrix, self.cols = matrix, cols
-        self.out = np.zeros((matrix.shape[0], cols))
+        self.matrix, self.cols = matrix.tocsr(), cols
 
     def __call__(self, dense):
-        return self.into(dense, self.out)
+        return self.matrix @ dense
 
     def into(self, dense, out):
-        """The product written into `out` (a C-contiguous (rows, cols) array) instead."""
+        """The product written into `out` (a (rows, cols) array) instead."""
         out[...] = self.matrix @ dense
         return out
 
@@ -45,12 +42,12 @@ def difference_matrix(first, second, count):
 
 class CornerSum:
     """`gather @ values` for values (3F, 3) per face corner (faces (F, 3) of particle indices): the
-    sum at each particle, as one np.bincount (corners in ascending order per particle, as the
-    sparse product it replaces)."""
+    sum at each particle, np.add.at over the corners."""
 
     def __init__(self, faces, particles):
-        self.idx = (3 * faces.ravel()[:, None] + np.arange(3)).ravel()
-        self.size = 3 * particles
+        self.corners, self.particles = np.asarray(faces).ravel(), particles
 
     def __matmul__(self, values):
-        return np.bincount(self.idx, values.ravel(), minlength=self.size).reshape(-1, 3)
+        out = np.zeros((self.particles, 3))
+        np.add.at(out, self.corners, values)
+        return out

@@ -62,9 +62,7 @@ def velocity_terms(model, data, q, v):
     if cached is not None and cached[0] == key:
         return cached[1]
     u = (data.joint_motion @ model.expand(v)[:, :, None])[:, :, 0]
-    # ndarray.dot for ancestors @ u (here and in subtree_wrenches): numpy 1's @ dispatch made
-    # benchmarks/dynamics.py's control step over 5 % slower
-    vel = model.ancestors.dot(u)
+    vel = model.ancestors @ u
     cr = spatial.crm(vel)
     out = (vel, cr, (cr @ u[:, :, None])[:, :, 0] + joint_velocity_products(model, data, v))
     data.velocity = (key, out)
@@ -78,7 +76,7 @@ def subtree_wrenches(model, data, q, v, a, f_ext=None, gravity=None):
     g = model.gravity if gravity is None else np.asarray(gravity, dtype=float)
     own = (data.joint_motion @ model.expand(np.asarray(a, float))[:, :, None])[:, :, 0] + product
     av = np.empty((model.nb, 6, 2))
-    av[:, :, 0] = model.ancestors.dot(own)
+    av[:, :, 0] = model.ancestors @ own
     av[:, 3:, 0] -= g  # gravity as an upward acceleration of the whole body (Luh et al.)
     av[:, :, 1] = vel
     ia = data.inertia @ av  # I a and the momentum I v

@@ -81,7 +81,6 @@ class Model:
         self.nv = n
         v_index[v_index < 0] = n  # a dummy slot that always holds zero
         self.v_index = v_index
-        self._expand_buffer = np.zeros(n + 1)  # expand's (v, 0): its last entry stays zero
         flat = np.flatnonzero(v_index.ravel() < n)
         self.flat_dof = flat[np.argsort(v_index.ravel()[flat])]  # (nv,) position in a (nb, 6) array
         self.dof_body = self.flat_dof // 6
@@ -308,12 +307,7 @@ class Model:
 
     def expand(self, v):
         """(nb, 6) per-body local (angular, linear) entries of a velocity-like vector."""
-        # Plain formula: np.append(v, 0.0)[self.v_index] (v_index points locked entries at the
-        # appended 0). Kept on a preallocated buffer: benchmarks/dynamics.py's control step calls
-        # this several times, and np.append made the step over 5 % slower.
-        buffer = self._expand_buffer
-        buffer[:-1] = v
-        return buffer[self.v_index]
+        return np.append(v, 0.0)[self.v_index]  # v_index points locked entries at the appended 0
 
     def create_data(self):
         return Data(self)
@@ -355,8 +349,7 @@ class Data:
     def inertia(self):
         """World spatial inertia (nb, 6, 6) of each body about the origin."""
         if self._inertia is None:
-            # _force[:, force_gather] by take, on fancy indexing's column-by-column layout
-            xf = self._force.T.take(self.model.force_gather, axis=0).T.reshape(self.model.nb, 6, 6)
+            xf = self._force[:, self.model.force_gather].reshape(self.model.nb, 6, 6)
             self._inertia = xf @ self.model.spatial_inertia @ xf.swapaxes(1, 2)
         return self._inertia
 

@@ -1,7 +1,7 @@
 """Cholesky solves of the kernel's small system in place, on preallocated buffers.
 
 The plain formula is b[:] = cho_solve(cho_factor(A), b) (scipy.linalg). Kept in place instead,
-since it saves 15 % of the flexible thesis workload's time (benchmarks/microopt.py,
+since it saves 9-15 % of the flexible thesis workload's time (benchmarks/microopt.py,
 flexible_cholesky_in_place, which holds the plain version beside it):
 scipy.linalg.lapack.dposv, the same LAPACK routine, with overwrite_a and overwrite_b, on A seen
 transposed (A.T, a Fortran-ordered view of the same memory, is A itself for a symmetric A), so

@@ -29,7 +29,7 @@ from ..dynamics.inertia_matrix import inertia_block
 from ..dynamics.inverse_dynamics import subtree_wrenches
 from ..dynamics.kinematics import motion_subspace, point_positions, segment_jacobian, update_frames
 from ..dynamics.strength import StrengthModel, torque_range
-from ..vectors import ONES3, ONES6
+from ..vectors import ONES3
 
 SIDES = ("L", "R")
 
@@ -286,15 +286,14 @@ def required_torques(state, a):
 def _required_torques(state, a):
     m, d = state.model, state.data
     total = subtree_wrenches(m, d, state.q, state.v, a, f_ext=state.f_ext)  # rnea's inward pass
-    below = total.take(m.dof_body, axis=0)  # (take: a third of fancy indexing's cost)
+    below = total[m.dof_body]
     ground = _ground_wrenches(state, total[0])
     if ground is not None:
         # -J' f of the foot wrenches: each DOF against the wrenches on its body's subtree
         bodies, wrenches = ground
-        below = below - m.dof_subtree.take(bodies, axis=0).T.dot(wrenches)
+        below = below - m.dof_subtree[bodies].T.dot(wrenches)
     # rnea's tau: each DOF's motion subspace against the wrench its body's subtree needs
-    # (a product with ones: a reduction over the small last axis costs ~4x as much)
-    tau = (motion_subspace(m, d, state.q) * below).dot(ONES6) + m.armature_v * a
+    tau = (motion_subspace(m, d, state.q) * below).sum(axis=1) + m.armature_v * a
     wrench = total[0]
     tau.flags.writeable = False
     wrench.flags.writeable = False
@@ -345,8 +344,7 @@ def _sole_centres(state, sides, height):
     """Per side in contact: the mean of its sole points on the ground [x, y, height] (floats)."""
     soles = state.sole_world()
     h = float(height)
-    # the mean (sum's own reduce)
-    return [(np.add.reduce(soles[s][:, :2], 0) / len(soles[s])).tolist() + [h] for s in sides.tolist()]
+    return [soles[s][:, :2].mean(axis=0).tolist() + [h] for s in sides.tolist()]
 
 
 def _split(centres, px, py):

@@ -421,7 +421,7 @@ class PlantedFeet:
         holds its offset and the release blends it out.)"""
         f0, f1 = bool(feet[0]), bool(feet[1])
         turns = v.take(body.landing_dofs[f0, f1])
-        if np.maximum.reduce(np.abs(turns)) * dt > LANDING_TURN:  # (the ufunc: np.max dispatches in Python)
+        if np.abs(turns).max() * dt > LANDING_TURN:
             return None
         m, d = body.model, body.data
         legs = self.leg_jacobians(body, q, feet)  # the frames at q

@@ -114,3 +114,81 @@ def test_particle_sum_pair_and_the_product_code_add_alike(micro):
     for cls in (micro.SumPlanned, micro.SumAddAt, ParticleSum):
         out = np.full((10, 3), np.nan)
         assert np.allclose(cls(first, second, w0, w1, 10).into(values, out), want)
+
+
+def test_dynamics_pairs_give_the_same_inverse_dynamics(micro):
+    from humananim.solver.dynamics import build_model, integrate, oshita_figure, rnea
+    from humananim.solver.dynamics.model import Data
+    model = build_model(oshita_figure(), loads={"hand.L": 4.0})
+    rng = np.random.default_rng(7)
+    q = integrate(model, model.neutral(), 0.6 * rng.normal(size=model.nv))
+    v, a = rng.normal(size=model.nv), rng.normal(size=model.nv)
+    assert np.array_equal(micro.expand_plain(model, v), micro.expand_trick(model, v))
+    assert np.array_equal(model.expand(v), micro.expand_trick(model, v))
+    want = rnea(model, model.create_data(), q, v, a)
+    for name in ("dynamics_expand_buffer", "dynamics_inertia_take", "dynamics_velocity_terms_dot",
+                 "dynamics_subtree_wrenches_dot"):
+        trick = next(t for t in micro.tricks() if t.name == name)
+        held = [(owner, attr, getattr(owner, attr)) for owner, attr in trick.targets]
+        try:
+            for version in ("trick", "plain"):
+                trick.use(version)
+                assert np.allclose(rnea(model, model.create_data(), q, v, a), want, rtol=1e-12, atol=1e-9), \
+                    (name, version)
+        finally:
+            for owner, attr, value in held:
+                setattr(owner, attr, value)
+    assert isinstance(Data.__dict__["inertia"], property)
+
+
+def test_cloth_product_and_corner_sum_pairs_are_equal(micro):
+    from scipy import sparse
+    from humananim.solver.cloth.fast import CornerSum, Product, difference_matrix
+    rng = np.random.default_rng(8)
+    first, second = rng.integers(0, 12, 20), rng.integers(0, 12, 20)
+    dense = rng.standard_normal((12, 3))
+    matrix = difference_matrix(first, second, 12)
+    assert np.array_equal(matrix @ dense, dense[second] - dense[first])
+    want = sparse.csr_matrix(matrix) @ dense
+    for cls in (micro.ProductKept, micro.ProductPlain, Product):
+        product = cls(matrix, 3)
+        assert np.array_equal(product(dense), want)
+        out = np.full((20, 3), np.nan)
+        assert np.array_equal(product.into(dense, out), want)
+    faces = rng.integers(0, 9, (14, 3))
+    values = rng.standard_normal((42, 3))
+    want = np.zeros((9, 3))
+    np.add.at(want, faces.ravel(), values)
+    for cls in (micro.CornerSumBincount, micro.CornerSumAddAt, CornerSum):
+        assert np.allclose(cls(faces, 9) @ values, want, rtol=0, atol=1e-12)
+
+
+def test_control_pairs_bake_the_same_motion(micro):
+    """Every Dynamic Control pair (its trick and its plain version) bakes the benchmark's loaded
+    figure to the same stress and balance error (to rounding: the plain formulas may sum in
+    another order)."""
+    bake = micro.control_workload()[0]  # figure_15kg: comfort control acting
+    want = bake()
+    for trick in micro.tricks():
+        if trick.capability != "control":
+            continue
+        held = [(owner, attr, getattr(owner, attr)) for owner, attr in trick.targets]
+        try:
+            for version in ("trick", "plain"):
+                trick.use(version)
+                got = bake()
+                assert np.allclose(got.stress, want.stress, rtol=1e-6, atol=1e-6), (trick.name, version)
+                assert np.allclose(got.balance_error, want.balance_error, atol=1e-9, equal_nan=True), (trick.name, version)
+                assert np.array_equal(got.control, want.control), (trick.name, version)
+        finally:
+            for owner, attr, value in held:
+                setattr(owner, attr, value)
+
+
+def test_cross_pair_is_np_cross(micro):
+    from humananim.solver.vectors import cross
+    rng = np.random.default_rng(9)
+    a, b = rng.standard_normal((7, 3)), rng.standard_normal(3)
+    for fn in (micro.cross_trick, micro.cross_plain, cross):
+        assert np.array_equal(fn(a, b), np.cross(a, b))
+        assert np.array_equal(fn(b, a[:, None, :]), np.cross(b, a[:, None, :]))
