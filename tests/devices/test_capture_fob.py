@@ -154,7 +154,8 @@ def test_connect_after_disconnect_and_after_a_power_cycle_during_a_silent_pause(
     with sim_fob.FlockSimulator(birds=(1, 2), rate=150) as sim:
         dev = fob.FlockOfBirds("fob", sim.port, birds=(1, 2), record=fmt, settle=0.03)
         _check_stream(sim, dev, _run(sim, dev), fmt, (1, 2))
-        assert sim.asleep  # our disconnect put the transmitter to sleep
+        # our disconnect put the transmitter to sleep (the simulator reads the command on its own thread)
+        assert wait_for(lambda: sim.asleep)
         _check_stream(sim, dev, _run(sim, dev), fmt, (1, 2))  # a second Connect wakes it
         dev = fob.FlockOfBirds("fob", sim.port, birds=(1, 2), record=fmt, settle=0.03, watchdog=0.3,
                                reconnect_interval=0.05)
