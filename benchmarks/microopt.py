@@ -72,6 +72,7 @@ kinematics = importlib.import_module("humananim.solver.dynamics.kinematics")
 inertia_matrix = importlib.import_module("humananim.solver.dynamics.inertia_matrix")
 
 AIM = 0.05  # a trick must save at least this share of its capability's time
+ONES3, ONES4, ONES6 = np.ones(3), np.ones(4), np.ones(6)  # the products-with-ones tricks' constants
 
 
 # ==== the two versions of every trick ==========================================================
@@ -491,28 +492,19 @@ class ProductPlain:
         return out
 
 
-# -- cloth.dynamics: differences x[second] - x[first] as one sparse product ----------------------
+# -- cloth.fast.IndexDifference: differences x[second] - x[first] as one sparse product ----------------------
 
-class DifferenceByIndex:
-    """The plain formula for cloth.dynamics' Product(difference_matrix(first, second)):
-    x[second] - x[first], the index pairs read back from the matrix (each row -1 at first,
-    +1 at second; the stacked state's block matrix alike)."""
+class DifferenceProduct:
+    """The trick for cloth.fast.IndexDifference(first, second): x[second] - x[first] as one compiled
+    sparse product, Product(difference_matrix(first, second, len(x))) (made at the first call)."""
 
-    def __init__(self, matrix, cols):
-        m = matrix.tocsr()
-        m.sort_indices()
-        rows = np.repeat(np.arange(m.shape[0]), np.diff(m.indptr))
-        self.first = np.empty(m.shape[0], int)
-        self.second = np.empty(m.shape[0], int)
-        self.first[rows[m.data < 0]] = m.indices[m.data < 0]
-        self.second[rows[m.data > 0]] = m.indices[m.data > 0]
+    def __init__(self, first, second):
+        self.first, self.second, self.product = first, second, None
 
-    def __call__(self, dense):
-        return dense[self.second] - dense[self.first]
-
-    def into(self, dense, out):
-        np.subtract(dense[self.second], dense[self.first], out=out)
-        return out
+    def __call__(self, x):
+        if self.product is None:
+            self.product = cloth_fast.Product(cloth_fast.difference_matrix(self.first, self.second, len(x)), 3)
+        return self.product(x)
 
 
 # -- cloth.fast.CornerSum: per-corner values summed at each particle -------------------------------
@@ -608,7 +600,7 @@ def tricks():
               _holders("_required_torques", cc._required_torques),
               *text_pair(cc._required_torques, ("(motion_subspace(m, d, state.q) * below).dot(ONES6)",
                                                 "(motion_subspace(m, d, state.q) * below).sum(axis=1)"),
-                         names={"ONES6": vectors.ONES6})),
+                         names={"ONES6": ONES6})),
         Trick("comfort_sole_centres_add_reduce", "control", "soles[s][:, :2].mean(axis=0)",
               _holders("_sole_centres", cc._sole_centres),
               *text_pair(cc._sole_centres, ("(np.add.reduce(soles[s][:, :2], 0) / len(soles[s]))",
@@ -627,7 +619,7 @@ def tricks():
               *text_pair(feet.PlantedFeet.predicted_resolve, ("np.maximum.reduce(np.abs(turns))",
                                                               "np.abs(turns).max()"))),
         Trick("cloth_difference_product", "cloth", "x[second] - x[first]",
-              [(cloth_dynamics, "Product")], cloth_fast.Product, DifferenceByIndex),
+              _holders("IndexDifference", cloth_fast.IndexDifference), DifferenceProduct, cloth_fast.IndexDifference),
         Trick("comfort_ground_wrenches_floats", "control", "ZMP p, c + (p - w c), n - np.cross(p, f) on arrays",
               _holders("_ground_wrenches", cc._ground_wrenches), cc._ground_wrenches, ground_wrenches_plain),
         Trick("feet_predicted_resolve_error_floats", "control", "target - (pose + velocity h + acceleration h^2 / 2)",
@@ -638,16 +630,16 @@ def tricks():
               *text_pair(tracking.TrackingController._frame_error,
                          ("(xyz * xyz).dot(ONES3)", "(xyz * xyz).sum(axis=1)"),
                          ("(rel * rel * self._diag_sign).dot(ONES4)", "(rel * rel * self._diag_sign).sum(axis=1)"),
-                         names={"ONES3": vectors.ONES3, "ONES4": vectors.ONES4})),
+                         names={"ONES3": ONES3, "ONES4": ONES4})),
         Trick("kinematics_integrate_ones", "control", "(turn * turn).sum(axis=1)",
               _holders("integrate", kinematics.integrate),
               *text_pair(kinematics.integrate, ("(turn * turn).dot(ONES3)", "(turn * turn).sum(axis=1)"),
                          ("(turned * turned).dot(ONES4)", "(turned * turned).sum(axis=1)"),
-                         names={"ONES3": vectors.ONES3, "ONES4": vectors.ONES4})),
+                         names={"ONES3": ONES3, "ONES4": ONES4})),
         Trick("comfort_dof_limits_ones", "control", "(xyz * xyz).sum(axis=1)",
               _holders("_dof_limits", cc._dof_limits),
               *text_pair(cc._dof_limits, ("(xyz * xyz).dot(ONES3)", "(xyz * xyz).sum(axis=1)"),
-                         names={"ONES3": vectors.ONES3})),
+                         names={"ONES3": ONES3})),
         Trick("dynamics_crba_take", "control", "ic[model.dof_body]",
               _holders("crba", inertia_matrix.crba),
               *text_pair(inertia_matrix.crba, ("ic.take(model.dof_body, axis=0)", "ic[model.dof_body]"))),
