@@ -18,7 +18,6 @@ forces applied from the upper body to each leg"), so that leg torques carry the 
 bpy-free: numpy only.
 """
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -511,7 +510,7 @@ def bounded(state, part, x):
     """A part's control acceleration scaled down to Settings.max_part_acceleration (rad/s^2, arms
     and back) or max_pelvis_acceleration (m/s^2, legs): the rest is left to the next part."""
     top = state.settings.max_pelvis_acceleration if part == "legs" else state.settings.max_part_acceleration
-    return x * min(1.0, top / max(_norm(x), 1e-12))
+    return x * min(1.0, top / max(np.linalg.norm(x), 1e-12))
 
 
 # ---- the heuristic order ------------------------------------------------------------------------
@@ -530,7 +529,7 @@ class ControlLog:
     actions: list = field(default_factory=list)  # (part, "passive" | "comfort" | "balance")
 
     def __post_init__(self):
-        self.passive, self.comfort, self.balance = np.zeros((3, self.nv), bool)  # (one allocation)
+        self.passive, self.comfort, self.balance = (np.zeros(self.nv, bool) for _ in range(3))
 
     def record(self, part, kind, delta):
         # a change is a DOF's acceleration moved by more than rounding: a pseudo-inverse leaves
@@ -576,7 +575,7 @@ def largest_with_kind(state, part, criteria, active, current, previous=None):
     if not len(getattr(state.parts, part, ())) and part != "legs":
         return None
     found = [(kind, c) for kind, f in criteria.items() for c in f(state, part, active, current)]
-    found = [(k, c, _norm(c)) for k, c in found if c is not None and np.count_nonzero(c)]
+    found = [(k, c, np.linalg.norm(c)) for k, c in found if c is not None and np.count_nonzero(c)]
     if not found:
         return None
     kind, c, size = max(found, key=lambda kcn: kcn[2])
@@ -585,11 +584,6 @@ def largest_with_kind(state, part, criteria, active, current, previous=None):
         if held and size <= (1.0 + state.settings.mode_margin) * held[0][2]:
             kind, c = held[0][:2]
     return kind, c
-
-
-def _norm(x):
-    """np.linalg.norm of a vector: its sqrt(x.dot(x)), without its dispatch (bit for bit)."""
-    return math.sqrt(x.dot(x))
 
 
 def comfort_criterion(state, part, active, current):
