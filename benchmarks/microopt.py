@@ -67,6 +67,7 @@ comfort_control = importlib.import_module("humananim.solver.motion_control.comfo
 feet = importlib.import_module("humananim.solver.motion_control.feet")
 importlib.import_module("humananim.solver.motion_control.controller")  # its imports are patched too
 importlib.import_module("humananim.solver.hands.grasp")
+sensors = importlib.import_module("humananim.solver.hands.sensors")
 tracking = importlib.import_module("humananim.solver.motion_control.tracking")
 kinematics = importlib.import_module("humananim.solver.dynamics.kinematics")
 inertia_matrix = importlib.import_module("humananim.solver.dynamics.inertia_matrix")
@@ -461,6 +462,17 @@ PREDICTED_ERROR_FLOATS = """error = np.array([t0 - h * w[0] - h2 * al[0], t1 - h
 PREDICTED_ERROR_PLAIN = "error = np.r_[t0, t1, t2, p0, p1, p2] - (np.r_[0.0, 0.0, 0.0, x] + h * np.r_[w, xd] + h2 * np.r_[al, xdd])"
 
 
+# -- hands.sensors.length: Euclidean lengths of (..., k) vectors ---------------------------------
+
+def length_trick(v):
+    """np.linalg.norm's result by one einsum."""
+    return np.sqrt(np.einsum("...i,...i->...", v, v))
+
+
+def length_plain(v):
+    return np.linalg.norm(v, axis=-1)
+
+
 # -- cloth.fast.Product: a fixed sparse product into a kept output ---------------------------------
 
 class ProductKept:
@@ -620,6 +632,8 @@ def tricks():
                                                               "np.abs(turns).max()"))),
         Trick("cloth_difference_product", "cloth", "x[second] - x[first]",
               _holders("IndexDifference", cloth_fast.IndexDifference), DifferenceProduct, cloth_fast.IndexDifference),
+        Trick("hands_length_einsum", "grasp", "np.linalg.norm(v, axis=-1)",
+              _holders("length", sensors.length), length_trick, length_plain),
         Trick("comfort_ground_wrenches_floats", "control", "ZMP p, c + (p - w c), n - np.cross(p, f) on arrays",
               _holders("_ground_wrenches", cc._ground_wrenches), cc._ground_wrenches, ground_wrenches_plain),
         Trick("feet_predicted_resolve_error_floats", "control", "target - (pose + velocity h + acceleration h^2 / 2)",

@@ -227,3 +227,10 @@ def test_ground_wrenches_pair_is_equal_on_one_and_two_feet(micro):
         for owner, attr in micro._holders("_ground_wrenches", spy):
             setattr(owner, attr, held)
     assert seen
+
+
+def test_length_pair_is_the_norm(micro):
+    from humananim.solver.hands.sensors import length
+    v = np.random.default_rng(11).standard_normal((5, 4, 3))
+    for fn in (micro.length_trick, micro.length_plain, length):
+        assert np.allclose(fn(v), np.linalg.norm(v, axis=-1), rtol=1e-15, atol=0)
