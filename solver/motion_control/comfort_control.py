@@ -302,7 +302,7 @@ def _ground_wrenches(state, wrench):
     """World wrenches on the feet in contact that sum to `wrench`: the force at the ZMP, split between
     the feet by where the ZMP lies between their sole centres; as the foot bodies (k,) and their
     wrenches (k, 6), on plain floats. (Plain formula: ZMP p, points c + (p - w c), moment about the
-    ZMP m = n - np.cross(p, f), rows (np.cross(x, w f) + w m, w f); the floats save 11-13 % of Dynamic
+    ZMP m = n - np.cross(p, f), rows (np.cross(x, w f) + w m, w f); the floats save 7-13 % of Dynamic
     Control's time, benchmarks/microopt.py.)"""
     sides = state.sides()
     if not len(sides):
