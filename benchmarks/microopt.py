@@ -67,8 +67,13 @@ comfort_control = importlib.import_module("humananim.solver.motion_control.comfo
 feet = importlib.import_module("humananim.solver.motion_control.feet")
 importlib.import_module("humananim.solver.motion_control.controller")  # its imports are patched too
 importlib.import_module("humananim.solver.hands.grasp")
+sensors = importlib.import_module("humananim.solver.hands.sensors")
+tracking = importlib.import_module("humananim.solver.motion_control.tracking")
+kinematics = importlib.import_module("humananim.solver.dynamics.kinematics")
+inertia_matrix = importlib.import_module("humananim.solver.dynamics.inertia_matrix")
 
 AIM = 0.05  # a trick must save at least this share of its capability's time
+ONES3, ONES4, ONES6 = np.ones(3), np.ones(4), np.ones(6)  # the products-with-ones tricks' constants
 
 
 # ==== the two versions of every trick ==========================================================
@@ -341,7 +346,7 @@ def text_pair(function, *replacements, names=None):
     """(trick version, plain version) of a product function whose trick is inline: each
     replacement is (the trick's text, the plain formula's text); whichever of the two the product
     code holds, the other is made from its source by rewritten()."""
-    source = inspect.getsource(function)
+    source = textwrap.dedent(inspect.getsource(function))  # as rewritten() reads it
     if all(trick in source for trick, _ in replacements):
         return function, rewritten(function, *replacements)
     return rewritten(function, *[(plain, trick) for trick, plain in replacements], names=names), function
@@ -423,6 +428,51 @@ def moment_about_plain(wrench, point):
     return wrench[:3] - np.cross(np.asarray(point, float)[:3], wrench[3:6])
 
 
+# -- comfort_control._ground_wrenches: the feet's ground wrenches on plain floats -----------------
+
+def ground_wrenches_plain(state, wrench):
+    """The plain formula on arrays: ZMP p; application points c + (p - w c); moment about the ZMP
+    m = n - p x f; per foot (x_i x w_i f + w_i m, w_i f)."""
+    cc = comfort_control
+    sides = state.sides()
+    if not len(sides):
+        return None
+    n, f = np.asarray(wrench[:3], float), np.asarray(wrench[3:6], float)
+    if f[2] <= 1e-9:
+        return None
+    h = float(state.ground_height)
+    p = np.array([(h * f[0] - n[1]) / f[2], (n[0] + h * f[1]) / f[2], h])
+    if state.sole_centres is None:
+        state.sole_centres = cc._sole_centres(state, sides, h)
+    c = np.asarray(state.sole_centres, float)
+    w = np.ones(1) if len(c) == 1 else np.asarray(cc._split(state.sole_centres, p[0], p[1]))
+    x = c + (p - w @ c)
+    g = w[:, None] * f
+    rows = np.hstack((np.cross(x, g) + w[:, None] * (n - np.cross(p, f)), g))
+    if state.foot_bodies is None:
+        state.foot_bodies = state.model.joint_body[np.asarray(state.parts.feet)[sides]]
+    return state.foot_bodies, rows
+
+
+# -- feet.PlantedFeet.predicted_resolve: the six components of the error, on plain floats -------
+
+PREDICTED_ERROR_FLOATS = """error = np.array([t0 - h * w[0] - h2 * al[0], t1 - h * w[1] - h2 * al[1], t2 - h * w[2] - h2 * al[2],
+                          p0 - x[0] - h * xd[0] - h2 * xdd[0], p1 - x[1] - h * xd[1] - h2 * xdd[1],
+                          p2 - x[2] - h * xd[2] - h2 * xdd[2]])"""  # (as dedented by one level)
+PREDICTED_ERROR_PLAIN = "error = np.r_[t0, t1, t2, p0, p1, p2] - (np.r_[0.0, 0.0, 0.0, x] + h * np.r_[w, xd] + h2 * np.r_[al, xdd])"
+
+
+# -- hands.sensors.length: Euclidean lengths of (..., k) vectors ---------------------------------
+
+def length_trick(v):
+    """np.linalg.norm's result by one einsum."""
+    return np.sqrt(np.einsum("...i,...i->...", v, v))
+
+
+def length_plain(v):
+    return np.linalg.norm(v, axis=-1)
+
+
 # -- cloth.fast.Product: a fixed sparse product into a kept output ---------------------------------
 
 class ProductKept:
@@ -452,6 +502,21 @@ class ProductPlain:
     def into(self, dense, out):
         out[...] = self.matrix @ dense
         return out
+
+
+# -- cloth.fast.IndexDifference: differences x[second] - x[first] as one sparse product ----------------------
+
+class DifferenceProduct:
+    """The trick for cloth.fast.IndexDifference(first, second): x[second] - x[first] as one compiled
+    sparse product, Product(difference_matrix(first, second, len(x))) (made at the first call)."""
+
+    def __init__(self, first, second):
+        self.first, self.second, self.product = first, second, None
+
+    def __call__(self, x):
+        if self.product is None:
+            self.product = cloth_fast.Product(cloth_fast.difference_matrix(self.first, self.second, len(x)), 3)
+        return self.product(x)
 
 
 # -- cloth.fast.CornerSum: per-corner values summed at each particle -------------------------------
@@ -547,7 +612,7 @@ def tricks():
               _holders("_required_torques", cc._required_torques),
               *text_pair(cc._required_torques, ("(motion_subspace(m, d, state.q) * below).dot(ONES6)",
                                                 "(motion_subspace(m, d, state.q) * below).sum(axis=1)"),
-                         names={"ONES6": vectors.ONES6})),
+                         names={"ONES6": ONES6})),
         Trick("comfort_sole_centres_add_reduce", "control", "soles[s][:, :2].mean(axis=0)",
               _holders("_sole_centres", cc._sole_centres),
               *text_pair(cc._sole_centres, ("(np.add.reduce(soles[s][:, :2], 0) / len(soles[s]))",
@@ -565,6 +630,33 @@ def tricks():
               [(feet.PlantedFeet, "predicted_resolve")],
               *text_pair(feet.PlantedFeet.predicted_resolve, ("np.maximum.reduce(np.abs(turns))",
                                                               "np.abs(turns).max()"))),
+        Trick("cloth_difference_product", "cloth", "x[second] - x[first]",
+              _holders("IndexDifference", cloth_fast.IndexDifference), DifferenceProduct, cloth_fast.IndexDifference),
+        Trick("hands_length_einsum", "grasp", "np.linalg.norm(v, axis=-1)",
+              _holders("length", sensors.length), length_trick, length_plain),
+        Trick("comfort_ground_wrenches_floats", "control", "ZMP p, c + (p - w c), n - np.cross(p, f) on arrays",
+              _holders("_ground_wrenches", cc._ground_wrenches), cc._ground_wrenches, ground_wrenches_plain),
+        Trick("feet_predicted_resolve_error_floats", "control", "target - (pose + velocity h + acceleration h^2 / 2)",
+              [(feet.PlantedFeet, "predicted_resolve")],
+              *text_pair(feet.PlantedFeet.predicted_resolve, (PREDICTED_ERROR_FLOATS, PREDICTED_ERROR_PLAIN))),
+        Trick("tracking_frame_error_ones", "control", "(xyz * xyz).sum(axis=1)",
+              [(tracking.TrackingController, "_frame_error")],
+              *text_pair(tracking.TrackingController._frame_error,
+                         ("(xyz * xyz).dot(ONES3)", "(xyz * xyz).sum(axis=1)"),
+                         ("(rel * rel * self._diag_sign).dot(ONES4)", "(rel * rel * self._diag_sign).sum(axis=1)"),
+                         names={"ONES3": ONES3, "ONES4": ONES4})),
+        Trick("kinematics_integrate_ones", "control", "(turn * turn).sum(axis=1)",
+              _holders("integrate", kinematics.integrate),
+              *text_pair(kinematics.integrate, ("(turn * turn).dot(ONES3)", "(turn * turn).sum(axis=1)"),
+                         ("(turned * turned).dot(ONES4)", "(turned * turned).sum(axis=1)"),
+                         names={"ONES3": ONES3, "ONES4": ONES4})),
+        Trick("comfort_dof_limits_ones", "control", "(xyz * xyz).sum(axis=1)",
+              _holders("_dof_limits", cc._dof_limits),
+              *text_pair(cc._dof_limits, ("(xyz * xyz).dot(ONES3)", "(xyz * xyz).sum(axis=1)"),
+                         names={"ONES3": ONES3})),
+        Trick("dynamics_crba_take", "control", "ic[model.dof_body]",
+              _holders("crba", inertia_matrix.crba),
+              *text_pair(inertia_matrix.crba, ("ic.take(model.dof_body, axis=0)", "ic[model.dof_body]"))),
     ]
     return out
 

@@ -5,7 +5,7 @@ substeps; Provot-style correction of elongated edges (§4.4.3); particles pinned
 import numpy as np
 from scipy import sparse
 
-from .fast import CornerSum, Product, difference_matrix, rowdot
+from .fast import CornerSum, IndexDifference, rowdot
 from .materials import AIR_DENSITY, as_vector
 from .mesh import face_cross
 
@@ -88,8 +88,7 @@ class ClothDynamics:
         # its edges' over their count); the count: the edges given that move each particle
         self._move = ParticleSum(e0, e1, RELAX * self._share0, -RELAX * self._share1, p_count)
         self._count = ParticleSum(e0, e1, self._share0 != 0.0, self._share1 != 0.0, p_count)
-        edge_difference = difference_matrix(e0, e1, p_count)
-        self._edge_diff = Product(edge_difference, 3)
+        self._edge_diff = IndexDifference(e0, e1)
         self._times_off = np.zeros(len(e0))  # per edge, the sweeps in which it was off
         self._floor_off = self._floor_m * (1.0 - SLACK)
         self._limit_off = self._limit_m * (1.0 + SLACK)
@@ -100,7 +99,7 @@ class ClothDynamics:
         self._sweep_scale, self._sweep_step = np.empty((p_count, 1)), np.empty((p_count, 3))
         self._tether_data = self._tethers()
         self._corner_sum = CornerSum(mesh.faces, p_count)
-        self._prepare(edge_difference)
+        self._prepare()
 
     def unit_stiffness_eigenvalue(self, pairs, rest_length):
         """Largest eigenvalue of M^-1/2 K M^-1/2 for springs of unit stiffness on `pairs` at rest
@@ -147,7 +146,7 @@ class ClothDynamics:
         return self.capped
 
     # ---- forces -------------------------------------------------------------------------
-    def _prepare(self, edge_difference):
+    def _prepare(self):
         """Edges and bending pairs as one set of springs, scaled by the inverse masses, so an
         evaluation is a handful of vectorised operations and one bincount (the stiffness apart:
         _scale_springs)."""
@@ -165,11 +164,9 @@ class ClothDynamics:
         self._windy = bool(np.any(self.wind != 0.0))
         self._pin_idx = np.flatnonzero(self.pinned)
         # the springs' vectors (rows of x) and the edges' relative velocities (rows of v) from
-        # the stacked state [x; v] (2P, 3) in one product (the same rows, so the same sums)
-        state_diff = sparse.block_diag((difference_matrix(self._s0, self._s1, len(self.mass)), edge_difference),
-                                       format="csr")
-        state_diff.sort_indices()
-        self._state_diff = Product(state_diff, 3)
+        # the stacked state [x; v] (2P, 3) at once
+        p_count = len(self.mass)
+        self._state_diff = IndexDifference(np.r_[self._s0, p_count + self._e0], np.r_[self._s1, p_count + self._e1])
         self._springs = len(self._s0)
         self._drag_of = 0.5 * AIR_DENSITY * p.drag * mesh.area * self.inv_mass
         self._edges = len(self._e0)
@@ -191,8 +188,7 @@ class ClothDynamics:
 
     def derivative(self, y, normals=None):
         """d/dt of the state y = [x, v] (2, P, 3): [v, accelerations]. The springs' vectors and
-        the edges' relative velocities come from compiled difference products (contiguous
-        arrays throughout: numpy's strided in-place operations cost several times more)."""
+        the edges' relative velocities are differences of the stacked state's rows."""
         p = self.params
         x, v = y[0], y[1]
         both = self._state_diff(y.reshape(-1, 3))

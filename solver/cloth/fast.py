@@ -29,6 +29,16 @@ class Product:
         return out
 
 
+class IndexDifference:
+    """x[second] - x[first] for rows x (a spring's or an edge's vector from its two particles)."""
+
+    def __init__(self, first, second):
+        self.first, self.second = np.asarray(first), np.asarray(second)
+
+    def __call__(self, x):
+        return x[self.second] - x[self.first]
+
+
 def difference_matrix(first, second, count):
     """(S, count) CSR: row s is -1 at first[s], +1 at second[s], so `D @ x` is x[second] - x[first]
     (bit for bit: -a + b is b - a in floating point)."""

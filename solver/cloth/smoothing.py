@@ -24,8 +24,6 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
 GL_T, GL_W = 0.5 * (_GL_X + 1.0), 0.5 * _GL_W
 
 
-# (numpy's Python front ends, np.einsum, np.linalg.norm, np.cross, cost more than the arithmetic
-# on these few hundred rows: the smoothing calls the compiled routines themselves)
 def _unit(v):
     return v / np.maximum(np.sqrt(dot(v, v)), 1e-18)[..., None]
 

@@ -21,7 +21,7 @@ def crba(model, data, q):
     """H(q) (nv, nv): symmetric positive definite, with tau = H a + bias."""
     cols = motion_subspace(model, data, q)
     ic = composite_inertias(model, data, q)
-    forces = (ic.take(model.dof_body, axis=0) @ cols[:, :, None])[:, :, 0]
+    forces = (ic[model.dof_body] @ cols[:, :, None])[:, :, 0]
     m = forces @ cols.T  # m[c, d] = S_c' Ic_(body c) S_d, valid when d is above c
     h = np.where(model.dof_ancestor, m, m.T)
     h *= model.dof_related

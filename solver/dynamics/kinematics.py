@@ -9,7 +9,6 @@ batched products by pointer doubling. World spatial vectors are (omega, v) at th
 import numpy as np
 
 from . import spatial
-from ..vectors import ONES3, ONES4
 from .model import Data, Model
 
 
@@ -244,9 +243,9 @@ def integrate(model, q, v, dt=1.0):
     # Kept fused (benchmarks/dynamics.py: the plain form made a closed-loop step about 10 % slower).
     # The plain formula: q <- normalize(spatial.quat_multiply(q, spatial.quat_exp(w))) per body,
     # here with quat_exp's arithmetic inlined, the products as one 2-D product of the quaternions'
-    # outer products (spatial._QMUL_OUTER) and the norms as products with ones.
+    # outer products (spatial._QMUL_OUTER).
     turn = full[:, :3]
-    angle = np.sqrt((turn * turn).dot(ONES3))
+    angle = np.sqrt((turn * turn).sum(axis=1))
     half = 0.5 * angle
     small = angle < 1e-6  # sin(a/2)/a by its Taylor series there (and no division by zero)
     exp = np.empty((nb, 4))
@@ -266,7 +265,7 @@ def integrate(model, q, v, dt=1.0):
         right.flat[model.universal_qk] = np.sin(half_b)
         mid = (left[:, :, None] * quats[ub][:, None, :]).reshape(n, 16).dot(spatial._QMUL_OUTER)
         turned[ub] = (mid[:, :, None] * right[:, None, :]).reshape(n, 16).dot(spatial._QMUL_OUTER)
-    out[3:] = (turned / np.sqrt((turned * turned).dot(ONES4))[:, None]).ravel()
+    out[3:] = (turned / np.sqrt((turned * turned).sum(axis=1))[:, None]).ravel()
     return out
 
 

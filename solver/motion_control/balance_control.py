@@ -167,7 +167,7 @@ def _balance_error(state, wrench, polygon):
     if len(polygon) == 0 or wrench[5] <= MIN_SUPPORT * state.constants.weight:
         return None, None, 0.0
     # the ZMP, inside and closest_boundary_point (minimum_moment_point for a ZMP known to lie
-    # outside) on plain floats: the same arithmetic without their conversions
+    # outside) on plain floats (not yet measured against arrays: docs/physics.md, micro-optimisations)
     px, py = zmp_xy(wrench, state.ground_height)
     p = np.array([px, py])
     pts = polygon.tolist()

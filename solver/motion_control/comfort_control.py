@@ -18,7 +18,6 @@ forces applied from the upper body to each leg"), so that leg torques carry the 
 bpy-free: numpy only.
 """
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,7 +28,6 @@ from ..dynamics.inertia_matrix import inertia_block
 from ..dynamics.inverse_dynamics import subtree_wrenches
 from ..dynamics.kinematics import motion_subspace, point_positions, segment_jacobian, update_frames
 from ..dynamics.strength import StrengthModel, torque_range
-from ..vectors import ONES3
 
 SIDES = ("L", "R")
 
@@ -259,7 +257,7 @@ def _dof_limits(fused, q, v):
     quat = q.take(index)  # (n, 4)
     comp = quat.take(component)  # quat[k, 1 + slot], by its flat index
     xyz = quat[:, 1:]
-    s = np.sqrt((xyz * xyz).dot(ONES3))
+    s = np.sqrt((xyz * xyz).sum(axis=1))
     angle = spatial.log_scale(s, np.abs(quat[:, 0])) * comp  # (+-: the strength curve is even)
     low, high = torque_range(top0 * np.maximum(0.3, np.cos(0.6 * angle)), v[6:] / vmax)
     return np.concatenate((_BASE_LOW, low)), np.concatenate((_BASE_HIGH, high))
@@ -303,7 +301,9 @@ def _required_torques(state, a):
 def _ground_wrenches(state, wrench):
     """World wrenches on the feet in contact that sum to `wrench`: the force at the ZMP, split between
     the feet by where the ZMP lies between their sole centres; as the foot bodies (k,) and their
-    wrenches (k, 6), on plain floats."""
+    wrenches (k, 6), on plain floats. (Plain formula: ZMP p, points c + (p - w c), moment about the
+    ZMP m = n - np.cross(p, f), rows (np.cross(x, w f) + w m, w f); the floats save 7-13 % of Dynamic
+    Control's time, benchmarks/microopt.py.)"""
     sides = state.sides()
     if not len(sides):
         return None
@@ -510,7 +510,7 @@ def bounded(state, part, x):
     """A part's control acceleration scaled down to Settings.max_part_acceleration (rad/s^2, arms
     and back) or max_pelvis_acceleration (m/s^2, legs): the rest is left to the next part."""
     top = state.settings.max_pelvis_acceleration if part == "legs" else state.settings.max_part_acceleration
-    return x * min(1.0, top / max(_norm(x), 1e-12))
+    return x * min(1.0, top / max(np.linalg.norm(x), 1e-12))
 
 
 # ---- the heuristic order ------------------------------------------------------------------------
@@ -529,7 +529,7 @@ class ControlLog:
     actions: list = field(default_factory=list)  # (part, "passive" | "comfort" | "balance")
 
     def __post_init__(self):
-        self.passive, self.comfort, self.balance = np.zeros((3, self.nv), bool)  # (one allocation)
+        self.passive, self.comfort, self.balance = (np.zeros(self.nv, bool) for _ in range(3))
 
     def record(self, part, kind, delta):
         # a change is a DOF's acceleration moved by more than rounding: a pseudo-inverse leaves
@@ -575,7 +575,7 @@ def largest_with_kind(state, part, criteria, active, current, previous=None):
     if not len(getattr(state.parts, part, ())) and part != "legs":
         return None
     found = [(kind, c) for kind, f in criteria.items() for c in f(state, part, active, current)]
-    found = [(k, c, _norm(c)) for k, c in found if c is not None and np.count_nonzero(c)]
+    found = [(k, c, np.linalg.norm(c)) for k, c in found if c is not None and np.count_nonzero(c)]
     if not found:
         return None
     kind, c, size = max(found, key=lambda kcn: kcn[2])
@@ -584,11 +584,6 @@ def largest_with_kind(state, part, criteria, active, current, previous=None):
         if held and size <= (1.0 + state.settings.mode_margin) * held[0][2]:
             kind, c = held[0][:2]
     return kind, c
-
-
-def _norm(x):
-    """np.linalg.norm of a vector: its sqrt(x.dot(x)), without its dispatch (bit for bit)."""
-    return math.sqrt(x.dot(x))
 
 
 def comfort_criterion(state, part, active, current):

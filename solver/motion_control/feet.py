@@ -445,10 +445,8 @@ class PlantedFeet:
             xd, xdd = point_motion(w, vo, al, ao, x)  # the head point's velocity and acceleration
             t0, t1, t2 = rotation_log(targets[s][0].dot(leg.frame[:3, :3].T)).tolist()
             p0, p1, p2 = targets[s][1].tolist()
-            # (plain floats: the six components of target - (pose + velocity h + acceleration h^2 / 2))
-            error = np.array([t0 - h * w[0] - h2 * al[0], t1 - h * w[1] - h2 * al[1], t2 - h * w[2] - h2 * al[2],
-                              p0 - x[0] - h * xd[0] - h2 * xdd[0], p1 - x[1] - h * xd[1] - h2 * xdd[1],
-                              p2 - x[2] - h * xd[2] - h2 * xdd[2]])
+            # target - (pose + velocity h + acceleration h^2 / 2), the turn's pose being zero
+            error = np.r_[t0, t1, t2, p0, p1, p2] - (np.r_[0.0, 0.0, 0.0, x] + h * np.r_[w, xd] + h2 * np.r_[al, xdd])
             step[leg.cols] = self.dls(leg.leg, error)
         return step
 

@@ -41,7 +41,6 @@ import numpy as np
 
 from ..dynamics import kinematics, spatial
 from ..dynamics.closed_loop import desired_motion
-from ..vectors import ONES3, ONES4
 
 MIN_HORIZON = 0.2  # s, a floor for the default min_horizon (module notes)
 
@@ -216,13 +215,13 @@ class TrackingController:
         # quat_log's arithmetic on the one component each DOF needs (its sign: the short way)
         w = rel[:, 0]
         xyz = rel[:, 1:]
-        s = np.sqrt((xyz * xyz).dot(ONES3))
+        s = np.sqrt((xyz * xyz).sum(axis=1))
         comp = rel.take(self._rel_flat)  # rel[k, rel_axis] (flat)
         # (log_scale >= 0: copysign gives it w's sign, the where(w < 0, -comp, comp) of before in
         # two fewer calls; they differ only at w = -0.0, a half turn)
         error = np.copysign(spatial.log_scale(s, np.abs(w)), w) * comp
         # target angular velocity carried into the current axes: R(rel)[axis, axis] * vel_t
-        vel = (rel * rel * self._diag_sign).dot(ONES4) * target[2][f]
+        vel = (rel * rel * self._diag_sign).sum(axis=1) * target[2][f]
         if self._has_lin:
             # the root's world offset to its targets in the current root axes, r0.T @ (p_t - p)
             p0, p1, p2, qw, qx, qy, qz = q[:7].tolist()

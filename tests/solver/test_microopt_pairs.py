@@ -192,3 +192,45 @@ def test_cross_pair_is_np_cross(micro):
     for fn in (micro.cross_trick, micro.cross_plain, cross):
         assert np.array_equal(fn(a, b), np.cross(a, b))
         assert np.array_equal(fn(b, a[:, None, :]), np.cross(b, a[:, None, :]))
+
+
+def test_cloth_difference_pair_is_the_index_difference(micro):
+    from humananim.solver.cloth.fast import IndexDifference
+    rng = np.random.default_rng(10)
+    first, second = rng.integers(0, 9, 20), rng.integers(0, 9, 20)
+    second[second == first] = (first[second == first] + 1) % 9
+    x = rng.standard_normal((9, 3))
+    for cls in (micro.DifferenceProduct, IndexDifference):
+        assert np.array_equal(cls(first, second)(x), x[second] - x[first])
+
+
+def test_ground_wrenches_pair_is_equal_on_one_and_two_feet(micro):
+    """The Dynamic Control bake above covers every control pair; the ground wrenches directly too,
+    on the benchmark's loaded figure's steps."""
+    cc = micro.comfort_control
+    seen = []
+    held = cc._ground_wrenches
+
+    def spy(state, wrench):
+        out = held(state, wrench)
+        if out is not None and len(seen) < 40:
+            plain = micro.ground_wrenches_plain(state, wrench)
+            assert np.array_equal(plain[0], out[0])
+            assert np.allclose(plain[1], out[1], rtol=1e-9, atol=1e-9)
+            seen.append(len(out[0]))
+        return out
+    for owner, attr in micro._holders("_ground_wrenches", held):
+        setattr(owner, attr, spy)
+    try:
+        micro.control_workload()[0]()
+    finally:
+        for owner, attr in micro._holders("_ground_wrenches", spy):
+            setattr(owner, attr, held)
+    assert seen
+
+
+def test_length_pair_is_the_norm(micro):
+    from humananim.solver.hands.sensors import length
+    v = np.random.default_rng(11).standard_normal((5, 4, 3))
+    for fn in (micro.length_trick, micro.length_plain, length):
+        assert np.allclose(fn(v), np.linalg.norm(v, axis=-1), rtol=1e-15, atol=0)
