@@ -225,7 +225,6 @@ class ControlLoop:
     def step(self, f, dt, record, integrate):
         """One step: the commanded acceleration, the diagnostics when `record`, and the state at t + dt
         when `integrate`."""
-        st = self.st
         body = self.body = self.bodies.at(self.t)
         q, v, t = self.q, self.v, self.t
         f_ext = push_forces(self.pushes, body, q, t)

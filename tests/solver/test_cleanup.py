@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from humananim.solver import bvh, rotations
-from humananim.solver.cleanup import Options, clean_up, feet, glitches, jitter, qa_measures
+from humananim.solver.cleanup import Options, clean_up, feet, glitches, jitter
 from humananim.solver.trajectories import Trajectories
 
 CMU = Path(__file__).resolve().parents[2] / "humananim_addon" / "data" / "mocap" / "cmu_131_01.bvh"
