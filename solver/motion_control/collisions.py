@@ -277,8 +277,8 @@ def pgs(w, rel, targets, mu, iterations):
     impulse so far), p_r += (target_r - u_r) / W_rr, projected (p_n >= 0, |p_t| <= mu p_n). Here,
     contact by contact, its three speeds come from the impulses at once (one 3 x 3c product) and
     its rows are updated on plain floats through its own 3 x 3 block: the same sweeps, saving
-    28 % of Dynamic Control's time with contacts (a fallen body's 25-30 ground contacts, a fist;
-    benchmarks/microopt.py, collisions_pgs_contact_blocks)."""
+    28 % of Dynamic Control's time with contacts (a fallen body's ground contacts, up to 39 at a
+    step; a fist: benchmarks/microopt.py, collisions_pgs_contact_blocks)."""
     n = len(targets)
     p = np.zeros(3 * n)
     rows = [w[3 * c:3 * c + 3] for c in range(n)]
