@@ -8,6 +8,9 @@ with the trick beside the same capability with the plain, readable formula inste
     python3 benchmarks/microopt.py --only cloth    # the tricks whose name or capability contains this
                                                    # (several: --only cloth_product,feet_dls)
 
+With --json and --only, the rows measured are merged by trick name into the committed
+benchmarks/results/microopt.json (the others keep theirs; its `runs` says which run measured which).
+
 The rule (docs/physics.md, the developers' guide): a trick stays in product code only where it
 saves at least 5 % of its capability's time, with a comment naming the plain formula; otherwise
 the plain formula is the product code. This file holds both versions of every trick it judges
@@ -20,6 +23,9 @@ shared) of
 - Dynamic Control: bakes of benchmarks/control.py's cases figure_15kg (comfort control acting)
   and cmu (the CMU walk 131_01, dynamic control on about a third of the steps, a few frames out
   of balance, so the falling rotation too);
+- contacts (Dynamic Control with contact impulses): bakes of benchmarks/control.py's case
+  cmu_knocked_over (the fallen body's ground contacts) and of the thesis's punch (a 6 kg fist, a
+  finite-mass collider, at 4 m/s into the metarig standing still);
 - grasp: complete grasps (solver.hands.grasp.grasp) of every fifth object of benchmarks/grasp.py's
   cases on the Rigify metarig;
 - flexible: benchmarks/flexible.py's thesis workload (the 11-point table under pose control,
@@ -36,6 +42,7 @@ round's ratio as its spread. saving = 1 - that median.
 import argparse
 import importlib
 import inspect
+import math
 import statistics
 import textwrap
 import sys
@@ -71,6 +78,9 @@ sensors = importlib.import_module("humananim.solver.hands.sensors")
 tracking = importlib.import_module("humananim.solver.motion_control.tracking")
 kinematics = importlib.import_module("humananim.solver.dynamics.kinematics")
 inertia_matrix = importlib.import_module("humananim.solver.dynamics.inertia_matrix")
+dynamics_balance = importlib.import_module("humananim.solver.dynamics.balance")
+importlib.import_module("humananim.solver.motion_control.falling")  # its imports are patched too
+collisions = importlib.import_module("humananim.solver.motion_control.collisions")
 
 AIM = 0.05  # a trick must save at least this share of its capability's time
 ONES3, ONES4, ONES6 = np.ones(3), np.ones(4), np.ones(6)  # the products-with-ones tricks' constants
@@ -329,12 +339,16 @@ class SumAddAt:
 def rewritten(function, *replacements, names=None):
     """`function` compiled again from its own source in its own module's namespace, with each
     (old, new) text replaced: the other version of a trick written inline in a long function.
-    Every `old` must occur, so a trick that has left the product code is noticed. `names`: what
-    the new text needs that the module no longer imports (the namespace is then a copy)."""
+    Every `old` must occur exactly once (LookupError otherwise), so a trick that has left the
+    product code, or an expression that a replacement would change in two places, is noticed.
+    `names`: what the new text needs that the module no longer imports (the namespace is then a
+    copy)."""
     source = textwrap.dedent(inspect.getsource(function))
     for old, new in replacements:
-        if old not in source:
-            raise LookupError(f"{function.__qualname__}: {old!r} is not in its source")
+        count = source.count(old)
+        if count != 1:
+            raise LookupError(f"{function.__qualname__}: {old!r} occurs {count} times in its source, "
+                              "not exactly once")
         source = source.replace(old, new)
     module = vars(inspect.getmodule(function))
     namespace = {}
@@ -345,11 +359,17 @@ def rewritten(function, *replacements, names=None):
 def text_pair(function, *replacements, names=None):
     """(trick version, plain version) of a product function whose trick is inline: each
     replacement is (the trick's text, the plain formula's text); whichever of the two the product
-    code holds, the other is made from its source by rewritten()."""
+    code holds, the other is made from its source by rewritten(), which checks that each text
+    occurs exactly once. LookupError when the source holds neither every trick text nor every
+    plain text (a trick half made plain, or an expression rewritten since the pair was written)."""
     source = textwrap.dedent(inspect.getsource(function))  # as rewritten() reads it
     if all(trick in source for trick, _ in replacements):
         return function, rewritten(function, *replacements)
-    return rewritten(function, *[(plain, trick) for trick, plain in replacements], names=names), function
+    if all(plain in source for _, plain in replacements):
+        return rewritten(function, *[(plain, trick) for trick, plain in replacements], names=names), function
+    missing = [trick for trick, plain in replacements if trick not in source and plain not in source]
+    raise LookupError(f"{function.__qualname__}: its source holds neither every trick text nor every "
+                      f"plain text of the pair (neither version of {missing!r}; or the two mixed)")
 
 
 # -- dynamics.model.Model.expand: (nb, 6) entries of a velocity-like vector ------------------------
@@ -544,19 +564,189 @@ class CornerSumAddAt:
         return out
 
 
+# -- balance_control._balance_error with dynamics.balance.inside / closest_boundary_point: ------
+# -- the ZMP's test against the support polygon and the MMP --------------------------------------
+
+def inside_xy(pts, px, py):
+    """The trick's point-in-polygon test on plain floats: a counter-clockwise convex polygon as a
+    list of at least three [x, y] vertices and the point's coordinates."""
+    x0, y0 = pts[-1]
+    for x1, y1 in pts:  # edge from the previous vertex: cross(edge, point - previous) >= 0
+        if (x1 - x0) * (py - y0) - (y1 - y0) * (px - x0) < -1e-10:
+            return False
+        x0, y0 = x1, y1
+    return True
+
+
+def closest_boundary_xy(pts, px, py):
+    """The trick's closest boundary point on plain floats: the polygon as a list of [x, y]
+    vertices, the point's coordinates; returns (x, y)."""
+    best, out = None, None
+    for (ax, ay), (bx, by) in zip(pts, pts[1:] + pts[:1]):
+        ex, ey = bx - ax, by - ay
+        length2 = ex * ex + ey * ey
+        t = ((px - ax) * ex + (py - ay) * ey) / (length2 if length2 > 0 else 1.0)
+        t = min(max(t, 0.0), 1.0)
+        cx, cy = ax + t * ex, ay + t * ey
+        dist = math.sqrt((cx - px) * (cx - px) + (cy - py) * (cy - py))
+        if best is None or dist < best:
+            best, out = dist, (cx, cy)
+    return out
+
+
+def inside_floats(polygon, point):
+    """dynamics.balance.inside by inside_xy."""
+    polygon = np.asarray(polygon, float)
+    if len(polygon) < 3:
+        return len(polygon) > 0 and np.allclose(dynamics_balance.minimum_moment_point(polygon, point), point)
+    px, py = np.asarray(point, float).ravel()[:2].tolist()
+    return inside_xy(polygon.tolist(), px, py)
+
+
+def closest_boundary_point_floats(polygon, point):
+    """dynamics.balance.closest_boundary_point by closest_boundary_xy."""
+    px, py = np.asarray(point, float).ravel()[:2].tolist()
+    return np.array(closest_boundary_xy(np.asarray(polygon, float).reshape(-1, 2).tolist(), px, py))
+
+
+def balance_error_floats(state, wrench, polygon):
+    """balance_control._balance_error with the ZMP, the test and the MMP on plain floats."""
+    bc = balance_control
+    if len(polygon) == 0 or wrench[5] <= bc.MIN_SUPPORT * state.constants.weight:
+        return None, None, 0.0
+    px, py = bc.zmp_xy(wrench, state.ground_height)
+    p = np.array([px, py])
+    pts = polygon.tolist()
+    if len(pts) >= 3 and inside_xy(pts, px, py):
+        return p, p.copy(), 0.0
+    mx, my = closest_boundary_xy(pts, px, py)
+    dx, dy = mx - px, my - py
+    return p, np.array((mx, my)), math.sqrt(dx * dx + dy * dy)
+
+
+def inside_plain(polygon, point):
+    """A point lies in a counter-clockwise convex polygon when it is left of (or on) every edge:
+    cross(edge, point - edge start) >= 0, all edges at once."""
+    polygon = np.asarray(polygon, float)
+    if len(polygon) < 3:
+        return len(polygon) > 0 and np.allclose(dynamics_balance.minimum_moment_point(polygon, point), point)
+    start = np.concatenate((polygon[-1:], polygon[:-1]))  # each edge runs from the previous vertex
+    edge, to_point = polygon - start, np.asarray(point, float).ravel()[:2] - start
+    return bool(np.all(edge[:, 0] * to_point[:, 1] - edge[:, 1] * to_point[:, 0] >= -1e-10))
+
+
+def closest_boundary_point_plain(polygon, point):
+    """Each edge's closest point a + clip((p - a).e / |e|^2, 0, 1) e, all edges at once; the
+    nearest of them."""
+    a = np.asarray(polygon, float).reshape(-1, 2)
+    p = np.asarray(point, float).ravel()[:2]
+    e = np.concatenate((a[1:], a[:1])) - a  # each edge runs to the next vertex (one vertex: length 0)
+    length2 = (e * e).sum(axis=1)
+    t = np.clip(((p - a) * e).sum(axis=1) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
+    closest = a + t[:, None] * e
+    return closest[np.argmin(np.linalg.norm(closest - p, axis=1))]
+
+
+def balance_error_plain(state, wrench, polygon):
+    """zmp_of, minimum_moment_point (inside, else closest_boundary_point) and their distance, on
+    arrays."""
+    bc = balance_control
+    if len(polygon) == 0 or wrench[5] <= bc.MIN_SUPPORT * state.constants.weight:
+        return None, None, 0.0
+    p = bc.zmp_of(wrench, state.ground_height)
+    mmp = dynamics_balance.minimum_moment_point(polygon, p)
+    return p, mmp, float(np.linalg.norm(mmp - p))
+
+
+# -- collisions.pgs: projected Gauss-Seidel on the contacts' impulses ----------------------------
+
+def pgs_plain(w, rel, targets, mu, iterations):
+    """Textbook projected Gauss-Seidel, row by row (normal, then the two tangents, per contact):
+    the row's relative speed with the impulses so far, u_r = rel_r + W_r p (J_r v, v updated by
+    every impulse before it); the impulse change that brings it to its target, (target - u_r) /
+    W_rr; projected: the normal impulse >= 0, each friction impulse within +-mu times the normal
+    one (a box)."""
+    n = len(targets)
+    p = np.zeros(3 * n)
+    for _ in range(iterations):
+        change = 0.0
+        for c in range(n):
+            normal = 3 * c
+            for r in (normal, normal + 1, normal + 2):
+                speed = rel[r] + w[r] @ p
+                if r == normal:
+                    new = max(0.0, p[r] + (targets[c] - speed) / w[r, r])
+                else:
+                    cap = mu * p[normal]
+                    new = min(max(p[r] - speed / w[r, r], -cap), cap)
+                change = max(change, abs(new - p[r]))
+                p[r] = new
+        if change < 1e-7:
+            break
+    return p
+
+
+def pgs_blocks(w, rel, targets, mu, iterations):
+    """The trick: contact by contact, its three speeds from the impulses at once (one 3 x 3c
+    product), its rows then updated on plain floats through its own 3 x 3 block."""
+    n = len(targets)
+    p = np.zeros(3 * n)
+    rows = [w[3 * c:3 * c + 3] for c in range(n)]
+    blocks = [w[3 * c:3 * c + 3, 3 * c:3 * c + 3].tolist() for c in range(n)]
+    rel_rows = [rel[3 * c:3 * c + 3] for c in range(n)]
+    targets = np.asarray(targets, float).tolist()
+    for _ in range(iterations):
+        change = 0.0
+        for c in range(n):
+            i = 3 * c
+            u0, u1, u2 = (rel_rows[c] + rows[c] @ p).tolist()
+            pn, p1, p2 = old = p[i:i + 3].tolist()
+            (d0, _, _), (w10, d1, _), (w20, w21, d2) = blocks[c]
+            new = max(0.0, pn + (targets[c] - u0) / d0)
+            dp = new - pn
+            if dp:
+                pn = new
+                u1 += w10 * dp
+                u2 += w20 * dp
+                change = max(change, abs(dp))
+            cap = mu * pn
+            new = min(max(p1 - u1 / d1, -cap), cap)
+            dp = new - p1
+            if dp:
+                p1 = new
+                u2 += w21 * dp
+                change = max(change, abs(dp))
+            new = min(max(p2 - u2 / d2, -cap), cap)
+            dp = new - p2
+            if dp:
+                p2 = new
+                change = max(change, abs(dp))
+            if [pn, p1, p2] != old:
+                p[i:i + 3] = pn, p1, p2
+        if change < 1e-7:
+            break
+    return p
+
+
 # ==== which version the product code holds, and switching ======================================
 
 class Trick:
-    """One trick: the product code's names it lives under, its version and the plain one."""
+    """One trick: the product code's names it lives under, its version and the plain one. A trick
+    spread over several functions gives each version as {attribute name: function}."""
 
     def __init__(self, name, capability, plain_formula, targets, trick, plain):
         self.name, self.capability, self.plain_formula = name, capability, plain_formula
         self.targets, self.versions = targets, {"trick": trick, "plain": plain}
 
+    def version(self, version, attr):
+        """What `version` ('trick' or 'plain') puts under the attribute name `attr`."""
+        held = self.versions[version]
+        return held[attr] if isinstance(held, dict) else held
+
     def use(self, version):
         """Every target (owner, attribute) set to `version` ('trick' or 'plain')."""
         for owner, attr in self.targets:
-            setattr(owner, attr, self.versions[version])
+            setattr(owner, attr, self.version(version, attr))
 
 
 def _holders(name, original):
@@ -657,6 +847,17 @@ def tricks():
         Trick("dynamics_crba_take", "control", "ic[model.dof_body]",
               _holders("crba", inertia_matrix.crba),
               *text_pair(inertia_matrix.crba, ("ic.take(model.dof_body, axis=0)", "ic[model.dof_body]"))),
+        Trick("balance_zmp_mmp_floats", "control",
+              "zmp_of; minimum_moment_point: all(cross(edge, p - a) >= 0), else the nearest a + clip(t) e, on arrays",
+              _holders("_balance_error", bc._balance_error) + _holders("inside", dynamics_balance.inside)
+              + _holders("closest_boundary_point", dynamics_balance.closest_boundary_point),
+              {"_balance_error": balance_error_floats, "inside": inside_floats,
+               "closest_boundary_point": closest_boundary_point_floats},
+              {"_balance_error": balance_error_plain, "inside": inside_plain,
+               "closest_boundary_point": closest_boundary_point_plain}),
+        Trick("collisions_pgs_contact_blocks", "contacts",
+              "row by row: p_r += (target_r - rel_r - W_r p) / W_rr, projected",
+              _holders("pgs", collisions.pgs), pgs_blocks, pgs_plain),
     ]
     return out
 
@@ -708,8 +909,26 @@ def cloth_workload(frames=60):
     return [run, run]
 
 
-WORKLOADS = {"control": control_workload, "grasp": grasp_workload, "flexible": flexible_workload,
-             "cloth": cloth_workload}
+def contacts_workload():
+    """Dynamic Control with contact impulses: benchmarks/control.py's cmu_knocked_over (the CMU walk
+    pushed over by 150 N s: the fallen body's ground contacts) and the thesis's punch (a 6 kg fist,
+    a finite-mass collider, at 4 m/s into the metarig standing still for 2 s; it falls too)."""
+    import control as control_bench
+    from humananim.solver.motion_control import controller as ctl
+    from humananim.solver.synthesis import keyframed
+    from humananim.solver.synthesis.punch import punch_collider
+    from test_dynamics_closed_loop_rigs import load
+    chosen = [c for c in control_bench.cases(ctl) if c[0] == "cmu_knocked_over"]
+    sk, tr = load("metarig_legs", frames=1)
+    still = keyframed.still(sk, tr, seconds=2.0).trajectories
+    fist = punch_collider(sk, still, 4.0, mass=6.0)
+    chosen.append(("punch", sk, still, ctl.ControlSettings(colliders=(fist,))))
+    return [lambda sk=sk, motion=motion, settings=settings: ctl.control(sk, motion, settings)
+            for _, sk, motion, settings in chosen]
+
+
+WORKLOADS = {"control": control_workload, "contacts": contacts_workload, "grasp": grasp_workload,
+             "flexible": flexible_workload, "cloth": cloth_workload}
 
 
 # ==== measuring =================================================================================
@@ -783,11 +1002,40 @@ def main(argv=None):
                   f"saves {row['saving_percent']:5.1f} %"
                   f" -> {'keep' if row['worth_keeping'] else 'plain'}", flush=True)
     if args.json:
-        found = [claim(f"{r['trick']}: {r['capability']} time with the trick / with {r['plain_formula']} "
-                       f"(median of {r['rounds']} alternating rounds, spread {r['ratio_min']:.3f}-{r['ratio_max']:.3f})",
-                       r["ratio_trick_over_plain"], "ratio", "saves >= 5 % of the capability's time",
-                       r["worth_keeping"]) for r in rows]
-        emit(result("microopt", found, tricks=rows))
+        everything = len(chosen) == len(tricks())
+        emit(merged(rows, None if everything else previous_result(), [t.name for t in tricks()]))
+
+
+def row_claim(r):
+    return claim(f"{r['trick']}: {r['capability']} time with the trick / with {r['plain_formula']} "
+                 f"(median of {r['rounds']} alternating rounds, spread {r['ratio_min']:.3f}-{r['ratio_max']:.3f})",
+                 r["ratio_trick_over_plain"], "ratio", "saves >= 5 % of the capability's time", r["worth_keeping"])
+
+
+def previous_result():
+    """The committed benchmarks/results/microopt.json, or None."""
+    import json
+    from machine import RESULTS
+    path = Path(RESULTS) / "microopt.json"
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def merged(rows, previous, names):
+    """The JSON object of this run's rows, merged into `previous` (the last result, None for a run
+    of every trick) by trick name: a trick this run measured gets this run's row, the others keep
+    theirs; rows in the order of `names` (the current tricks; a pair since removed is dropped).
+    `runs` says which tricks each run measured, with its date and machine speed."""
+    this = result("microopt", [])
+    run = {"tricks": [r["trick"] for r in rows], "date": this["date"], "machine_speed": this["machine_speed"]}
+    by_name = {r["trick"]: r for r in (previous or {}).get("tricks", ())}
+    by_name.update((r["trick"], r) for r in rows)
+    kept = [by_name[n] for n in names if n in by_name]
+    runs = []
+    for old in (previous or {}).get("runs", ()):
+        left = [n for n in old["tricks"] if n not in run["tricks"] and n in names]
+        if left:
+            runs.append({**old, "tricks": left})
+    return {**this, "claims": [row_claim(r) for r in kept], "tricks": kept, "runs": runs + [run]}
 
 
 if __name__ == "__main__":

@@ -30,7 +30,7 @@ def test_every_trick_is_switched_where_the_product_code_holds_it(micro):
         assert trick.targets, f"{trick.name}: no product code holds it"
         held = [getattr(owner, attr) for owner, attr in trick.targets]
         trick.use("plain")
-        assert all(getattr(owner, attr) is trick.versions["plain"] for owner, attr in trick.targets)
+        assert all(getattr(owner, attr) is trick.version("plain", attr) for owner, attr in trick.targets)
         for (owner, attr), value in zip(trick.targets, held):
             setattr(owner, attr, value)
 
@@ -234,3 +234,145 @@ def test_length_pair_is_the_norm(micro):
     v = np.random.default_rng(11).standard_normal((5, 4, 3))
     for fn in (micro.length_trick, micro.length_plain, length):
         assert np.allclose(fn(v), np.linalg.norm(v, axis=-1), rtol=1e-15, atol=0)
+
+
+def test_balance_pair_tests_and_projects_alike_on_polygons(micro):
+    """The ZMP test and the MMP on floats and on arrays: inside, on the boundary, outside beside
+    an edge and beyond a vertex, on a hull of real-looking sole points and on degenerate ones."""
+    from humananim.solver.dynamics.balance import closest_boundary_point, convex_hull, inside
+    rng = np.random.default_rng(12)
+    soles = np.r_[rng.normal((0.1, 0.0), (0.05, 0.03), (6, 2)), rng.normal((-0.1, 0.05), (0.05, 0.03), (6, 2))]
+    polygons = [convex_hull(soles), np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
+                np.array([[0.0, 0.0], [2.0, 0.0]]), np.array([[1.0, 1.0]])]
+    for polygon in polygons:
+        points = np.r_[rng.uniform(polygon.min(axis=0) - 0.3, polygon.max(axis=0) + 0.3, (200, 2)),
+                       polygon, 0.5 * (polygon + np.roll(polygon, 1, axis=0))]  # vertices, edge midpoints
+        for point in points:
+            want_in = micro.inside_floats(polygon, point)
+            want_mmp = micro.closest_boundary_point_floats(polygon, point)
+            assert micro.inside_plain(polygon, point) == want_in == inside(polygon, point), (polygon, point)
+            for fn in (micro.closest_boundary_point_plain, closest_boundary_point):
+                assert np.allclose(fn(polygon, point), want_mmp, rtol=0, atol=1e-12), (polygon, point)
+    square = polygons[1]
+    assert micro.inside_plain(square, (1.0, 0.5)) and not micro.inside_plain(square, (1.0 + 1e-6, 0.5))
+    assert np.allclose(micro.closest_boundary_point_plain(square, (2.0, 3.0)), (1.0, 1.0))
+    assert np.allclose(micro.closest_boundary_point_plain(square, (0.5, -2.0)), (0.5, 0.0))
+
+
+def test_balance_error_pair_is_equal_on_the_bakes_steps(micro):
+    """_balance_error on floats and on arrays: the same ZMP, MMP and distance on the benchmark's
+    loaded figure's and CMU walk's steps (the walk leaves its support polygon: the MMP acts)."""
+    bc = micro.balance_control
+    held = bc._balance_error
+    seen = {"inside": 0, "outside": 0}
+
+    def spy(state, wrench, polygon):
+        out = held(state, wrench, polygon)
+        for fn in (micro.balance_error_floats, micro.balance_error_plain):
+            got = fn(state, wrench, polygon)
+            if out[1] is None:
+                assert got == (None, None, 0.0)
+                continue
+            assert np.array_equal(got[0], out[0])
+            assert np.allclose(got[1], out[1], rtol=0, atol=1e-12)
+            assert abs(got[2] - out[2]) <= 1e-12
+        if out[1] is not None:
+            seen["inside" if out[2] == 0.0 else "outside"] += 1
+        return out
+    for owner, attr in micro._holders("_balance_error", held):
+        setattr(owner, attr, spy)
+    try:
+        for bake in micro.control_workload():
+            bake()
+    finally:
+        for owner, attr in micro._holders("_balance_error", spy):
+            setattr(owner, attr, held)
+    assert seen["inside"] > 50 and seen["outside"] > 5, seen
+
+
+def test_pgs_pair_gives_the_same_impulses_on_the_bakes_contacts(micro):
+    """Projected Gauss-Seidel row by row and by contact blocks: the same impulses (to the sweeps'
+    convergence) on the contact systems of a fallen body and of a fist, from the benchmark's
+    contacts workload; the normal impulses never pull, friction stays within mu times them."""
+    col = micro.collisions
+    held = col.pgs
+    seen = []
+
+    def spy(w, rel, targets, mu, iterations):
+        out = held(w, rel, targets, mu, iterations)
+        if len(seen) < 60 or len(targets) > 20:
+            for fn in (micro.pgs_blocks, micro.pgs_plain):
+                got = fn(w, rel, targets, mu, iterations)
+                assert np.allclose(got, out, rtol=1e-6, atol=1e-6 * max(1.0, np.abs(out).max()))
+                normal, friction = got[0::3], got.reshape(-1, 3)[:, 1:]
+                assert normal.min() >= 0.0 and np.all(np.abs(friction) <= mu * normal[:, None] + 1e-12)
+            seen.append(len(targets))
+        return out
+    for owner, attr in micro._holders("pgs", held):
+        setattr(owner, attr, spy)
+    try:
+        for bake in micro.contacts_workload():
+            bake()
+    finally:
+        for owner, attr in micro._holders("pgs", spy):
+            setattr(owner, attr, held)
+    assert len(seen) > 60 and max(seen) > 20, (len(seen), max(seen))
+
+
+def test_pgs_pair_on_a_small_system_meets_the_targets(micro):
+    """Two contacts, one sliding: the normal speeds reach their targets, the sliding one's friction
+    sits on its cone's box edge, and both versions agree."""
+    rng = np.random.default_rng(13)
+    jac = rng.standard_normal((6, 9))
+    w = jac @ jac.T + 0.1 * np.eye(6)
+    rel = np.array([-1.0, 3.0, 0.0, -0.5, 0.01, 0.0])
+    targets = np.array([0.2, 0.0])
+    for fn in (micro.pgs_blocks, micro.pgs_plain):
+        p = fn(w, rel, targets, 0.3, 200)
+        speed = rel + w @ p
+        assert np.all(p[0::3] > 0) and np.allclose(speed[0::3], targets, atol=1e-5)
+        assert abs(abs(p[1]) - 0.3 * p[0]) < 1e-9  # sliding: friction at its bound
+    assert np.allclose(micro.pgs_plain(w, rel, targets, 0.3, 200), micro.pgs_blocks(w, rel, targets, 0.3, 200),
+                       atol=1e-6)
+
+
+def test_text_pair_fails_loudly_unless_each_expression_occurs_once(micro):
+    """text_pair / rewritten build the other version of an inline trick by replacing one
+    expression: an expression missing, twice in the source, or the two versions mixed is an error
+    naming the function, never a silently unchanged or doubly changed copy."""
+    def twice(x):
+        return (x * x).sum(axis=1) + (x * x).sum(axis=1)
+
+    def once(x):
+        y = np.abs(x).max()
+        return y + x.sum()
+
+    x = np.arange(6.0).reshape(2, 3)
+    with pytest.raises(LookupError, match=r"twice.*occurs 2 times"):
+        micro.text_pair(twice, ("(x * x).dot(ONES3)", "(x * x).sum(axis=1)"), names={"ONES3": np.ones(3)})
+    with pytest.raises(LookupError, match=r"once.*neither"):
+        micro.text_pair(once, ("np.maximum.reduce(np.abs(x))", "np.abs(x).min()"))
+    with pytest.raises(LookupError, match=r"once.*neither"):  # one replacement found, the other not
+        micro.text_pair(once, ("np.maximum.reduce(np.abs(x))", "np.abs(x).max()"), ("x.cumsum()", "x.prod()"))
+    with pytest.raises(LookupError, match=r"once.*occurs 0 times"):
+        micro.rewritten(once, ("x.prod()", "x.sum()"))
+    trick, plain = micro.text_pair(once, ("np.maximum.reduce(np.abs(x), None)", "np.abs(x).max()"))
+    assert plain is once and trick is not once and trick(x) == once(x) == 20.0
+
+
+def test_a_partial_run_is_merged_into_the_committed_rows_by_name(micro):
+    """--json with --only: the tricks measured get this run's rows, the others keep theirs, rows
+    in the tricks' order, each run listing the tricks it measured (a run left with none dropped)."""
+    def row(name, ratio):
+        return {"trick": name, "capability": "control", "plain_formula": "x", "ratio_trick_over_plain": ratio,
+                "ratio_min": ratio, "ratio_max": ratio, "rounds": 5, "worth_keeping": ratio <= 0.95}
+    previous = {"tricks": [row("a", 1.0), row("b", 0.9), row("gone", 1.0)],
+                "runs": [{"tricks": ["a", "gone"], "date": "old"}, {"tricks": ["b"], "date": "older"}]}
+    out = micro.merged([row("b", 0.97), row("c", 0.8)], previous, ["a", "b", "c"])
+    assert [r["trick"] for r in out["tricks"]] == ["a", "b", "c"]
+    assert [r["ratio_trick_over_plain"] for r in out["tricks"]] == [1.0, 0.97, 0.8]
+    assert [c["met"] for c in out["claims"]] == [False, False, True] and len(out["claims"]) == 3
+    assert [r["tricks"] for r in out["runs"]] == [["a"], ["b", "c"]] and out["runs"][0]["date"] == "old"
+    assert out["runs"][-1]["machine_speed"] == out["machine_speed"]
+    whole = micro.merged([row("a", 1.0)], None, ["a"])
+    assert [r["tricks"] for r in whole["runs"]] == [["a"]] and len(whole["claims"]) == 1
