@@ -131,3 +131,24 @@ def push_to_nla(obj, action, slot, track_name, start_frame, mute=False):
         strip.action_slot = slot
     track.mute = mute
     return track, strip
+
+
+_KEY_FLOATS = ("co", "handle_left", "handle_right")
+_KEY_INTS = ("interpolation", "handle_left_type", "handle_right_type", "easing", "type")
+_KEY_SCALARS = ("back", "amplitude", "period")
+
+
+def copy_keys(src, dst):
+    """Every key of `src` into `dst` as it is."""
+    n = len(src.keyframe_points)
+    dst.keyframe_points.clear()
+    dst.keyframe_points.add(n)
+    for name in _KEY_FLOATS + _KEY_INTS + _KEY_SCALARS:
+        size = 2 if name in _KEY_FLOATS else 1
+        buf = np.empty(n * size, dtype=np.int32 if name in _KEY_INTS else np.float64)
+        src.keyframe_points.foreach_get(name, buf)
+        dst.keyframe_points.foreach_set(name, buf)
+    dst.extrapolation = src.extrapolation
+    dst.mute, dst.lock, dst.hide = src.mute, src.lock, src.hide
+    dst.select = src.select
+    dst.update()

@@ -37,11 +37,6 @@ def set_keys(fc, keys):
     fc.update()
 
 
-_KEY_FLOATS = ("co", "handle_left", "handle_right")
-_KEY_INTS = ("interpolation", "handle_left_type", "handle_right_type", "easing", "type")
-_KEY_SCALARS = ("back", "amplitude", "period")
-
-
 def read_keys(fc):
     """Keys of an F-curve (times, values, handles, interpolation names)."""
     n = len(fc.keyframe_points)
@@ -52,22 +47,6 @@ def read_keys(fc):
     co = co.reshape(n, 2)
     interp = np.array([k.interpolation for k in fc.keyframe_points], dtype=object)
     return key_reduction.Keys(co[:, 0].copy(), co[:, 1].copy(), left.reshape(n, 2), right.reshape(n, 2), interp)
-
-
-def copy_keys(src, dst):
-    """Every key of `src` into `dst` as it is."""
-    n = len(src.keyframe_points)
-    dst.keyframe_points.clear()
-    dst.keyframe_points.add(n)
-    for name in _KEY_FLOATS + _KEY_INTS + _KEY_SCALARS:
-        size = 2 if name in _KEY_FLOATS else 1
-        buf = np.empty(n * size, dtype=np.int32 if name in _KEY_INTS else np.float64)
-        src.keyframe_points.foreach_get(name, buf)
-        dst.keyframe_points.foreach_set(name, buf)
-    dst.extrapolation = src.extrapolation
-    dst.mute, dst.lock, dst.hide = src.mute, src.lock, src.hide
-    dst.select = src.select
-    dst.update()
 
 
 class Output:
@@ -107,7 +86,7 @@ class Output:
             return
         for fc in fcurves:
             group = fc.group.name if fc.group else (bone_of(fc.data_path) or "Object Transforms")
-            copy_keys(fc, self.fcurve(fc.data_path, fc.array_index, group))
+            action_api.copy_keys(fc, self.fcurve(fc.data_path, fc.array_index, group))
 
     def finish(self, pose_marker_map=None):
         """Pose markers copied (moved through `pose_marker_map`, or dropped where it gives None),

@@ -329,15 +329,7 @@ def copy_channels(source, obj, bones, name, key_rest=False):
     for fc in curves:
         bone = _bone_of(fc.data_path)
         new = writer.new_fcurve(fc.data_path, fc.array_index, bone)
-        n = len(fc.keyframe_points)
-        co = np.empty(2 * n)
-        fc.keyframe_points.foreach_get("co", co)
-        interp = np.empty(n, dtype=np.int32)
-        fc.keyframe_points.foreach_get("interpolation", interp)
-        new.keyframe_points.add(n)
-        new.keyframe_points.foreach_set("co", co)
-        new.keyframe_points.foreach_set("interpolation", interp)
-        new.update()
+        action_api.copy_keys(fc, new)
     return action
 
 

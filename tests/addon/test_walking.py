@@ -182,6 +182,28 @@ def test_generators_are_nla_strips_with_bone_masks(metarig):
     assert not np.allclose(w[0, fore], w[1, fore], atol=1e-3)
 
 
+def test_generator_plays_the_source_keys_as_they_are(metarig):
+    """The generator's action holds the source's keys untouched: handles, their types and the
+    interpolation, not only the keys' values (the animator's easing survives)."""
+    scene = bpy.context.scene
+    source = _wave_action(metarig, ["forearm.R"], 1.2)
+    curves = list(action_api.fcurves_of(source, metarig))
+    for fc in curves:
+        first = fc.keyframe_points[0]
+        first.handle_right_type = "FREE"
+        first.handle_right = (first.co[0] + 12.0, first.co[1] + 0.3)
+        fc.keyframe_points[1].interpolation = "CONSTANT"
+    gen = walking.add_generator(metarig, scene, source, "arm.R", 1, "exclusive", 1.0)
+    copied = {(fc.data_path, fc.array_index): fc for fc in action_api.fcurves_of(gen, metarig)}
+    for fc in curves:
+        new = copied[(fc.data_path, fc.array_index)]
+        for a, b in zip(fc.keyframe_points, new.keyframe_points):
+            assert tuple(b.co) == pytest.approx(tuple(a.co))
+            assert tuple(b.handle_right) == pytest.approx(tuple(a.handle_right))
+            assert (b.handle_right_type, b.interpolation) == (a.handle_right_type, a.interpolation)
+        assert new.keyframe_points[0].handle_right_type == "FREE"
+
+
 def test_weighted_generator_mixes_and_default_waits(metarig):
     scene = bpy.context.scene
     source = _wave_action(metarig, ["forearm.R"], 1.0, frames=20)
