@@ -25,8 +25,8 @@ continuous counterpart and still says what an animator sees, how long and how fa
 pushed past what it can deliver. Per sweep and judged measure: the largest change between
 neighbouring inputs, where it lies, the median change, and the jumps above 3x the median (a floor
 of one resolution of the measure: 0.05 deg, 0.5 mm, 0.1 N m s (3 N m over strength for one frame
-at 30 fps), one frame) that do not lie at a declared threshold. The declared thresholds are where the outcome
-changes (stands -> falls: the fall is the reaction); docs/physics.md describes them.
+at 30 fps), one frame) that do not lie at a declared threshold. The declared thresholds are where
+the outcome changes (stands -> falls: the fall is the reaction); docs/physics.md describes them.
 The aim: no undeclared jump. --mode-blend-time and --saturation-band bake every sweep with the
 controller's mode blend (ControlSettings.mode_blend_time) and the strength's smooth saturation
 (comfort_control.Settings.saturation_band) set (both off by default).
@@ -185,7 +185,8 @@ def main(argv=None):
         for key in {**RESOLUTION, **LISTED}:
             if key in a:
                 m = a[key]
-                print(f"  {key + (' (listed)' if key in LISTED else ''):24s} largest {m['largest']:.4g} at {m['at']}, median {m['median']:.4g}, "
+                label = key + (" (listed)" if key in LISTED else "")
+                print(f"  {label:31s} largest {m['largest']:.4g} at {m['at']}, median {m['median']:.4g}, "
                       f"undeclared jumps {len(m['undeclared'])}")
     print(f"undeclared jumps in all: {undeclared} ({report['cpu_s']} CPU s)")
 
