@@ -558,6 +558,9 @@ def hold_feet(skeleton, traj, offsets, floor=None, planted=None):
     return traj, moved
 
 
+TIP_TOLERANCE = 1e-6  # m: how far under the ground the bisection may leave a turned tip (rounding)
+
+
 def _keep_tip_up(omega, tip, head, floor, iterations=12):
     """omega (F, 3) scaled down, frame by frame, to the largest share (found by bisection, so it
     changes smoothly from frame to frame) that keeps the toe tip (head + turned tip; tip (F, 3),
@@ -572,7 +575,7 @@ def _keep_tip_up(omega, tip, head, floor, iterations=12):
     def above(share):
         turn = _axis_rotation(_unit(omega[moving]), share * angle[moving])
         moved = head[moving, None] + np.einsum("fij,fmj->fmi", turn, tip[moving])
-        return heights_above(moved, floor).min(axis=1) >= -1e-4
+        return heights_above(moved, floor).min(axis=1) >= -TIP_TOLERANCE
     ones = np.ones(len(moving))
     chosen = ones.copy()  # a tip under the ground without the turn keeps the turn (it lifts)
     cut = above(0.0 * ones) & ~above(ones)
