@@ -82,6 +82,7 @@ def clean_up(skeleton, traj, options=None):
     report.pop("planted", None)  # arrays: not part of the report
     report.pop("surface", None)
     report.pop("levels", None)
+    report.pop("captured", None)
     return traj, report
 
 
@@ -115,6 +116,10 @@ def _points(skeleton, traj):
     return feet.foot_points(skeleton, traj.world_frames(skeleton))
 
 
+def _soles(skeleton, traj):
+    return feet.sole_points(skeleton, traj.world_frames(skeleton))
+
+
 def _floor(skeleton, traj, o, report):
     """The whole body moved up or down so the feet's floor (found under the planted feet) is on
     the ground (a height, or a surface: a height field or a mesh, solver.cleanup.ground); then
@@ -127,7 +132,11 @@ def _floor(skeleton, traj, o, report):
     found = feet.find_floor(points, contacts)  # world Z of the feet's floor
     # a foot placed higher (a marker or a sole) is seen on the capture's own flat floor, before
     # the body is put on a ground whose bumps would look like one
-    report["levels"] = feet.own_levels(points, report["planted"], found)
+    sole = _soles(skeleton, traj)
+    report["levels"] = feet.own_levels(points, report["planted"], found, sole)
+    # and so is each foot's height in the capture, which says whether a contact stands on
+    # something else (far above the floor) or on the ground, wherever the ground's bumps put it
+    report["captured"] = {s: feet.lowest_above(p, sole.get(s), found) for s, p in points.items()}
     surface = ground_surface.as_ground(found if o.ground is None else o.ground)
     # the body follows the ground's rise and fall under the planted feet (constant on a flat
     # floor), then the feet's floor is put on it
@@ -144,10 +153,10 @@ def _floor(skeleton, traj, o, report):
     report.update(floor_m=found, ground_m=surface.z if flat else None, surface=surface)
     points = _points(skeleton, traj)
     offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=False, planted=report["planted"],
-                                levels=report["levels"])
+                                levels=report["levels"], sole=_soles(skeleton, traj), captured=report["captured"])
     traj, moved = feet.move_feet(skeleton, traj, offsets)
-    after = _points(skeleton, traj)
-    heights = {s: feet.heights_above(p, surface).min(axis=1) for s, p in after.items()}
+    after, sole = _points(skeleton, traj), _soles(skeleton, traj)
+    heights = {s: feet.lowest_above(p, sole.get(s), surface) for s, p in after.items()}
     # a contact hovers when even its lowest point stays above the floor
     hovering = sum(int(h[a:b].min() > 0.002) for s, h in heights.items() for a, b in feet.contact_runs(contacts[s]))
     deepest = min(float(np.min(h[np.isfinite(h)], initial=np.inf)) for h in heights.values())
@@ -166,7 +175,8 @@ def _skate(skeleton, traj, o, report):
                           for s, c in contacts.items()}
     surface = report.get("surface")
     offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=True, planted=planted,
-                                levels=report.get("levels"))
+                                levels=report.get("levels"), sole=_soles(skeleton, traj),
+                                captured=report.get("captured"))
     traj, moved = feet.hold_feet(skeleton, traj, offsets, surface, planted)
     slide = {s: float(100 * np.linalg.norm(d[:, :2], axis=1).max()) for s, d in offsets.items()}
     return traj, {"contacts": report["contacts"], "largest_correction_cm": slide,

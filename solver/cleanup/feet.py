@@ -33,6 +33,30 @@ def foot_points(skeleton, world):
     return out
 
 
+def sole_points(skeleton, world):
+    """{side: (F, m, 3)} every point of each foot that must stay on or above the ground: the
+    heads and tails of the foot bone and of every bone under it (the ankle, the ball, the toe tip
+    and any toe-end bone, whatever role, if any, the rig's toes were given; a Bandai Namco toe
+    has none, so its tip is not a foot point). From world frames (F, J, 4, 4)."""
+    out = {}
+    for side in ("L", "R"):
+        foot = skeleton.role_index(f"foot.{side}")
+        if foot is None:
+            continue
+        chain = [foot] + list(skeleton.descendants(foot))
+        w = world[:, chain]
+        heads = w[..., :3, 3]
+        out[side] = np.concatenate((heads, heads + w[..., :3, 1] * skeleton.lengths[chain][None, :, None]), axis=1)
+    return out
+
+
+def lowest_above(points, sole=None, ground=None, shift=None):
+    """(F,) the height of a foot's lowest point above the ground under it (heights_above): of its
+    foot points (F, k, 3) and, when given, its sole points (F, m, 3, sole_points)."""
+    low = heights_above(points, ground, shift).min(axis=1)
+    return low if sole is None else np.minimum(low, heights_above(sole, ground, shift).min(axis=1))
+
+
 def planted_points(points, fps):
     """{side: bool (F, k)} each foot point is planted (low and slow, with hysteresis)."""
     out = {}
@@ -140,14 +164,15 @@ def own_level(low, on):
     return max(0.0, float(np.percentile(lows, FLOOR_PERCENTILE))) if len(lows) >= 3 else 0.0
 
 
-def own_levels(points, planted, floor):
+def own_levels(points, planted, floor, sole=None):
     """{side: own_level} of each foot, its heights taken above a flat `floor` (m): the capture's
-    own floor, so a ground that is not flat under the feet is not taken for a foot placed higher."""
-    return {side: own_level(heights_above(p, floor).min(axis=1), planted[side].any(axis=1))
+    own floor, so a ground that is not flat under the feet is not taken for a foot placed higher.
+    `sole`: each foot's sole_points, so its lowest point is the lowest of them all."""
+    return {side: own_level(lowest_above(p, (sole or {}).get(side), floor), planted[side].any(axis=1))
             for side, p in points.items()}
 
 
-def foot_offsets(points, fps, floor=None, skate=True, planted=None, levels=None):
+def foot_offsets(points, fps, floor=None, skate=True, planted=None, levels=None, sole=None, captured=None):
     """{side: (F, 7)} how to move each foot: a translation (0:3), a turn about the vertical (3)
     and the point it turns about (4:7). Horizontally (skate): while a point of the foot is
     planted, back to where that point landed (the ball while it is down, else the toe tip, so the
@@ -158,7 +183,11 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None, levels=None)
     through the floor is lifted whole. No frame's foot goes below the floor. Faded in and out around each contact. `planted`: the contacts
     (planted_points) when already known, e.g. found before the floor repair flattened them.
     `levels`: each foot's own level (own_levels) when known, e.g. measured on the capture's flat
-    floor before the body was put on a ground that is not flat; else measured here."""
+    floor before the body was put on a ground that is not flat; else measured here. `sole`: each
+    foot's sole_points (the ankle, toe ends), kept above the floor with the foot points: a
+    contact's lowest point is the lowest of them all. `captured`: {side: (F,)} each foot's lowest
+    point above the capture's own flat floor (lowest_above), where a contact's height decides
+    whether it stands on something else: a bump under it is not taken for that."""
     ramp = max(1, int(round(RAMP_SECONDS * fps)))
     planted = planted_points(points, fps) if planted is None else planted
     out = {}
@@ -184,15 +213,18 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None, levels=None)
         if floor is not None:  # planted: each contact's lowest point on the floor (the foot
             # rolls as captured); in the air: never below it. Heights above the ground under
             # each point where the hold puts it.
-            low = heights_above(p, floor, d[:, :2]).min(axis=1)
+            low = lowest_above(p, (sole or {}).get(side), floor, d[:, :2])
             # a foot whose contacts all sit higher than the other's (a marker or a sole placed
             # higher) keeps its own level above the floor rather than being pushed to it
             # (seen over several contacts: a single one that hovers is lowered)
             level = own_level(low, on) if levels is None else levels.get(side, 0.0)
+            seen = low if captured is None or side not in captured else captured[side]
             for a, b in contact_runs(on):
                 gap = low[a:b].min() - level
                 # a contact far above the floor stands on something else: left where it is
-                d[a:b, 2] = -gap if 0.0 < gap <= HEIGHT_ON else max(-low[a:b].min(), 0.0)
+                # (judged by its height in the capture, so a ground's dip under it is not that)
+                above_floor = 0.0 < gap and seen[a:b].min() - level <= HEIGHT_ON
+                d[a:b, 2] = -gap if above_floor else max(-low[a:b].min(), 0.0)
             d[~on, 2] = np.maximum(-low[~on], 0.0)
         moved = on | (d[:, 2] > 0)
         # frames more than a ramp from any moved frame ("full" then centred: "same" would be
@@ -204,7 +236,7 @@ def foot_offsets(points, fps, floor=None, skate=True, planted=None, levels=None)
             if known.any() and not known.all():
                 d[~known, c] = _ease(idx[~known], idx[known], d[known, c])
         if floor is not None:  # a fade that lowers a hovering foot stops at the floor
-            d[:, 2] = np.maximum(d[:, 2], -heights_above(p, floor, d[:, :2]).min(axis=1))
+            d[:, 2] = np.maximum(d[:, 2], -lowest_above(p, (sole or {}).get(side), floor, d[:, :2]))
         out[side] = d
     return out
 
@@ -441,8 +473,11 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
         if lift.any():
             moved["lift"][side] = lift
         if floor is not None:  # where a turn (e.g. fading out after the contact) would put the
-            # tip under the ground, the turn is cut back as far as needed
-            omega = _keep_tip_up(omega, p[:, 1] - head, head, floor)
+            # tip (or a toe-end bone's point) under the ground, the turn is cut back as far as needed
+            ends = [k for k in sk.descendants(toe)]
+            tips = [p[:, 1]] + [world[:, k, :3, 3] for k in ends] + \
+                   [world[:, k, :3, 3] + world[:, k, :3, 1] * sk.lengths[k] for k in ends]
+            omega = _keep_tip_up(omega, np.stack(tips, axis=1) - head[:, None], head, floor)
         frames = np.flatnonzero(np.linalg.norm(omega, axis=1) > 1e-9)
         if not len(frames):
             continue
@@ -456,44 +491,91 @@ def pin_toes(skeleton, traj, floor=None, planted=None):
 
 
 LIFT_PASSES = 3
+SETTLE_TOLERANCE = 1e-5  # m: a contact raised less than this by the toe's hold is left
+
+
+def _lowest(skeleton, traj, floor):
+    """{side: (F,)} each foot's lowest point (foot and sole points) above the floor."""
+    world = traj.world_frames(skeleton)
+    sole = sole_points(skeleton, world)
+    return {s: lowest_above(p, sole.get(s), floor) for s, p in foot_points(skeleton, world).items()}
+
+
+def _settle(low, reference, on, fps):
+    """(F,) how far to lower a foot whose contacts the toe's hold raised: per contact (runs of
+    `on`), its lowest point `low` (F,) back to where the foot's move put it (`reference`), eased
+    in and out over RAMP_SECONDS; never so far that a frame's lowest point goes under the floor."""
+    F = len(low)
+    drop, known = np.zeros(F), np.zeros(F, bool)
+    for a, b in contact_runs(on):
+        rise = low[a:b].min() - reference[a:b].min()
+        drop[a:b] = rise if rise > SETTLE_TOLERANCE else 0.0
+        known[a:b] = True
+    if not drop.any():
+        return drop
+    ramp = max(1, int(round(RAMP_SECONDS * fps)))
+    known |= np.convolve(known.astype(float), np.ones(2 * ramp + 1))[ramp:ramp + F] == 0
+    idx = np.arange(F)
+    if not known.all():
+        drop[~known] = _ease(idx[~known], idx[known], drop[known])
+    return np.clip(drop, 0.0, np.maximum(low, 0.0))
 
 
 def hold_feet(skeleton, traj, offsets, floor=None, planted=None):
     """Feet moved by offsets (foot_offsets: move_feet) and toe tips held (pin_toes). Where a held
     toe tip would have to go under the ground (the captured ball sinking while the tip is down),
     the foot is raised by that much (eased out after the contact) and solved again, so the tip
-    stays where it landed, on the ground, rather than sliding over it. Returns (trajectories,
+    stays where it landed, on the ground, rather than sliding over it. Where holding the tip
+    raises a contact instead (the captured toe bending a little while the tip is down: held, it
+    keeps its pitch at landing), the foot is lowered by as much, so the contact's lowest point
+    stays where move_feet put it, on the ground, not hovering above it. Returns (trajectories,
     {side: frames moved, "pelvis_drop": (F,) m, "lift": {side: (F,) m}})."""
     start = traj
     traj, moved = move_feet(skeleton, start, offsets)
+    if floor is not None:  # where the foot's move put each contact
+        reference = _lowest(skeleton, traj, floor)
+        if planted is None:
+            planted = planted_points(foot_points(skeleton, start.world_frames(skeleton)), start.fps)
     traj, toes = pin_toes(skeleton, traj, floor, planted)
     total = {}
     for _ in range(LIFT_PASSES):  # the raised foot turns the leg a little: a second look
-        if floor is None or not toes["lift"]:
+        if floor is None:
+            break
+        low = _lowest(skeleton, traj, floor)
+        settle = {s: _settle(low[s], reference[s], planted[s].any(axis=1), traj.fps)
+                  for s in reference if s in planted and s in offsets}
+        if not toes["lift"] and not any(d.any() for d in settle.values()):
             break
         offsets = {s: d.copy() for s, d in offsets.items()}
         for side, lift in toes["lift"].items():
             offsets[side][:, 2] += lift
             total[side] = total.get(side, 0.0) + lift
+        for side, drop in settle.items():
+            offsets[side][:, 2] -= drop
         traj, moved = move_feet(skeleton, start, offsets)
         traj, toes = pin_toes(skeleton, traj, floor, planted)
     moved["lift"] = total
     return traj, moved
 
 
+TIP_TOLERANCE = 1e-6  # m: how far under the ground the bisection may leave a turned tip (rounding)
+
+
 def _keep_tip_up(omega, tip, head, floor, iterations=12):
     """omega (F, 3) scaled down, frame by frame, to the largest share (found by bisection, so it
-    changes smoothly from frame to frame) that keeps the toe tip (head + turned tip) on or above
-    the ground; frames already under it keep their turn."""
+    changes smoothly from frame to frame) that keeps the toe tip (head + turned tip; tip (F, 3),
+    or (F, m, 3): the tip and the points of any toe-end bone) on or above the ground; frames
+    already under it keep their turn."""
     out = omega.copy()
+    tip = tip[:, None] if tip.ndim == 2 else tip
     angle = np.linalg.norm(omega, axis=1)
     moving = np.flatnonzero(angle > 1e-9)
     if not len(moving):
         return out
     def above(share):
         turn = _axis_rotation(_unit(omega[moving]), share * angle[moving])
-        moved = head[moving] + np.einsum("fij,fj->fi", turn, tip[moving])
-        return heights_above(moved[:, None], floor)[:, 0] >= -1e-4
+        moved = head[moving, None] + np.einsum("fij,fmj->fmi", turn, tip[moving])
+        return heights_above(moved, floor).min(axis=1) >= -TIP_TOLERANCE
     ones = np.ones(len(moving))
     chosen = ones.copy()  # a tip under the ground without the turn keeps the turn (it lifts)
     cut = above(0.0 * ones) & ~above(ones)
