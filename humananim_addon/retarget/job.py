@@ -170,8 +170,9 @@ def plant_feet(tgt, traj, planted_src):
     traj = traj.with_root_pose(tgt, position + [0.0, 0.0, lift], orientation)
     points = {s: p + [0.0, 0.0, lift] for s, p in points.items()}
     offsets = feet.foot_offsets({s: points[s] for s in planted}, traj.fps, floor=GROUND, skate=True, planted=planted)
-    traj, moved = feet.move_feet(tgt, traj, offsets)
-    traj, _ = feet.pin_toes(tgt, traj, GROUND, planted)
+    # hold_feet, not move_feet then pin_toes: where a held toe tip would go under the ground the foot
+    # is raised instead, so the tip stays where it landed rather than sliding (14 mm on CMU 131_01)
+    traj, moved = feet.hold_feet(tgt, traj, offsets, floor=GROUND, planted=planted)
     return traj, planted, float(moved["pelvis_drop"].max()) if "pelvis_drop" in moved else 0.0
 
 

@@ -133,7 +133,8 @@ def _check_feet_and_stride(target, summary, source, frames):
     assert src_travel > 0.15, "the source moves on"
     travel = np.linalg.norm(pelvis[-1, :2] - pelvis[0, :2])
     assert travel / src_travel == pytest.approx(summary["leg_ratio"], rel=0.05)
-    assert summary["lowest_foot_mm"] >= -BELOW_MM
+    # the figure the user is shown measures every planted point, the toe tip too while the ball is down
+    assert summary["planted_slide_mm"] <= SLIDE_MM and summary["lowest_foot_mm"] >= -BELOW_MM
     return skeleton, world
 
 
@@ -204,13 +205,25 @@ def test_the_command_retargets_an_fbx_walk(empty_scene, sources, tmp_path):
     summary = json.loads(r.stdout)
     assert summary["armature"] == "Puppet" and summary["wrote"] == [os.path.abspath(out)]
     assert summary["frame_range"] == [float(frames[0]), float(frames[1])]
-    assert summary["lowest_foot_mm"] >= -BELOW_MM
+    assert summary["planted_slide_mm"] <= SLIDE_MM and summary["lowest_foot_mm"] >= -BELOW_MM
     assert max(mm for mm, _ in summary["mismatch_per_role"].values()) < 1.0
     # the saved scene: the new action on the rig, judged like the operator's
     bpy.ops.wm.open_mainfile(filepath=out)
     target, source = bpy.data.objects["Puppet"], bpy.data.objects[summary["source"]]
     assert target.animation_data.action.name == summary["action"]
     _check_feet_and_stride(target, summary, source, frames)
+
+
+def test_the_reported_slide_counts_the_toe_tips(empty_scene):
+    """The figure the operator and the command report measures every planted point, the toe tip
+    too while the ball is down: on the first 240 frames of the CMU walk the right toe tip, held
+    by turning the toe alone, once slid 14.4 mm where holding it needed the foot raised."""
+    bvh, _, _ = import_bvh(CMU_WALK, update_scene=False)
+    target = _target()
+    summary = job.retarget(bvh, target, empty_scene, frame_range=(1, 240))
+    assert summary["planted_slide_mm"] <= SLIDE_MM and summary["lowest_foot_mm"] >= -BELOW_MM
+    _, traj, planted = _planted(bvh, bvh.animation_data.action, (1, 240))
+    assert planted["R"][:, 1].sum() > 100, "the right toe tip is down a long while"
 
 
 # --- 2. another armature in the scene ------------------------------------------------------------
@@ -268,7 +281,7 @@ def test_the_command_reads_the_named_armature_of_an_fbx_with_several(empty_scene
     assert r.returncode == 0, r.stderr
     summary = json.loads(r.stdout)
     assert summary["source"].startswith("cmu_131_01")
-    assert summary["lowest_foot_mm"] >= -BELOW_MM
+    assert summary["planted_slide_mm"] <= SLIDE_MM and summary["lowest_foot_mm"] >= -BELOW_MM
 
 
 # --- 3. a live-capture take ----------------------------------------------------------------------
