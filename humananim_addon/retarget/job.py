@@ -119,10 +119,10 @@ def map_motion(src, src_traj, tgt, tgt_to_world):
         rot[b] = delta @ (align @ t_rest[b, :3, :3])
     pelvis_s, pelvis_t = src.role_index("pelvis"), tgt.role_index("pelvis")
     floor = _source_floor(src, s_world, src_traj.fps)
-    p = (s_world[:, pelvis_s, :3, 3] - [0.0, 0.0, floor]) @ turn.T
-    start = p[0, :2].copy()
-    p = ratio * p
-    p[:, :2] += start - p[0, :2]  # the target sets out where the source does
+    p = ratio * (s_world[:, pelvis_s, :3, 3] - [0.0, 0.0, floor]) @ turn.T
+    # the target sets out where the source does: its path turned and scaled about that first point
+    # (not about the world's origin, which moves the start wherever the rests' facings differ)
+    p[:, :2] += s_world[0, pelvis_s, :2, 3] - p[0, :2]
     p[:, 2] += GROUND
     world = np.empty((F, tgt.joint_count, 4, 4))
     basis = np.empty_like(world)
