@@ -170,6 +170,7 @@ def test_the_walk_through_fbx_retargets_as_through_bvh(empty_scene, sources):
     from_fbx = job.stored(target)
     assert from_fbx["source"] == fbx.name and target.animation_data.action.name == from_fbx["action"]
     assert from_fbx["roles_mapped"] == from_bvh["roles_mapped"]
+    assert "source_rest_warning" not in from_fbx and "source_rest_warning" not in from_bvh
     assert from_fbx["leg_ratio"] == pytest.approx(from_bvh["leg_ratio"], abs=1e-3)
     fbx_shown = _check_feet_and_stride(target, from_fbx, fbx, fbx_frames)[1]
     gap_mm = 1000 * np.linalg.norm(fbx_shown[..., :3, 3] - bvh_shown[..., :3, 3], axis=-1)
@@ -210,6 +211,8 @@ def test_a_source_posed_at_rest_keeps_its_feet_and_sets_out_where_it_does(empty_
     assert bpy.ops.humananim.retarget_motion(source=fbx.name, frame_start=frames[0],
                                              frame_end=frames[1]) == {"FINISHED"}
     summary = job.stored(target)
+    assert "rest pose looks captured" in summary["source_rest_warning"]  # said, in the panel's lines too
+    assert any(line.startswith("warning: the source's rest") for line in job.lines(summary))
     skeleton, world = _check_feet_and_stride(target, summary, fbx, frames)
     source_skeleton, source = _shown(fbx, None, frames[:1])
     start = source[0, source_skeleton.role_index("pelvis"), :2, 3]
@@ -366,7 +369,7 @@ def test_a_live_capture_take_is_a_source(cmu_rig):
     assert bpy.ops.humananim.retarget_motion(source=cmu_rig.name, frame_start=first,
                                              frame_end=last) == {"FINISHED"}
     summary = job.stored(target)
-    assert summary["source_motion"] == take_action.name
+    assert summary["source_motion"] == take_action.name and "source_rest_warning" not in summary
     _check_feet_and_stride(target, summary, cmu_rig, (first, last))
     assert cmu_rig.animation_data.action == take_action
 
