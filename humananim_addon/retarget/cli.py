@@ -1,7 +1,8 @@
 """The `retarget` command: python -m humananim retarget SRC.bvh|.fbx --to scene.blend --armature RIG
 [--action NAME] [--frames A B] [--out OUT.blend] [--json]. Opens the scene, imports the source
-(Blender's BVH or FBX importer), puts its motion on the armature RIG's controls in a NEW action and
-saves the scene to OUT.blend (the source file and the scene's file untouched)."""
+(Blender's BVH or FBX importer; its motion read at the scene's frame rate, the scene's rate and range
+kept), puts its motion on the armature RIG's controls in a NEW action and saves the scene to
+OUT.blend (the source file and the scene's file untouched)."""
 
 import os
 import time
