@@ -1,7 +1,8 @@
 """The `retarget` command: python -m humananim retarget SRC.bvh|.fbx --to scene.blend --armature RIG
 [--action NAME] [--frames A B] [--out OUT.blend] [--json]. Opens the scene, imports the source
-(Blender's BVH or FBX importer), puts its motion on the armature RIG's controls in a NEW action and
-saves the scene to OUT.blend (the source file and the scene's file untouched)."""
+(Blender's BVH or FBX importer; its motion read at the scene's frame rate, the scene's rate and range
+kept), puts its motion on the armature RIG's controls in a NEW action and saves the scene to
+OUT.blend (the source file and the scene's file untouched)."""
 
 import os
 import time
@@ -57,6 +58,38 @@ def _import_source(path, armature_name, scale, scene):
     if path.lower().endswith(".bvh"):
         from ..bvh_import import import_bvh
         return import_bvh(path, scale, update_scene=False)[0]
+    from ...solver.errors import HumanAnimError
     from ..rig.load import _check_fbx, import_fbx
     _check_fbx(path)
-    return import_fbx(path, armature_name)
+    render = scene.render
+    kept = (render.fps, render.fps_base, scene.frame_start, scene.frame_end, scene.frame_current)
+    try:
+        obj = import_fbx(path, armature_name)
+    except HumanAnimError as error:
+        # the importer names the option other commands pick an FBX's armature with; here --armature
+        # is the target rig, the source's armature is --source-armature
+        raise HumanAnimError(str(error).replace("pass --armature", "pass --source-armature")) from None
+    finally:  # Blender's importer sets the scene's rate and range to the file's: the target's scene keeps its own
+        file_fps = render.fps / render.fps_base
+        render.fps, render.fps_base = kept[:2]
+        scene.frame_start, scene.frame_end = kept[2:4]
+        scene.frame_set(kept[4])
+    if obj.animation_data and obj.animation_data.action:
+        _retime(obj, obj.animation_data.action, (render.fps / render.fps_base) / file_fps)
+    return obj
+
+
+def _retime(obj, action, ratio):
+    """The keys of `action` moved from the file's rate to the scene's (`ratio`: scene fps over the
+    file's), frame 1 held (where the importer puts the file's time 0), as the BVH import resamples."""
+    import numpy as np
+    from ..action_api import fcurves_of
+    if abs(ratio - 1.0) < 1e-9:
+        return
+    for fc in fcurves_of(action, obj):
+        for prop in ("co", "handle_left", "handle_right"):
+            xy = np.empty(2 * len(fc.keyframe_points))
+            fc.keyframe_points.foreach_get(prop, xy)
+            xy[0::2] = 1.0 + (xy[0::2] - 1.0) * ratio
+            fc.keyframe_points.foreach_set(prop, xy)
+        fc.update()

@@ -25,6 +25,7 @@ from ..rig.capability import RigView
 
 PROPERTY = "humananim_retarget"  # the last retarget's summary, JSON, on the target armature
 GROUND = 0.0
+REST_BEND_DEG = 20.0  # a source rest with a knee bent further, or its sides differing more, is a captured pose
 TWIST_WARNING_DEG = 5.0  # a role the rig shows turned this far from the retargeted pose is named
 # the role whose head gives a role bone's direction (the bone's own axis where there is none)
 NEXT = {"pelvis": "spine", "chest": "neck", "neck": "head", "clavicle": "upper_arm", "upper_arm": "forearm",
@@ -119,10 +120,10 @@ def map_motion(src, src_traj, tgt, tgt_to_world):
         rot[b] = delta @ (align @ t_rest[b, :3, :3])
     pelvis_s, pelvis_t = src.role_index("pelvis"), tgt.role_index("pelvis")
     floor = _source_floor(src, s_world, src_traj.fps)
-    p = (s_world[:, pelvis_s, :3, 3] - [0.0, 0.0, floor]) @ turn.T
-    start = p[0, :2].copy()
-    p = ratio * p
-    p[:, :2] += start - p[0, :2]  # the target sets out where the source does
+    p = ratio * (s_world[:, pelvis_s, :3, 3] - [0.0, 0.0, floor]) @ turn.T
+    # the target sets out where the source does: its path turned and scaled about that first point
+    # (not about the world's origin, which moves the start wherever the rests' facings differ)
+    p[:, :2] += s_world[0, pelvis_s, :2, 3] - p[0, :2]
     p[:, 2] += GROUND
     world = np.empty((F, tgt.joint_count, 4, 4))
     basis = np.empty_like(world)
@@ -137,6 +138,36 @@ def map_motion(src, src_traj, tgt, tgt_to_world):
         basis[:, j] = np.linalg.solve(base, want)
     trans, quats = decompose(basis)
     return Trajectories(src_traj.frames, src_traj.fps, rotations.make_continuous(quats), trans, tgt_to_world), ratio
+
+
+def rest_pose_warning(skel, rest):
+    """A sentence when the source's rest (world frames) reads as a captured pose, not a T- or
+    A-pose: a knee bent more than REST_BEND_DEG, or the left and right knees or upper arms more
+    than that apart (a neutral rest is symmetric). Each bone's turn is measured from the rest, so
+    such a rest turns the result (docs/rigs.md, Sources). None otherwise, or without the roles."""
+    def head(role):
+        j = skel.role_index(role)
+        return None if j is None else rest[j, :3, 3]
+
+    def angle(u, v):
+        return float(np.degrees(np.arccos(np.clip(np.dot(u, v) / (np.linalg.norm(u) * np.linalg.norm(v)), -1, 1))))
+    knee, arm = {}, {}
+    for side in ("L", "R"):
+        hip, k, ankle = (head(f"{r}.{side}") for r in ("thigh", "shin", "foot"))
+        if hip is not None and k is not None and ankle is not None:
+            knee[side] = angle(k - hip, ankle - k)
+        shoulder, elbow = head(f"upper_arm.{side}"), head(f"forearm.{side}")
+        if shoulder is not None and elbow is not None:
+            rise = (elbow - shoulder)[2] / np.linalg.norm(elbow - shoulder)
+            arm[side] = float(np.degrees(np.arcsin(np.clip(rise, -1, 1))))
+    found = [f"a knee bent {max(knee.values()):.0f} deg"] if knee and max(knee.values()) > REST_BEND_DEG else []
+    for name, values in (("knees", knee), ("upper arms", arm)):
+        if len(values) == 2 and abs(values["L"] - values["R"]) > REST_BEND_DEG:
+            found.append(f"its {name} {abs(values['L'] - values['R']):.0f} deg apart")
+    if not found:
+        return None
+    return (f"the source's rest pose looks captured, not a T- or A-pose ({', '.join(found)}): each bone's turn is "
+            "measured from it, so the result is turned by as much (docs/rigs.md, Sources)")
 
 
 def _source_floor(src, s_world, fps):
@@ -170,8 +201,9 @@ def plant_feet(tgt, traj, planted_src):
     traj = traj.with_root_pose(tgt, position + [0.0, 0.0, lift], orientation)
     points = {s: p + [0.0, 0.0, lift] for s, p in points.items()}
     offsets = feet.foot_offsets({s: points[s] for s in planted}, traj.fps, floor=GROUND, skate=True, planted=planted)
-    traj, moved = feet.move_feet(tgt, traj, offsets)
-    traj, _ = feet.pin_toes(tgt, traj, GROUND, planted)
+    # hold_feet, not move_feet then pin_toes: where a held toe tip would go under the ground the foot
+    # is raised instead, so the tip stays where it landed rather than sliding (14 mm on CMU 131_01)
+    traj, moved = feet.hold_feet(tgt, traj, offsets, floor=GROUND, planted=planted)
     return traj, planted, float(moved["pelvis_drop"].max()) if "pelvis_drop" in moved else 0.0
 
 
@@ -208,6 +240,9 @@ def retarget(source, target, scene, action=None, frame_range=None, name=None, ou
                "fps": traj.fps, "roles_mapped": len(role_pairs(src, tgt)), "leg_ratio": round(ratio, 4),
                "pelvis_lowered_cm": round(100 * drop, 2), **measures, **tgt_view.summary(),
                "ms": round(1000 * (time.perf_counter() - t0), 1)}
+    warning = rest_pose_warning(src, src_traj.armature_to_world @ src.rest)
+    if warning:
+        summary["source_rest_warning"] = warning
     target[PROPERTY] = json.dumps(summary)
     return summary
 
@@ -296,6 +331,8 @@ def lines(summary):
     out = [f"'{summary['source']}' -> '{summary['action']}': {summary['roles_mapped']} roles, "
            f"legs x{summary['leg_ratio']:.2f}",
            f"planted feet slide {summary['planted_slide_mm']:.1f} mm, lowest foot {summary['lowest_foot_mm']:+.1f} mm"]
+    if summary.get("source_rest_warning"):
+        out.append(f"warning: {summary['source_rest_warning']}")
     for role, (mm, deg) in sorted((summary.get("mismatch_per_role") or {}).items()):
         out.append(f"{role}: {mm:.2f} mm, {deg:.2f} deg")
     return out
