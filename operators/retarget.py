@@ -6,7 +6,7 @@ from bpy.props import EnumProperty, IntProperty, StringProperty
 
 from ..humananim_addon.retarget import job
 from ..solver.errors import RigError
-from .common import active_armature, run_reporting, with_qa
+from .common import Message, active_armature, run_reporting, with_qa
 
 
 def _armatures(self, context, text):
@@ -57,8 +57,12 @@ class HUMANANIM_OT_retarget_motion(bpy.types.Operator):
             if twisted:  # the rig shows these joints turned otherwise than the solve: said, not hidden
                 role = max(twisted, key=twisted.get)
                 text += f"; the rig turns {role} {twisted[role]:.0f} deg away from the retargeted pose"
+            warned = twisted or s.get("source_rest_warning")
+            if s.get("source_rest_warning"):  # a rest that looks captured moves the result: said first
+                text += f"; {s['source_rest_warning']}"
             message = with_qa(self, context, target, s, text, job.GROUND)
-            if twisted:
+            if warned:
+                message = Message(str(message))
                 message.level = "WARNING"
             return message
         return run_reporting(self, work)

@@ -200,7 +200,7 @@ def _posed_source(sources):
     return bvh, fbx, (FRAMES[0] + shift - 1, FRAMES[1] + shift - 1)
 
 
-def test_a_source_posed_at_rest_keeps_its_feet_and_sets_out_where_it_does(empty_scene, sources):
+def test_a_source_posed_at_rest_keeps_its_feet_and_sets_out_where_it_does(empty_scene, sources, caplog):
     """Blender's FBX exporter writes the pose shown at export as the file's rest: the walk's first
     pose. Measured from that rest, the motion still plants its feet, stays on the ground, strides
     by the legs' ratio and sets out from the source's first point (it started 0.28 m away when
@@ -213,6 +213,8 @@ def test_a_source_posed_at_rest_keeps_its_feet_and_sets_out_where_it_does(empty_
     summary = job.stored(target)
     assert "rest pose looks captured" in summary["source_rest_warning"]  # said, in the panel's lines too
     assert any(line.startswith("warning: the source's rest") for line in job.lines(summary))
+    said = [r for r in caplog.records if "retarget_motion" in r.getMessage()]
+    assert said and said[-1].levelname == "WARNING" and "rest pose looks captured" in said[-1].getMessage()
     skeleton, world = _check_feet_and_stride(target, summary, fbx, frames)
     source_skeleton, source = _shown(fbx, None, frames[:1])
     start = source[0, source_skeleton.role_index("pelvis"), :2, 3]
