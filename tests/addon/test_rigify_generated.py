@@ -7,6 +7,7 @@ bpy = pytest.importorskip("bpy")
 import numpy as np  # noqa: E402
 
 from conftest import assert_same_pose, world_pose  # noqa: E402
+from control_rig import squat_rigify  # noqa: E402
 from humananim.humananim_addon import actions  # noqa: E402
 from humananim.humananim_addon.armature import skeleton_from_armature  # noqa: E402
 
@@ -62,8 +63,7 @@ def test_simulating_a_control_rig_keys_its_controls(rig):
     squat; the feet and the pelvis Blender shows are the solve's within 1 mm."""
     from humananim.humananim_addon.rig import capability
     from humananim.humananim_addon.rig.bones import classify
-    from test_rig_layer import _squat_rigify
-    source = _squat_rigify(rig, 0.3)
+    source = squat_rigify(rig, 0.3)
     settings = bpy.context.scene.humananim_simulation
     settings.frame_start, settings.frame_end = 1, 30
     settings.load_left = settings.load_right = 8.0
