@@ -11,7 +11,9 @@ Which control moves which body part, found by structure (rig/bones.py, rig/contr
 - a limb that an active IK constraint bends: its IK target control (the control that carries the
   hand or foot) placed where the solved pose puts the hand or foot, and the knee or elbow plane set
   by the pole control (or, with no pole, by turning the IK chain's top bone about the hip-ankle
-  line), unless the animator asks for FK;
+  line), unless the animator asks for FK; where its deform bones copy controls of their own (tweak
+  controls), the lower one's is placed where the solve puts the knee or elbow (an IK with stretch
+  shows the chain short) and the upper one's turned by the roll Blender shows off the solve;
 - every other role bone: the FK control that turns it (the switch values that make it drive are
   keyed), else the nearest control that carries it.
 Each control is placed from its parent as Blender evaluates it, frame by frame, until nothing
@@ -499,7 +501,8 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                 sec.next_frame()
             start = {}  # a twist control's evaluated frame before any turn
             reach = {h.control: np.zeros(3) for h in targets}
-            missed, last_shift, stuck, best = {}, {}, set(), {}
+            missed, last_shift, stuck = {}, {}, set()
+            best, left = {}, set()  # a settling control's closest approach; those left alone
             for passes in range(24):
                 change, placed = 0.0, {}
                 for h in plan.handles:
@@ -522,7 +525,6 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                     change = max(change, _set_world(obj, pelvis.control, units[k, pelvis.joint] @ pelvis.offset,
                                                     rest_local[pelvis.control]))
                 view_layer.update()
-                moved = 0.0
                 # placed while Blender shows the joint off the solve and, once the other controls
                 # have settled (WARM_PASSES), each placing brings it closer: Rigify's forearm tweak,
                 # which its elbow's mechanism also blends in, stays 0.5-1 deg off and would creep
@@ -530,10 +532,10 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                 moved = 0.0
                 for h in settling:  # through the rig as it now stands: its frame in the joint's, measured
                     off = _off_by(_matrix(pbs[skeleton.names[h.joint]]), units[k, h.joint])
-                    if off <= SETTLED or h.control in stuck:
+                    if off <= SETTLED or h.control in left:
                         continue
                     if passes >= WARM_PASSES and off > 0.9 * best.get(h.control, np.inf):
-                        stuck.add(h.control)
+                        left.add(h.control)
                         continue
                     best[h.control] = min(off, best.get(h.control, np.inf))
                     offset = _shown_offset(obj, skeleton.names[h.joint], h.control)
