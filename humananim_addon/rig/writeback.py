@@ -376,6 +376,7 @@ def _shown_offset(obj, bone, control):
 
 
 WARM_PASSES = 4  # passes before a settling control that brings its joint no closer is left alone
+NEAR_PLANE = 1e-3  # radians: a limb's bend this close that turning brings no closer is left alone
 SETTLED = 1e-6  # a joint this close to the solve (units, and radians) is left as Blender shows it
 
 
@@ -550,8 +551,12 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                 change = max(change, moved, rolled)
                 for h in turning:
                     err = _plane_error(obj, skeleton, h, units[k])
-                    if err is None or abs(err[2]) < 5e-5:
+                    if err is None or abs(err[2]) < 5e-5 or h.control in left:
                         continue
+                    if passes >= WARM_PASSES and abs(err[2]) < NEAR_PLANE and abs(err[2]) > 0.9 * best.get(h.control, np.inf):
+                        left.add(h.control)  # a knee its tweak control settles: the chain's turn no longer moves it
+                        continue
+                    best[h.control] = min(abs(err[2]), best.get(h.control, np.inf))
                     change = max(change, abs(err[2]))
                     secant[h.control].step(err[2])
                 for h in targets:  # an IK chain that falls short of its target: the target a little further
