@@ -544,10 +544,9 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                     moved = max(moved, off)
                 if moved > 0.0:
                     view_layer.update()
+                # a rolled control carries nothing another handle measures: Blender shows it next pass
                 rolled = max((_roll(obj, skeleton.names[h.joint], h.control, units[k, h.joint]) for h in rolling),
                              default=0.0)
-                if rolled > 0.0:
-                    view_layer.update()
                 change = max(change, moved, rolled)
                 for h in turning:
                     err = _plane_error(obj, skeleton, h, units[k])
