@@ -6,11 +6,14 @@ evaluation of the deform bones compared with the solved pose, per role.
 
 Which control moves which body part, found by structure (rig/bones.py, rig/controls.py):
 - the pelvis: the outermost control upstream of it that carries it, short of the rig's root (a
-  torso control);
+  torso control), and, where another control nearer to it carries it too (Rigify's FK hips, hung
+  from the FK spine), that one, placed last through the rig as Blender evaluates it;
 - a limb that an active IK constraint bends: its IK target control (the control that carries the
   hand or foot) placed where the solved pose puts the hand or foot, and the knee or elbow plane set
   by the pole control (or, with no pole, by turning the IK chain's top bone about the hip-ankle
-  line), unless the animator asks for FK;
+  line), unless the animator asks for FK; where its deform bones copy controls of their own (tweak
+  controls), the lower one's is placed where the solve puts the knee or elbow (an IK with stretch
+  shows the chain short) and the upper one's turned by the roll Blender shows off the solve;
 - every other role bone: the FK control that turns it (the switch values that make it drive are
   keyed), else the nearest control that carries it.
 Each control is placed from its parent as Blender evaluates it, frame by frame, until nothing
@@ -36,8 +39,12 @@ class Handle:
     """One control to key. kind 'carry': placed where joint's solved frame puts it (`offset`: the
     control's rest in the joint's rest); 'pole': an IK pole placed in the limb's plane (`local`:
     its rest position in the limb's rest frame); 'twist': the top of a pole-less IK chain, turned
-    about the hip-ankle line. `chain`: the limb's (upper, lower, end) joints; `bend`: the direction
-    the middle joint bends to in rest (unit, in the upper bone's rest frame)."""
+    about the hip-ankle line; 'settle': placed, after the others, where the joint's solved frame
+    puts it through the rig as Blender evaluates it (its frame in the joint's frame, measured);
+    'roll': the control a deform bone copies, turned about the bone's own axis by the roll Blender
+    shows off the solve (the bone's direction comes from elsewhere: a Stretch To). `chain`: the
+    limb's (upper, lower, end) joints; `bend`: the direction the middle joint bends to in rest
+    (unit, in the upper bone's rest frame)."""
 
     control: str
     kind: str
@@ -158,6 +165,13 @@ def plan_controls(obj, skeleton, fk=False):
                 plan.handles.append(Handle(c, "carry", pelvis, np.linalg.solve(_rest(obj, name), _rest(obj, c))))
                 used.add(c)
                 done.add(pelvis)
+                # the nearest control carrying it too: on Rigify the hips hang from the FK spine
+                # (torso -> ... -> spine_fk.001 -> MCH-spine -> spine_fk -> tweak_spine -> DEF-spine),
+                # which the spine's own placement turns: the torso, at its rest offset, can't undo it
+                near = None if c == name else _carrier(obj, name, ups[::-1], used)
+                if near is not None:
+                    plan.handles.append(Handle(near, "settle", pelvis))
+                    used.add(near)
         for limb in _LIMBS:
             for s in ("L", "R"):
                 joints = [skeleton.role_index(f"{r}.{s}") for r in limb]
@@ -195,6 +209,28 @@ def plan_controls(obj, skeleton, fk=False):
                 continue
             plan.handles.append(Handle(c, "carry", j, np.linalg.solve(_rest(obj, name), _rest(obj, c))))
             used.add(c)
+        # bones a Stretch To aims, that take the rest of their frame from the control they copy:
+        # - an IK limb's lower bone: that control (Rigify's knee tweak) is placed where the solve
+        #   puts the bone, whatever the IK shows (a chain with IK stretch shows it up to 2 % short,
+        #   the knee 20 mm off);
+        # - an IK limb's upper bone, and one the pelvis's settled control carries: that control
+        #   is turned about the bone (Rigify's DEF-upper_arm copies a tweak a Damped Track swings
+        #   from the shoulder, so the IK's own roll never reaches it; DEF-spine.001 copies a child
+        #   of the FK hips)
+        settle = [h.control for h in plan.handles if h.kind == "settle"]
+        limbs = [h.chain for h in plan.handles if h.kind == "carry" and h.chain]
+        for j in role_joints:
+            ctl = _copied_control(obj, skeleton.names[j]) if j != pelvis else None
+            if ctl is None or ctl in used:
+                continue
+            if any(j == chain[1] for chain in limbs) and not all(pbs[ctl].lock_location):
+                kind = "settle"
+            elif any(j == chain[0] for chain in limbs) or (settle and rc.carries(obj, ctl, settle[0])):
+                kind = "roll"
+            else:
+                continue
+            plan.handles.append(Handle(ctl, kind, j))
+            used.add(ctl)
         for limb in _LIMBS:
             for s in ("L", "R"):
                 if f"{limb[0]}.{s}" not in plan.modes and skeleton.role_index(f"{limb[0]}.{s}") is not None:
@@ -205,9 +241,20 @@ def plan_controls(obj, skeleton, fk=False):
         bpy.context.view_layer.update()
     plan.changed = {k: v for k, v in plan.switches.items() if float(v) != float(saved[k])}
     order = {b.name: i for i, b in enumerate(obj.data.bones)}  # parents come before children
-    rank = {"carry": 0, "pole": 1, "twist": 2}
+    rank = {"carry": 0, "pole": 1, "twist": 2, "settle": 3, "roll": 4}
     plan.handles.sort(key=lambda h: (rank[h.kind], order[h.control]))
     return plan
+
+
+def _copied_control(obj, name):
+    """The control whose transforms deform bone `name` copies (its first active Copy Transforms
+    target) when that control turns about its own axis, else None."""
+    for con in obj.pose.bones[name].constraints:
+        if con.type == "COPY_TRANSFORMS" and not con.mute and con.influence > 0 and con.target == obj:
+            c = con.subtarget
+            ok = c in obj.pose.bones and rc.is_control(obj, c) and not obj.pose.bones[c].lock_rotation[1]
+            return c if ok else None
+    return None
 
 
 def _ik_limb(obj, skeleton, joints, used):
@@ -322,6 +369,38 @@ def _set_world(obj, name, target, rest_local=None):
     return float(np.abs(np.array(pb.matrix_basis, dtype=float) - old).max())
 
 
+def _shown_offset(obj, bone, control):
+    """The control's frame in the bone's frame (units) as Blender evaluates the rig now."""
+    pbs = obj.pose.bones
+    return np.linalg.solve(_matrix(pbs[bone]), _matrix(pbs[control]))
+
+
+WARM_PASSES = 4  # passes before a settling control that brings its joint no closer is left alone
+NEAR_PLANE = 1e-3  # radians: a limb's bend this close that turning brings no closer is left alone
+SETTLED = 1e-6  # a joint this close to the solve (units, and radians) is left as Blender shows it
+
+
+def _off_by(shown, want):
+    """How far frame `shown` is from `want` (4, 4): the larger of the origins' distance and the
+    angle between them (radians)."""
+    cos = (np.trace(shown[:3, :3].T @ want[:3, :3]) - 1.0) / 2.0
+    return max(float(np.linalg.norm(shown[:3, 3] - want[:3, 3])), float(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+
+def _roll(obj, bone, control, want):
+    """Turns `control` about deform bone `bone`'s axis (as Blender shows it now) by the angle
+    that rolls the bone onto `want` (units) about that axis; returns that angle's size (0 when
+    under SETTLED: nothing turned)."""
+    shown = _matrix(obj.pose.bones[bone])
+    rel = shown[:3, :3].T @ want[:3, :3]  # the bone's turn to the solve, in its own frame
+    angle = float(np.arctan2(rel[0, 2] - rel[2, 0], rel[0, 0] + rel[2, 2]))
+    if abs(angle) < SETTLED:
+        return 0.0
+    c = _matrix(obj.pose.bones[control])
+    _set_world(obj, control, _rotation_about(c[:3, 3], shown[:3, 1], angle) @ c)
+    return abs(angle)
+
+
 def _plain_child(obj, name):
     """True when the bone's frame is its parent's frame times its rest offset times its basis (full
     inheritance, local location, no constraint), so it can be placed from the parent's new frame."""
@@ -402,7 +481,9 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
     out = {h.control: np.empty((len(frames), 4, 4)) for h in plan.handles}
     saved_switch = {k: pbs[k[0]][k[1]] for k in plan.switches}
     saved_basis = {h.control: pbs[h.control].matrix_basis.copy() for h in plan.handles}  # the rig's pose, left as found
-    turning = [h for h in plan.handles if h.kind != "carry"]
+    turning = [h for h in plan.handles if h.kind in ("pole", "twist")]
+    settling = [h for h in plan.handles if h.kind == "settle"]
+    rolling = [h for h in plan.handles if h.kind == "roll"]
     secant = {h.control: _Secant() for h in turning}
     targets = [h for h in plan.handles if h.kind == "carry" and h.chain]  # IK targets
     pelvis = next((h for h in plan.handles if h.kind == "carry" and h.joint == skeleton.role_index("pelvis")), None)
@@ -422,7 +503,8 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
             start = {}  # a twist control's evaluated frame before any turn
             reach = {h.control: np.zeros(3) for h in targets}
             missed, last_shift, stuck = {}, {}, set()
-            for _ in range(24):
+            best, left = {}, set()  # a settling control's closest approach; those left alone
+            for passes in range(24):
                 change, placed = 0.0, {}
                 for h in plan.handles:
                     if h.kind == "carry":
@@ -436,7 +518,7 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                             moved = _set_world(obj, h.control, t, rest_local[h.control])
                         change = max(change, moved)
                         placed[h.control] = t
-                    else:
+                    elif h.kind in ("pole", "twist"):
                         change = max(change, _turn(obj, h, units[k], secant[h.control].turn, start,
                                                    rest_local[h.control]))
                 if reset_pelvis:  # again: a spine control that also turns the pelvis (Rigify's FK
@@ -444,10 +526,36 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                     change = max(change, _set_world(obj, pelvis.control, units[k, pelvis.joint] @ pelvis.offset,
                                                     rest_local[pelvis.control]))
                 view_layer.update()
+                # placed while Blender shows the joint off the solve and, once the other controls
+                # have settled (WARM_PASSES), each placing brings it closer: Rigify's forearm tweak,
+                # which its elbow's mechanism also blends in, stays 0.5-1 deg off and would creep
+                # pass after pass
+                moved = 0.0
+                for h in settling:  # through the rig as it now stands: its frame in the joint's, measured
+                    off = _off_by(_matrix(pbs[skeleton.names[h.joint]]), units[k, h.joint])
+                    if off <= SETTLED or h.control in left:
+                        continue
+                    if passes >= WARM_PASSES and off > 0.9 * best.get(h.control, np.inf):
+                        left.add(h.control)
+                        continue
+                    best[h.control] = min(off, best.get(h.control, np.inf))
+                    offset = _shown_offset(obj, skeleton.names[h.joint], h.control)
+                    _set_world(obj, h.control, units[k, h.joint] @ offset, rest_local[h.control])
+                    moved = max(moved, off)
+                if moved > 0.0:
+                    view_layer.update()
+                # a rolled control carries nothing another handle measures: Blender shows it next pass
+                rolled = max((_roll(obj, skeleton.names[h.joint], h.control, units[k, h.joint]) for h in rolling),
+                             default=0.0)
+                change = max(change, moved, rolled)
                 for h in turning:
                     err = _plane_error(obj, skeleton, h, units[k])
-                    if err is None or abs(err[2]) < 5e-5:
+                    if err is None or abs(err[2]) < 5e-5 or h.control in left:
                         continue
+                    if passes >= WARM_PASSES and abs(err[2]) < NEAR_PLANE and abs(err[2]) > 0.9 * best.get(h.control, np.inf):
+                        left.add(h.control)  # a knee its tweak control settles: the chain's turn no longer moves it
+                        continue
+                    best[h.control] = min(abs(err[2]), best.get(h.control, np.inf))
                     change = max(change, abs(err[2]))
                     secant[h.control].step(err[2])
                 for h in targets:  # an IK chain that falls short of its target: the target a little further

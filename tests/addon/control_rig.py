@@ -253,3 +253,29 @@ def plain_fk_copy(obj, scene, action=None, name="PlainCopy"):
                          traj.armature_to_world)
     actions.write_action(copy, skeleton, moved, f"{name}Action")
     return copy
+
+
+def squat_rigify(rig, depth=0.3):
+    """A squat keyed on a generated Rigify rig's torso and (planted) IK foot controls, legs in IK,
+    on a new action (the Rigify counterpart of `key_squat`, shared by the Rigify tests)."""
+    pbs = rig.pose.bones
+    for s in "LR":
+        pbs[f"thigh_parent.{s}"]["IK_FK"] = 0.0
+    rig.animation_data.action = None
+    for pb in pbs:
+        pb.matrix_basis.identity()
+    for f, w in ((1, 0.0), (15, 1.0), (30, 0.0)):
+        pbs["torso"].location = (0.0, 0.0, 0.0)
+        bpy.context.view_layer.update()
+        # torso moves in armature space: down and a little back
+        m = pbs["torso"].matrix.copy()
+        m.translation.z -= depth * w
+        m.translation.y += 0.05 * w
+        pbs["torso"].matrix = m
+        pbs["torso"].keyframe_insert("location", frame=f)
+        for s in "LR":
+            pbs[f"foot_ik.{s}"].keyframe_insert("location", frame=f)
+        pbs["chest"].rotation_mode = "XYZ"
+        pbs["chest"].rotation_euler = (0.3 * w, 0.0, 0.0)
+        pbs["chest"].keyframe_insert("rotation_euler", frame=f)
+    return rig.animation_data.action

@@ -8,6 +8,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 import numpy as np  # noqa: E402
 
+from control_rig import build_control_rig, key_squat, squat_rigify  # noqa: E402
 from humananim.humananim_addon.qa import job as qa  # noqa: E402
 from humananim.humananim_addon.rig.bones import classify  # noqa: E402
 from humananim.humananim_addon.rig.capability import RigView  # noqa: E402
@@ -78,7 +79,6 @@ def _clean_and_check(obj, control, deform_role, frame):
 
 @pytest.fixture
 def puppet(empty_scene):
-    from control_rig import build_control_rig, key_squat
     obj = build_control_rig()
     key_squat(obj, depth=0.3)
     return obj
@@ -99,7 +99,6 @@ def test_cleanup_on_a_generated_rigify_rig(rigify):
     """The squat on the torso and IK foot controls, the left arm in FK with its forearm control
     flipped for one frame. (Rigify's chest control spreads a turn over several spine bones: a
     one-frame flip of it is, per bone, within what a joint can turn, so it is not the test.)"""
-    from test_rig_layer import _squat_rigify
-    _squat_rigify(rigify, 0.3)
+    squat_rigify(rigify, 0.3)
     rigify.pose.bones["upper_arm_parent.L"]["IK_FK"] = 1.0  # the left arm follows its FK controls
     _clean_and_check(rigify, "forearm_fk.L", "forearm.L", 15)

@@ -176,7 +176,7 @@ def test_the_command_retargets_a_walk_onto_the_rig(empty_scene, tmp_path):
 
 def test_the_cmu_walk_onto_a_generated_rigify_rig(generated_rigify_file):
     """Onto Rigify's controls (IK feet, torso, FK spine and arms): a short stretch of the walk (the
-    write-back takes about a second per frame there) with the right foot planted throughout."""
+    write-back takes about 0.2 s per frame there) with the right foot planted throughout."""
     path, name = generated_rigify_file
     bpy.ops.wm.open_mainfile(filepath=path)
     scene = bpy.context.scene
@@ -194,6 +194,13 @@ def test_the_cmu_walk_onto_a_generated_rigify_rig(generated_rigify_file):
     points, _ = _shown_feet(target, result, src_traj.frames)
     assert job.held_slide(points, planted) <= SLIDE_MM / 1000
     assert min(float(p[..., 2].min()) for p in points.values()) >= -BELOW_MM / 1000
-    worst = {r: report[r] for r in ("pelvis", "hand.L", "hand.R") if report[r][0] >= 1.0}
-    if worst:  # docs/rigs.md: the torso's write-back on Rigify while the body travels
+    # docs/rigs.md: the pelvis, hung from the FK spine, placed through the rig as Blender evaluates
+    # it; the knees (elbows) through the tweak controls their deform bones copy, wherever Rigify's
+    # stretchy IK puts its chain; the thighs and upper arms rolled by theirs
+    body = ("pelvis", "spine", "chest", "neck", "head") + tuple(
+        f"{r}.{s}" for s in "LR" for r in ("thigh", "shin", "foot", "toe", "clavicle", "upper_arm", "forearm", "hand"))
+    assert max(report[r][0] for r in body) < 1.0, report
+    assert max(report[r][1] for r in body if not r.startswith("forearm")) < 0.5, report
+    worst = {r: report[r] for r in ("forearm.L", "forearm.R") if report[r][1] >= 0.5}
+    if worst:  # the forearm's tweak is blended into its own aim: 0.4-0.6 deg at worst
         pytest.xfail(f"Rigify shows these roles off the retargeted pose: {worst}")

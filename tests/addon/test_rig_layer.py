@@ -7,7 +7,7 @@ bpy = pytest.importorskip("bpy")
 import numpy as np  # noqa: E402
 
 from conftest import import_cmu  # noqa: E402
-from control_rig import build_control_rig, key_squat  # noqa: E402
+from control_rig import build_control_rig, key_squat, squat_rigify  # noqa: E402
 from humananim.humananim_addon.rig.bones import classify  # noqa: E402
 from humananim.humananim_addon.rig.physical import (  # noqa: E402
     evaluated_basis, evaluated_pose, physical_skeleton, physical_trajectories)
@@ -132,31 +132,6 @@ def test_procedural_physical_skeleton_hangs_limbs_from_the_body(puppet):
     assert not skeleton.connected[skeleton.index("bind_thigh_l")]
 
 
-def _squat_rigify(rig, depth=0.3):
-    """A squat keyed on the torso and (planted) IK foot controls, legs in IK, on a new action."""
-    pbs = rig.pose.bones
-    for s in "LR":
-        pbs[f"thigh_parent.{s}"]["IK_FK"] = 0.0
-    rig.animation_data.action = None
-    for pb in pbs:
-        pb.matrix_basis.identity()
-    for f, w in ((1, 0.0), (15, 1.0), (30, 0.0)):
-        pbs["torso"].location = (0.0, 0.0, 0.0)
-        bpy.context.view_layer.update()
-        # torso moves in armature space: down and a little back
-        m = pbs["torso"].matrix.copy()
-        m.translation.z -= depth * w
-        m.translation.y += 0.05 * w
-        pbs["torso"].matrix = m
-        pbs["torso"].keyframe_insert("location", frame=f)
-        for s in "LR":
-            pbs[f"foot_ik.{s}"].keyframe_insert("location", frame=f)
-        pbs["chest"].rotation_mode = "XYZ"
-        pbs["chest"].rotation_euler = (0.3 * w, 0.0, 0.0)
-        pbs["chest"].keyframe_insert("rotation_euler", frame=f)
-    return rig.animation_data.action
-
-
 def _assert_matches_blender(obj, skeleton, action, frames):
     scene = bpy.context.scene
     basis = evaluated_basis(obj, scene, skeleton, frames, action)
@@ -173,7 +148,7 @@ def _assert_matches_blender(obj, skeleton, action, frames):
 
 @pytest.mark.slow
 def test_rigify_squat_on_controls_is_the_skeleton_the_solver_gets(rigify):
-    action = _squat_rigify(rigify)
+    action = squat_rigify(rigify)
     skeleton = physical_skeleton(rigify, bpy.context.scene)
     frames = np.arange(1, 31, dtype=float)
     solved = _assert_matches_blender(rigify, skeleton, action, frames)
