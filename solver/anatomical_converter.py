@@ -68,6 +68,8 @@ class AnatomicalConverter:
         self.calibrated = False
         self.rest_local = skeleton.rest_local  # a property that solves: once, not per pose
         self._descendants = {j: skeleton.descendants(j) for j in range(skeleton.joint_count)}
+        self._unsensed_cache = {}
+        self._stacked = {}  # per set of sensors heard: their offsets as arrays (see _stacked_offsets)
         self._limbs = self._ik_limbs()
         self._chains = self._sensorless_chains()
         # the bone whose sensor places the body (the root sensor on the root bone), else None
@@ -105,6 +107,7 @@ class AnatomicalConverter:
             self.offsets[key] = s_world.T @ world[j, :3, :3]
             self.head_offsets[key] = s_world.T @ (world[j, :3, 3] - self.sensor_position(pos))
         self.calib_basis = basis.copy()
+        self._stacked = {}
         # a chain's sensor bone with the chain in the calibration pose, relative to the sensor bone
         # above the chain (whose world rotation is its target: no pass over the rig needed for it)
         self._chain_ends = list(self._chains)
@@ -117,23 +120,39 @@ class AnatomicalConverter:
     def bone_targets(self, readings):
         """{joint: (world rotation, world head position)} for the bones whose sensor has a reading
         (all sensors at once: a suit streams twenty of them every frame)."""
-        keys = [k for k in self.attachments if k in readings]
+        keys = tuple(k for k in self.attachments if k in readings)
         if not keys:
             return {}
+        offsets, head_offsets, joints = self._stacked_offsets(keys)
         pos = np.array([readings[k][0] for k in keys], float)
         s_world = self.tracker @ rotations.to_matrix(np.array([readings[k][1] for k in keys], float))
-        rot = s_world @ np.array([self.offsets[k] for k in keys])
-        head = pos @ self.tracker.T + self.origin + np.einsum("nij,nj->ni", s_world,
-                                                              np.array([self.head_offsets[k] for k in keys]))
-        return {self.attachments[k]: (r, h) for k, r, h in zip(keys, rot, head)}
+        rot = s_world @ offsets
+        head = pos @ self.tracker.T + self.origin + np.einsum("nij,nj->ni", s_world, head_offsets)
+        return dict(zip(joints, zip(rot, head)))
+
+    def _stacked_offsets(self, keys):
+        """The calibration's offsets of these sensors as arrays, and their bones (constant from
+        one pose to the next: built once per set of sensors heard, until the next calibration)."""
+        if keys not in self._stacked:
+            self._stacked[keys] = (np.array([self.offsets[k] for k in keys]),
+                                   np.array([self.head_offsets[k] for k in keys]),
+                                   [self.attachments[k] for k in keys])
+        return self._stacked[keys]
 
     def solve(self, readings):
         """Local pose bases (J, 4, 4) of the rig for the newest readings."""
         if not self.calibrated:
             raise CalibrationError("calibrate first: stand in the calibration pose and press Calibrate")
         targets = self.bone_targets(readings)
-        basis = self.calib_basis.copy()
         turns = self._chain_turns(targets)
+        if turns is not None and not any(end in targets for _, _, end in self._limbs):
+            return self._from_targets(targets, turns)
+        return self._by_forward_pass(targets, turns)
+
+    def _by_forward_pass(self, targets, turns):
+        """The pose by a pass down the hierarchy with world frames (positions too): what two-bone
+        IK needs, and a chain whose upper sensor bone has no reading yet."""
+        basis = self.calib_basis.copy()
         if turns is None:  # a sensor above a chain has no reading yet: its bone is where a first pass puts it
             turns = self._chain_turns(targets, self._forward(basis, targets))
         world = self._forward(basis, targets, turns)
@@ -142,6 +161,42 @@ class AnatomicalConverter:
                 continue  # that sensor has not spoken yet
             self._two_bone_ik(basis, world, upper, lower, end, targets[end])
         return basis
+
+    def _from_targets(self, targets, turns):
+        """The pose when no limb needs IK (a suit with a sensor on every segment): a sensor bone's
+        world rotation is its target, so its local rotation needs only its parent's world rotation,
+        all sensor bones at once; only the bones without a reading are walked down the hierarchy
+        (fingers, toes, a spine's chain bones with their share of the turn). No positions: without
+        IK only the root sensor's bone moves away from the rig's bone lengths."""
+        parents, rest_rot = self.skeleton.parents, self.rest_local[:, :3, :3]
+        basis = self.calib_basis.copy()
+        sensed = np.fromiter(targets, int, len(targets))
+        world_rot = np.empty((len(parents), 3, 3))
+        world_rot[sensed] = [targets[j][0] for j in sensed]
+        for j in self._unsensed(targets):  # top-down: a parent before its children
+            p = parents[j]
+            frame = rest_rot[j] if p < 0 else world_rot[p] @ rest_rot[j]
+            world_rot[j] = frame @ basis[j, :3, :3]
+            if j in turns:
+                world_rot[j] = turns[j] @ world_rot[j]
+                basis[j, :3, :3] = frame.T @ world_rot[j]
+        # a sensor bone's frame before its own rotation: its parent's world rotation on its rest offset
+        frame = rest_rot[sensed].copy()
+        below = parents[sensed] >= 0
+        frame[below] = world_rot[parents[sensed][below]] @ frame[below]
+        basis[sensed, :3, :3] = np.swapaxes(frame, 1, 2) @ world_rot[sensed]
+        if self._placed in targets:  # the root bone (no parent): its frame is its rest frame
+            r = self._placed
+            basis[r, :3, 3] = rest_rot[r].T @ (targets[r][1] - self.rest_local[r, :3, 3])
+        return basis
+
+    def _unsensed(self, targets):
+        """The joints without a target, top-down (cached per set of sensors heard: constant once
+        every sensor has spoken)."""
+        key = frozenset(targets)
+        if key not in self._unsensed_cache:
+            self._unsensed_cache[key] = [j for j in range(self.skeleton.joint_count) if j not in targets]
+        return self._unsensed_cache[key]
 
     def _forward(self, basis, targets, turns=None):
         """World frames top-down, `basis` updated on the way: a bone with a target takes its
