@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from humananim.solver import rotations
-from humananim.solver.anatomical_converter import AnatomicalConverter
+from humananim.solver.anatomical_converter import AnatomicalConverter, root_of_rotation
 from humananim.humananim_addon.devices import mvn
 from test_capture_core import _cmu, _readings
 
@@ -88,3 +88,29 @@ def test_a_silent_segment_above_a_chain_takes_the_forward_pass(suit, monkeypatch
     r = {k: v for k, v in readings[1].items() if k[1].split("/")[1] not in missing}
     solved, reference, used_forward = _both_paths(conv, r, monkeypatch)
     assert used_forward and np.abs(solved - reference).max() < 1e-9
+
+
+def _about(axes, angles):
+    return rotations.to_matrix(rotations.from_axis_angle(np.column_stack((angles, axes))))
+
+
+def test_a_chain_share_is_the_turn_about_its_axis_by_a_fraction_of_its_angle():
+    """root_of_rotation against rotations built from axis and angle, from no turn to a half turn
+    (the quaternion route beyond 154 degrees), and the n-th power of the root is the turn."""
+    rng = np.random.default_rng(30)
+    axes = rng.normal(size=(40, 3))
+    axes /= np.linalg.norm(axes, axis=1)[:, None]
+    angles = np.concatenate((rng.uniform(0, np.pi, 30), [0.0, 1e-9, 1e-4, np.radians(153.9), np.radians(154.2),
+                                                          np.pi - 1e-4, np.pi - 1e-9, np.pi, np.pi, np.pi]))
+    n = rng.integers(2, 5, 40)
+    turn = _about(axes, angles)
+    for below in (angles < np.radians(154), angles >= np.radians(154)):  # each route on its own
+        root = root_of_rotation(turn[below], n[below])
+        power = root.copy()
+        for k in range(len(root)):
+            for _ in range(n[below][k] - 1):
+                power[k] = power[k] @ root[k]
+        assert np.abs(power - turn[below]).max() < 1e-9
+        exact = angles[below] < np.pi - 1e-6  # at a half turn either axis' root is a root
+        expected = _about(axes[below][exact], (angles / n)[below][exact])
+        assert np.abs(root[exact] - expected).max() < 1e-9
