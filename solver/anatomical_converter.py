@@ -78,6 +78,28 @@ def _cross_matrices(v):
     return np.stack((o, -z, y, z, o, -x, -y, x, o), axis=1).reshape(-1, 3, 3)
 
 
+class _Heard:
+    """A set of sensors heard and what the solve needs of it that stays the same from one pose to
+    the next: the sensors (a bone with two takes the last one's reading, as a dict of targets
+    would), their bones, their calibration offsets stacked, and the bones without a sensor by
+    level below the sensor bones (each level's parents are sensor bones or in a level above)."""
+
+    def __init__(self, conv, keys):
+        last = {conv.attachments[k]: k for k in keys}
+        self.keys = tuple(k for k in keys if last[conv.attachments[k]] == k)
+        self.bones = [conv.attachments[k] for k in self.keys]
+        self.joints = np.array(self.bones, int)
+        self.offsets = np.array([conv.offsets[k] for k in self.keys])
+        self.head_offsets = np.array([conv.head_offsets[k] for k in self.keys])
+        parents, depth = conv.skeleton.parents, {}
+        for j in range(len(parents)):  # parents before children
+            if j not in last:
+                p = parents[j]
+                depth[j] = depth[p] + 1 if p in depth else 0
+        self.levels = [np.array([j for j, d in depth.items() if d == level], int)
+                       for level in range(max(depth.values(), default=-1) + 1)]
+
+
 class AnatomicalConverter:
     """`attachments` maps a sensor key (device, channel) to the bone it is strapped on;
     `root`: the key of the sensor on the root bone (its position moves the whole body)."""
@@ -96,8 +118,10 @@ class AnatomicalConverter:
         self.calibrated = False
         self.rest_local = skeleton.rest_local  # a property that solves: once, not per pose
         self._descendants = {j: skeleton.descendants(j) for j in range(skeleton.joint_count)}
-        self._unsensed_cache = {}
-        self._stacked = {}  # per set of sensors heard: their offsets as arrays (see _stacked_offsets)
+        self._heard_sets = {}  # per set of sensors heard (see _heard)
+        self._rest_rot = np.ascontiguousarray(self.rest_local[:, :3, :3])
+        # a joint's parent, or for a root the row after the last joint (an identity in _from_targets)
+        self._parent_or_identity = np.where(skeleton.parents < 0, skeleton.joint_count, skeleton.parents)
         self._limbs = self._ik_limbs()
         self._chains = self._sensorless_chains()
         # the bone whose sensor places the body (the root sensor on the root bone), else None
@@ -135,7 +159,7 @@ class AnatomicalConverter:
             self.offsets[key] = s_world.T @ world[j, :3, :3]
             self.head_offsets[key] = s_world.T @ (world[j, :3, 3] - self.sensor_position(pos))
         self.calib_basis = basis.copy()
-        self._stacked = {}
+        self._heard_sets = {}
         # a chain's sensor bone with the chain in the calibration pose, relative to the sensor bone
         # above the chain (whose world rotation is its target: no pass over the rig needed for it)
         self._chain_ends = list(self._chains)
@@ -148,33 +172,37 @@ class AnatomicalConverter:
     def bone_targets(self, readings):
         """{joint: (world rotation, world head position)} for the bones whose sensor has a reading
         (all sensors at once: a suit streams twenty of them every frame)."""
-        keys = tuple(k for k in self.attachments if k in readings)
-        if not keys:
-            return {}
-        offsets, head_offsets, joints = self._stacked_offsets(keys)
-        pos = np.array([readings[k][0] for k in keys], float)
-        s_world = self.tracker @ rotations.to_matrix(np.array([readings[k][1] for k in keys], float))
-        rot = s_world @ offsets
-        head = pos @ self.tracker.T + self.origin + np.einsum("nij,nj->ni", s_world, head_offsets)
-        return dict(zip(joints, zip(rot, head)))
+        heard, rot, head = self._targets(readings)
+        return {} if rot is None else dict(zip(heard.bones, zip(rot, head)))
 
-    def _stacked_offsets(self, keys):
-        """The calibration's offsets of these sensors as arrays, and their bones (constant from
-        one pose to the next: built once per set of sensors heard, until the next calibration)."""
-        if keys not in self._stacked:
-            self._stacked[keys] = (np.array([self.offsets[k] for k in keys]),
-                                   np.array([self.head_offsets[k] for k in keys]),
-                                   [self.attachments[k] for k in keys])
-        return self._stacked[keys]
+    def _targets(self, readings):
+        """(the sensors heard, their bones' world rotations (n, 3, 3), head positions (n, 3))."""
+        heard = self._heard(readings)
+        if not heard.keys:
+            return heard, None, None
+        pos = np.array([readings[k][0] for k in heard.keys], float)
+        s_world = self.tracker @ rotations.to_matrix(np.array([readings[k][1] for k in heard.keys], float))
+        rot = s_world @ heard.offsets
+        head = pos @ self.tracker.T + self.origin + np.einsum("nij,nj->ni", s_world, heard.head_offsets)
+        return heard, rot, head
+
+    def _heard(self, readings):
+        """What stays the same while the same sensors are heard (until the next calibration): built
+        once per set of sensors, not per pose."""
+        keys = tuple(k for k in self.attachments if k in readings)
+        if keys not in self._heard_sets:
+            self._heard_sets[keys] = _Heard(self, keys)
+        return self._heard_sets[keys]
 
     def solve(self, readings):
         """Local pose bases (J, 4, 4) of the rig for the newest readings."""
         if not self.calibrated:
             raise CalibrationError("calibrate first: stand in the calibration pose and press Calibrate")
-        targets = self.bone_targets(readings)
+        heard, rot, head = self._targets(readings)
+        targets = {} if rot is None else dict(zip(heard.bones, zip(rot, head)))
         turns = self._chain_turns(targets)
-        if turns is not None and not any(end in targets for _, _, end in self._limbs):
-            return self._from_targets(targets, turns)
+        if targets and turns is not None and not any(end in targets for _, _, end in self._limbs):
+            return self._from_targets(heard, rot, targets, turns)
         return self._by_forward_pass(targets, turns)
 
     def _by_forward_pass(self, targets, turns):
@@ -190,41 +218,31 @@ class AnatomicalConverter:
             self._two_bone_ik(basis, world, upper, lower, end, targets[end])
         return basis
 
-    def _from_targets(self, targets, turns):
+    def _from_targets(self, heard, rot, targets, turns):
         """The pose when no limb needs IK (a suit with a sensor on every segment): a sensor bone's
         world rotation is its target, so its local rotation needs only its parent's world rotation,
-        all sensor bones at once; only the bones without a reading are walked down the hierarchy
-        (fingers, toes, a spine's chain bones with their share of the turn). No positions: without
-        IK only the root sensor's bone moves away from the rig's bone lengths."""
-        parents, rest_rot = self.skeleton.parents, self.rest_local[:, :3, :3]
+        all sensor bones at once. The bones without a reading (fingers, toes, a spine's chain bones
+        with their share of the turn) go down from the sensor bones level by level, each level at
+        once. No positions: without IK only the root sensor's bone leaves the rig's bone lengths."""
+        rest_rot, up = self._rest_rot, self._parent_or_identity
         basis = self.calib_basis.copy()
-        sensed = np.fromiter(targets, int, len(targets))
-        world_rot = np.empty((len(parents), 3, 3))
-        world_rot[sensed] = [targets[j][0] for j in sensed]
-        for j in self._unsensed(targets):  # top-down: a parent before its children
-            p = parents[j]
-            frame = rest_rot[j] if p < 0 else world_rot[p] @ rest_rot[j]
-            world_rot[j] = frame @ basis[j, :3, :3]
-            if j in turns:
-                world_rot[j] = turns[j] @ world_rot[j]
-                basis[j, :3, :3] = frame.T @ world_rot[j]
-        # a sensor bone's frame before its own rotation: its parent's world rotation on its rest offset
-        frame = rest_rot[sensed].copy()
-        below = parents[sensed] >= 0
-        frame[below] = world_rot[parents[sensed][below]] @ frame[below]
-        basis[sensed, :3, :3] = np.swapaxes(frame, 1, 2) @ world_rot[sensed]
-        if self._placed in targets:  # the root bone (no parent): its frame is its rest frame
+        world_rot = np.empty((len(up) + 1, 3, 3))
+        world_rot[-1] = np.eye(3)  # what a root's frame stands on
+        world_rot[heard.joints] = rot
+        for level in heard.levels:  # a bone's frame: its parent's world rotation on its rest offset
+            frame = world_rot[up[level]] @ rest_rot[level]
+            world_rot[level] = frame @ basis[level, :3, :3]
+            turned = [i for i, j in enumerate(level) if j in turns]
+            if turned:
+                bones = level[turned]
+                world_rot[bones] = np.array([turns[j] for j in bones]) @ world_rot[bones]
+                basis[bones, :3, :3] = np.swapaxes(frame[turned], 1, 2) @ world_rot[bones]
+        frame = world_rot[up[heard.joints]] @ rest_rot[heard.joints]
+        basis[heard.joints, :3, :3] = np.swapaxes(frame, 1, 2) @ rot
+        if self._placed in targets:  # the root bone: its frame is its rest frame
             r = self._placed
             basis[r, :3, 3] = rest_rot[r].T @ (targets[r][1] - self.rest_local[r, :3, 3])
         return basis
-
-    def _unsensed(self, targets):
-        """The joints without a target, top-down (cached per set of sensors heard: constant once
-        every sensor has spoken)."""
-        key = frozenset(targets)
-        if key not in self._unsensed_cache:
-            self._unsensed_cache[key] = [j for j in range(self.skeleton.joint_count) if j not in targets]
-        return self._unsensed_cache[key]
 
     def _forward(self, basis, targets, turns=None):
         """World frames top-down, `basis` updated on the way: a bone with a target takes its
