@@ -98,6 +98,16 @@ class _Heard:
                 depth[j] = depth[p] + 1 if p in depth else 0
         self.levels = [np.array([j for j, d in depth.items() if d == level], int)
                        for level in range(max(depth.values(), default=-1) + 1)]
+        # the chains whose sensor bone is heard (conv._chain_ends' order), with the rows of `rot`
+        # (_targets) of their sensor bones and of the sensor bones above them (None: one is silent)
+        row = {j: i for i, j in enumerate(self.bones)}
+        self.chains = [k for k, j in enumerate(conv._chain_ends) if j in row]
+        self.chain_ends = [conv._chain_ends[k] for k in self.chains]
+        self.chain_uppers = [parents[conv._chains[j][0]] for j in self.chain_ends]
+        self.chain_end_rows = [row[j] for j in self.chain_ends]
+        heard_above = all(a in row for a in self.chain_uppers)
+        self.chain_upper_rows = [row[a] for a in self.chain_uppers] if heard_above else None
+        self.chain_lengths = np.array([len(conv._chains[j]) + 1 for j in self.chain_ends])
 
 
 class AnatomicalConverter:
@@ -200,17 +210,17 @@ class AnatomicalConverter:
             raise CalibrationError("calibrate first: stand in the calibration pose and press Calibrate")
         heard, rot, head = self._targets(readings)
         targets = {} if rot is None else dict(zip(heard.bones, zip(rot, head)))
-        turns = self._chain_turns(targets)
+        turns = self._chain_turns(heard, rot)
         if targets and turns is not None and not any(end in targets for _, _, end in self._limbs):
             return self._from_targets(heard, rot, targets, turns)
-        return self._by_forward_pass(targets, turns)
+        return self._by_forward_pass(heard, rot, targets, turns)
 
-    def _by_forward_pass(self, targets, turns):
+    def _by_forward_pass(self, heard, rot, targets, turns):
         """The pose by a pass down the hierarchy with world frames (positions too): what two-bone
         IK needs, and a chain whose upper sensor bone has no reading yet."""
         basis = self.calib_basis.copy()
         if turns is None:  # a sensor above a chain has no reading yet: its bone is where a first pass puts it
-            turns = self._chain_turns(targets, self._forward(basis, targets))
+            turns = self._chain_turns(heard, rot, self._forward(basis, targets))
         world = self._forward(basis, targets, turns)
         for upper, lower, end in self._limbs:
             if end not in targets:
@@ -270,31 +280,27 @@ class AnatomicalConverter:
             out = out @ self.rest_local[b, :3, :3] @ self.calib_basis[b, :3, :3]
         return out
 
-    def _chain_turns(self, targets, world=None):
+    def _chain_turns(self, heard, rot, world=None):
         """{bone: world rotation}: every sensor bone's turn relative to its calibration pose
         (the chain above it in the calibration pose below the sensor bone above the chain, as
-        its target or `world` has it), shared evenly by the bones without sensors between the
-        two (their joints bend together, like a spine), so it is not all taken at one joint:
+        its target `rot` or `world` has it), shared evenly by the bones without sensors between
+        the two (their joints bend together, like a spine), so it is not all taken at one joint:
         each of the n bones of a chain with its sensor bone turns by the n-th root of the turn
         (same axis, 1/n of the angle). All chains at once: an MVN suit has several. None when
         a sensor above a chain has no reading and no `world` is given."""
-        parents = self.skeleton.parents
-        ends = [k for k, j in enumerate(self._chain_ends) if j in targets]
-        if not ends:
+        if not heard.chains:
             return {}
-        joints = [self._chain_ends[k] for k in ends]
-        uppers = [parents[self._chains[j][0]] for j in joints]
-        if world is None:
-            if any(a not in targets for a in uppers):
-                return None
-            upper = np.array([targets[a][0] for a in uppers])
+        if world is not None:
+            upper = world[heard.chain_uppers, :3, :3]
+        elif heard.chain_upper_rows is None:
+            return None
         else:
-            upper = world[uppers, :3, :3]
-        calib = upper @ self._chain_calib[ends]
-        turn = np.array([targets[j][0] for j in joints]) @ np.swapaxes(calib, 1, 2)
-        shares = root_of_rotation(turn, np.array([len(self._chains[j]) + 1 for j in joints]))
+            upper = rot[heard.chain_upper_rows]
+        calib = upper @ self._chain_calib[heard.chains]
+        turn = rot[heard.chain_end_rows] @ np.swapaxes(calib, 1, 2)
+        shares = root_of_rotation(turn, heard.chain_lengths)
         turns = {}
-        for j, share in zip(joints, shares):
+        for j, share in zip(heard.chain_ends, shares):
             for b in self._chains[j]:  # a bone in two chains (a branch point) takes both turns
                 turns[b] = share @ turns[b] if b in turns else share
         return turns

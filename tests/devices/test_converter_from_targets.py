@@ -48,8 +48,9 @@ def _both_paths(conv, readings, monkeypatch):
     monkeypatch.setattr(conv, "_by_forward_pass", lambda *a: calls.append(1) or forward(*a))
     solved = conv.solve(readings)
     monkeypatch.undo()
-    targets = conv.bone_targets(readings)
-    return solved, conv._by_forward_pass(targets, conv._chain_turns(targets)), bool(calls)
+    heard, rot, _ = conv._targets(readings)
+    reference = conv._by_forward_pass(heard, rot, conv.bone_targets(readings), conv._chain_turns(heard, rot))
+    return solved, reference, bool(calls)
 
 
 def test_all_23_segments_give_the_forward_pass_pose_without_it(suit, monkeypatch):
