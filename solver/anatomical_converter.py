@@ -169,11 +169,11 @@ class AnatomicalConverter:
             self.offsets[key] = s_world.T @ world[j, :3, :3]
             self.head_offsets[key] = s_world.T @ (world[j, :3, 3] - self.sensor_position(pos))
         self.calib_basis = basis.copy()
-        self._heard_sets = {}
         # a chain's sensor bone with the chain in the calibration pose, relative to the sensor bone
         # above the chain (whose world rotation is its target: no pass over the rig needed for it)
         self._chain_ends = list(self._chains)
         self._chain_calib = np.array([self._calibration_below(self._chains[j] + [j]) for j in self._chain_ends])
+        self._heard_sets = {}  # their offsets have changed
         self.calibrated = True
 
     def sensor_position(self, pos):
@@ -200,9 +200,10 @@ class AnatomicalConverter:
         """What stays the same while the same sensors are heard (until the next calibration): built
         once per set of sensors, not per pose."""
         keys = tuple(k for k in self.attachments if k in readings)
-        if keys not in self._heard_sets:
-            self._heard_sets[keys] = _Heard(self, keys)
-        return self._heard_sets[keys]
+        sets = self._heard_sets  # a recalibration (a glove gesture, in the pump thread) starts a new table
+        if keys not in sets:
+            sets[keys] = _Heard(self, keys)
+        return sets[keys]
 
     def solve(self, readings):
         """Local pose bases (J, 4, 4) of the rig for the newest readings."""
