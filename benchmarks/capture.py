@@ -19,11 +19,17 @@ round in reverse order), `--seconds` each:
 - 'MVN at once': this tree's MVN receiver beside today's Flock + CyberGlove drivers (today's
   simulators) in one session at the same time: MVN drives the rig's body, the glove the right
   hand, the Flock no bone (its records are still shown by every display step), for the MVN
-  figure.
+  figure;
+- 'sessions at once': two whole sessions at the same time, each in its own process (its own
+  Blender, display step and simulators, started with `--worker`): 'new+mvn' and 'baseline'
+  (today's device code without MVN). Both start their display steps at the same moment, so the
+  records of both meet the same moments of the host's load, while each display step solves only
+  its own session: the figures of a session with the MVN stream added against today's.
 
-With `--aa`, two A/A configurations more: 'baseline-again' (today's code once more, back to
-back) and 'A/A transport at once' (today's code on both sides at once, latency and transport):
-the same statistics of today's code against itself, the spread the measurement has by itself.
+With `--aa`, three A/A configurations more: 'baseline-again' (today's code once more, back to
+back), 'A/A transport at once' (today's code on both sides at once, latency and transport) and
+'A/A sessions at once' (today's session in both processes): the same statistics of today's code
+against itself, the spread the measurement has by itself.
 
 Devices: a Flock of Birds (2 birds, group mode, POSITION/QUATERNION at 120 Hz) and a CyberGlove
 (22 sensors at 120 Hz), their simulators (and the MVN sender) in a separate process on
@@ -73,7 +79,17 @@ ms). Back to back ('new+mvn' against 'baseline', a different moment of the host'
 the display step solving 23 more segments) it is reported without aim, beside the Flock +
 CyberGlove p99 with MVN in the session over today's without it, and the display step's CPU
 time per step with MVN over without (the segments' solve on the rig, which every device of
-the session waits for). The JSON holds every round's ratio of every figure (`ratios_by_round`).
+the session waits for).
+
+The session with the MVN stream added against today's session without it, aim no worse (<=
+1.10), all from 'sessions at once': the display step's own CPU time per step (what
+LiveCapture.step measures of itself with the thread's CPU clock, not the benchmark's
+bookkeeping around it: its matching of 26 channels' records against 3 would count as the
+step's) and the CPU share of the whole session (process CPU seconds / wall seconds), each the
+median of the rounds' ratios with a 90 % interval from resampling the rounds; the Flock +
+CyberGlove latency p99, every round's records pooled, with its interval. With `--aa` the same
+figures of today's session against itself. The JSON holds every round's ratio of every figure
+(`ratios_by_round`).
 """
 
 import argparse
@@ -102,10 +118,14 @@ DISPLAY = 60.0
 SWEEP = 1.0 / min(RATE, MVN_RATE)
 AT_ONCE, AA_AT_ONCE = "transport at once", "A/A transport at once"
 MVN_AT_ONCE = "MVN at once"
-CONFIGS = ("baseline", "new", "new+mvn", AT_ONCE, MVN_AT_ONCE)
+SESSIONS_AT_ONCE, AA_SESSIONS_AT_ONCE = "sessions at once", "A/A sessions at once"
+CONFIGS = ("baseline", "new", "new+mvn", AT_ONCE, MVN_AT_ONCE, SESSIONS_AT_ONCE)
 AGAIN = "baseline-again"  # today's code once more: the A/A comparison of the back-to-back runs
 NEW_AT_ONCE, TODAY_AT_ONCE = ("new (at once)", False), ("today's (at once)", True)
 AA_SIDES = (("today's (A/A at once)", True), ("today's again (A/A at once)", True))
+# (name, configuration) of the two sessions run at once, each in its own process
+MVN_SESSION, TODAY_SESSION = ("new+mvn (sessions at once)", "new+mvn"), ("today's (sessions at once)", "baseline")
+AA_SESSIONS = (("today's (A/A sessions at once)", "baseline"), ("today's again (A/A sessions at once)", "baseline"))
 BASELINE_COMMIT = "7a9849e"
 BASELINE_PACKAGE = "humananim.humananim_addon.devices_baseline"
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -306,8 +326,9 @@ def _figures(out, latency):
 FLOCK = dict(birds="1,2", record="POSITION/QUATERNION")
 
 
-def run_config(config, seconds, baseline_dir):
-    """One configuration's session, measured for `seconds`."""
+def run_config(config, seconds, baseline_dir, start=None):
+    """One configuration's session, measured for `seconds`; `start()`, when given, is called
+    once the session is calibrated and returns when the display steps may begin."""
     from humananim.humananim_addon.capture import job as capture
     today = config in ("baseline", AGAIN)
     mvn_port = _free_udp_port()
@@ -321,10 +342,14 @@ def run_config(config, seconds, baseline_dir):
         live, decoded = _session(devices, lambda item: today,
                                  importlib.import_module(BASELINE_PACKAGE + ".session").Session if today else None)
         threads = [t for t in threading.enumerate() if t.name.startswith("humananim-capture")]
+        if start is not None:
+            start()
         thread_cpu0 = sum(_thread_cpu(t) for t in threads)
         main0 = time.thread_time()
         cpu0 = time.process_time()
+        steps0 = len(live.step_cpu)
         applied, steps, wall0, end = _display(live, seconds)
+        own_cpu = [cpu for cpu, _ in list(live.step_cpu)[steps0:]]  # what the step measured of itself
         cpu, wall = time.process_time() - cpu0, end - wall0
         main_cpu = time.thread_time() - main0
         thread_cpu = sum(_thread_cpu(t) for t in threads) - thread_cpu0
@@ -338,6 +363,7 @@ def run_config(config, seconds, baseline_dir):
            "cpu_share_readers_and_pump": round(thread_cpu / wall, 4), "cpu_share_display_steps": round(main_cpu / wall, 4),
            "step_median_ms": round(float(np.median(steps)), 3), "step_p99_ms": round(float(np.percentile(steps, 99)), 3),
            "step_cpu_ms": round(1000 * main_cpu / max(1, len(steps)), 3),
+           "step_own_cpu_ms": round(1000 * float(np.mean(own_cpu)), 3) if own_cpu else None,
            "dropped_samples": int(sum(d["dropped"] for d in status)), "line_dropped_bytes": int(log["dropped_bytes"])}
     return _figures(out, latency)
 
@@ -369,6 +395,67 @@ def run_at_once(sides, seconds, baseline_dir):
         out.append(_figures({"config": name, "seconds": round(end - wall0, 2)},
                             {k: latency[k] for k in ("devices", "devices_transport")}))
     return out
+
+
+def run_sessions_at_once(sides, seconds, baseline_dir):
+    """Two whole sessions at the same time, each in its own process (its own Blender, display
+    step and simulators): `sides` ((name, configuration) twice, e.g. this tree's session with the
+    MVN stream added and today's without it). Both start their 60 Hz display steps at the same
+    moment, so every record of one meets the same moments of the host's load as the other's,
+    while each display step solves only its own session. Returns each side's run_config figures."""
+    workers = [subprocess.Popen([sys.executable, os.path.abspath(__file__), "--worker", config, "--seconds",
+                                 str(seconds), "--baseline-dir", baseline_dir],
+                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=dict(os.environ))
+               for _, config in sides]
+    try:
+        for w in workers:
+            _worker_line(w, "ready")
+        start = time.perf_counter() + 0.5  # the monotonic clock is the host's: both processes read the same
+        for w in workers:
+            w.stdin.write(f"{start!r}\n")
+            w.stdin.flush()
+        out = [json.loads(_worker_line(w, "result")) for w in workers]
+    finally:
+        for w in workers:
+            if w.poll() is None:
+                w.kill()
+            w.wait(10)
+    for (name, _), r in zip(sides, out):
+        r["config"] = name
+        for k in [k for k in r if k.endswith("_latency_ms")]:
+            r[k] = np.array(r[k])
+    return out
+
+
+def _worker_line(worker, tag):
+    """The text after '@@<tag> ' on the worker's stdout (Blender may print other lines there)."""
+    for line in worker.stdout:
+        if line.startswith(f"@@{tag}"):
+            return line[len(tag) + 2:].strip()
+    raise RuntimeError(f"the benchmark's worker ended before '{tag}' (exit code {worker.wait(10)})")
+
+
+def worker(config, seconds, baseline_dir):
+    """One side of run_sessions_at_once: `config`'s session, its display steps from the moment
+    the parent writes on stdin; the figures as one JSON line on stdout (every record's latency
+    too, for the p99s pooled over the rounds)."""
+    os.environ.setdefault("BLENDER_USER_RESOURCES", "/tmp/humananim-bench-user")
+    import humananim
+    register_baseline(baseline_dir)
+    humananim.register()
+    stdout = sys.stdout
+
+    def start():
+        print("@@ready", file=stdout, flush=True)
+        at = float(sys.stdin.readline())
+        time.sleep(max(0.0, at - time.perf_counter()))
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            r = run_config(config, seconds, baseline_dir, start)
+    finally:
+        humananim.unregister()
+    r = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in r.items()}
+    print("@@result " + json.dumps(r), file=stdout, flush=True)
 
 
 def run_mvn_at_once(seconds, baseline_dir):
@@ -447,8 +534,13 @@ def main(argv=None):
     p.add_argument("--aa", action="store_true",
                    help="today's device code a second time in every round (A/A: the measurement's own spread)")
     p.add_argument("--json", action="store_true")
+    p.add_argument("--worker", help=argparse.SUPPRESS)  # one side of 'sessions at once' (run_sessions_at_once)
+    p.add_argument("--baseline-dir", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
-    configs = ("baseline", "new", AGAIN, "new+mvn", AT_ONCE, MVN_AT_ONCE, AA_AT_ONCE) if args.aa else CONFIGS
+    if args.worker:
+        return worker(args.worker, args.seconds, args.baseline_dir)
+    configs = CONFIGS + (AGAIN, AA_AT_ONCE, AA_SESSIONS_AT_ONCE) if args.aa else CONFIGS
+    configs = tuple(sorted(configs, key=ORDER.index))
     os.environ.setdefault("BLENDER_USER_RESOURCES", "/tmp/humananim-bench-user")
     import humananim
     baseline_dir = extract_baseline()
@@ -459,7 +551,11 @@ def main(argv=None):
         with contextlib.redirect_stdout(sys.stderr):  # Blender's BVH importer prints; stdout is the JSON
             for k in range(args.rounds):  # every other round in reverse: no configuration always runs first
                 for config in configs if k % 2 == 0 else configs[::-1]:
-                    if config in (AT_ONCE, AA_AT_ONCE):  # the sides swap places every round
+                    if config in (SESSIONS_AT_ONCE, AA_SESSIONS_AT_ONCE):  # started first: every other round
+                        sides = (MVN_SESSION, TODAY_SESSION) if config == SESSIONS_AT_ONCE else AA_SESSIONS
+                        sides = sides if k % 2 == 0 else sides[::-1]
+                        runs += [dict(r, round=k) for r in run_sessions_at_once(sides, args.seconds, baseline_dir)]
+                    elif config in (AT_ONCE, AA_AT_ONCE):  # the sides swap places every round
                         sides = (NEW_AT_ONCE, TODAY_AT_ONCE) if config == AT_ONCE else AA_SIDES
                         sides = sides if k % 2 == 0 else sides[::-1]
                         runs += [dict(r, round=k) for r in run_at_once(sides, args.seconds, baseline_dir)]
@@ -504,6 +600,8 @@ def main(argv=None):
         print(f"  {key}: {ratios}")
 
 
+ORDER = ("baseline", "new", AGAIN, "new+mvn", AT_ONCE, MVN_AT_ONCE, AA_AT_ONCE, SESSIONS_AT_ONCE, AA_SESSIONS_AT_ONCE)
+
 COMPARED = (("latency median (Flock + CyberGlove)", "devices_latency_median_ms"),
             ("latency p99 (Flock + CyberGlove)", "devices_latency_p99_ms"),
             ("CPU share of the session", "cpu_share"),
@@ -525,6 +623,14 @@ def round_ratios(runs, key, config="new", over="baseline", over_key=None):
 def round_ratio(runs, key, config="new", over="baseline", over_key=None):
     """The median over the rounds of each round's ratio."""
     return round(float(np.median(round_ratios(runs, key, config, over, over_key))), 3)
+
+
+def round_ratio_interval(runs, key, config, over, resamples=2000, seed=30):
+    """The median of the rounds' ratios and its 90 % interval from resampling the rounds."""
+    ratios = np.array(round_ratios(runs, key, config, over))
+    rng = np.random.default_rng(seed)
+    boot = [np.median(ratios[rng.integers(0, len(ratios), len(ratios))]) for _ in range(resamples)]
+    return round(float(np.median(ratios)), 3), [round(float(x), 3) for x in np.percentile(boot, [5, 95])]
 
 
 POOLED = (("latency p99 (Flock + CyberGlove)", "devices_latency"),
@@ -564,6 +670,10 @@ def ratios_by_round(runs):
     if any(r["config"] == AA_SIDES[0][0] for r in runs):
         out["devices above their floor: A/A, at once"] = round_ratios(runs, "devices_above_floor_ms", AA_SIDES[1][0],
                                                                        AA_SIDES[0][0])
+    for key in ("step_own_cpu_ms", "cpu_share", "devices_latency_p99_ms"):
+        out[f"{key}: new+mvn / today's, sessions at once"] = round_ratios(runs, key, MVN_SESSION[0], TODAY_SESSION[0])
+        if any(r["config"] == AA_SESSIONS[0][0] for r in runs):
+            out[f"{key}: A/A, sessions at once"] = round_ratios(runs, key, AA_SESSIONS[1][0], AA_SESSIONS[0][0])
     for key in ("devices_transport_latency_median_ms", "devices_transport_latency_p99_ms"):
         out[f"{key}: new / today's, at once"] = round_ratios(runs, key, NEW_AT_ONCE[0], TODAY_AT_ONCE[0])
         if any(r["config"] == AA_SIDES[0][0] for r in runs):
@@ -643,6 +753,35 @@ def claims_of(runs):
     value = round_ratio(runs, "step_cpu_ms", "new+mvn", "new")
     out.append(claim("with the MVN stream added: the display step's CPU time (its 23 segments solved on the rig) / "
                      "the same session without it, median of the rounds' ratios", value, "ratio"))
+    if any(r["config"] == MVN_SESSION[0] for r in runs):
+        mvn, today = MVN_SESSION[0], TODAY_SESSION[0]
+        value, (low, high) = round_ratio_interval(runs, "step_own_cpu_ms", mvn, today)
+        out.append(claim(f"with the MVN stream added: the display step's CPU time per step / today's session without "
+                         f"it (today's device code), two sessions at once in two processes, median of the rounds' "
+                         f"ratios (90 % interval over the rounds {low}-{high})", value, "ratio", "<= 1.10",
+                         value <= 1.10))
+        value, (low, high) = round_ratio_interval(runs, "cpu_share", mvn, today)
+        out.append(claim(f"with the MVN stream added: CPU share of the session (readers, pump and display steps) / "
+                         f"today's session without it, two sessions at once, median of the rounds' ratios (90 % "
+                         f"interval {low}-{high})", value, "ratio", "<= 1.10", value <= 1.10))
+        value, (low, high) = pooled_p99_ratio(runs, "devices_latency", mvn, today)
+        out.append(claim(f"with the MVN stream added: Flock + CyberGlove latency p99 / today's session without it, two "
+                         f"sessions at once in two processes, every round's records pooled (90 % interval over the "
+                         f"rounds {low}-{high})", value, "ratio", "<= 1.10", value <= 1.10))
+        value, (low, high) = round_ratio_interval(runs, "step_own_cpu_ms", "new+mvn", "baseline")
+        out.append(claim(f"the same CPU figure back to back (new+mvn / today's without MVN, one process), median of "
+                         f"the rounds' ratios (90 % interval {low}-{high})", value, "ratio"))
+    if any(r["config"] == AA_SESSIONS[0][0] for r in runs):
+        again, today = AA_SESSIONS[1][0], AA_SESSIONS[0][0]
+        value, (low, high) = round_ratio_interval(runs, "step_own_cpu_ms", again, today)
+        out.append(claim(f"A/A of the two-session claims: today's display step CPU time / today's, two sessions at "
+                         f"once (90 % interval {low}-{high})", value, "ratio"))
+        value, (low, high) = round_ratio_interval(runs, "cpu_share", again, today)
+        out.append(claim(f"A/A of the two-session claims: today's CPU share / today's, two sessions at once (90 % "
+                         f"interval {low}-{high})", value, "ratio"))
+        value, (low, high) = pooled_p99_ratio(runs, "devices_latency", again, today)
+        out.append(claim(f"A/A of the two-session claims: today's Flock + CyberGlove latency p99 / today's, two "
+                         f"sessions at once, pooled (90 % interval {low}-{high})", value, "ratio"))
     return out
 
 

@@ -50,6 +50,66 @@ def _swing(a, b):
     return np.eye(3) + k + k @ k * ((1 - c) / s ** 2)
 
 
+def root_of_rotation(r, n):
+    """The n-th roots of rotation matrices r (k, 3, 3): the rotations about the same axes by 1/n of
+    the angles (0 to 180 degrees). Axis and angle are read off the matrix (the skew part is
+    sin(angle) times the axis, the trace 1 + 2 cos(angle)) and the root is built by Rodrigues'
+    formula; near a half turn the skew part vanishes and carries no axis, so there they go
+    through the rotations' quaternions."""
+    cos = (np.trace(r, axis1=1, axis2=2) - 1) / 2
+    if np.any(cos < -0.9):  # beyond 154 degrees
+        q = rotations.from_matrix(r)
+        sin_half = np.linalg.norm(q[:, 1:], axis=1)
+        half = np.arctan2(sin_half, q[:, 0]) / n
+        axis = np.divide(q[:, 1:], sin_half[:, None], out=np.zeros((len(r), 3)), where=sin_half[:, None] > 1e-12)
+        return rotations.to_matrix(np.column_stack((np.cos(half), axis * np.sin(half)[:, None])))
+    sin_axis = (r[:, [2, 0, 1], [1, 2, 0]] - r[:, [1, 2, 0], [2, 0, 1]]) / 2
+    sin = np.linalg.norm(sin_axis, axis=1)
+    angle = np.arctan2(sin, cos) / n
+    axis = np.divide(sin_axis, sin[:, None], out=np.zeros((len(r), 3)), where=sin[:, None] > 1e-12)
+    c, s = np.cos(angle)[:, None, None], np.sin(angle)[:, None, None]
+    return c * np.eye(3) + s * _cross_matrices(axis) + (1 - c) * axis[:, :, None] * axis[:, None, :]
+
+
+def _cross_matrices(v):
+    """The matrices [v]x (k, 3, 3) with [v]x u = v x u."""
+    x, y, z = v.T
+    o = np.zeros(len(v))
+    return np.stack((o, -z, y, z, o, -x, -y, x, o), axis=1).reshape(-1, 3, 3)
+
+
+class _Heard:
+    """A set of sensors heard and what the solve needs of it that stays the same from one pose to
+    the next: the sensors (a bone with two takes the last one's reading, as a dict of targets
+    would), their bones, their calibration offsets stacked, and the bones without a sensor by
+    level below the sensor bones (each level's parents are sensor bones or in a level above)."""
+
+    def __init__(self, conv, keys):
+        last = {conv.attachments[k]: k for k in keys}
+        self.keys = tuple(k for k in keys if last[conv.attachments[k]] == k)
+        self.bones = [conv.attachments[k] for k in self.keys]
+        self.joints = np.array(self.bones, int)
+        self.offsets = np.array([conv.offsets[k] for k in self.keys])
+        self.head_offsets = np.array([conv.head_offsets[k] for k in self.keys])
+        parents, depth = conv.skeleton.parents, {}
+        for j in range(len(parents)):  # parents before children
+            if j not in last:
+                p = parents[j]
+                depth[j] = depth[p] + 1 if p in depth else 0
+        self.levels = [np.array([j for j, d in depth.items() if d == level], int)
+                       for level in range(max(depth.values(), default=-1) + 1)]
+        # the chains whose sensor bone is heard (conv._chain_ends' order), with the rows of `rot`
+        # (_targets) of their sensor bones and of the sensor bones above them (None: one is silent)
+        row = {j: i for i, j in enumerate(self.bones)}
+        self.chains = [k for k, j in enumerate(conv._chain_ends) if j in row]
+        self.chain_ends = [conv._chain_ends[k] for k in self.chains]
+        self.chain_uppers = [parents[conv._chains[j][0]] for j in self.chain_ends]
+        self.chain_end_rows = [row[j] for j in self.chain_ends]
+        heard_above = all(a in row for a in self.chain_uppers)
+        self.chain_upper_rows = [row[a] for a in self.chain_uppers] if heard_above else None
+        self.chain_lengths = np.array([len(conv._chains[j]) + 1 for j in self.chain_ends])
+
+
 class AnatomicalConverter:
     """`attachments` maps a sensor key (device, channel) to the bone it is strapped on;
     `root`: the key of the sensor on the root bone (its position moves the whole body)."""
@@ -68,6 +128,10 @@ class AnatomicalConverter:
         self.calibrated = False
         self.rest_local = skeleton.rest_local  # a property that solves: once, not per pose
         self._descendants = {j: skeleton.descendants(j) for j in range(skeleton.joint_count)}
+        self._heard_sets = {}  # per set of sensors heard (see _heard)
+        self._rest_rot = np.ascontiguousarray(self.rest_local[:, :3, :3])
+        # a joint's parent, or for a root the row after the last joint (an identity in _from_targets)
+        self._parent_or_identity = np.where(skeleton.parents < 0, skeleton.joint_count, skeleton.parents)
         self._limbs = self._ik_limbs()
         self._chains = self._sensorless_chains()
         # the bone whose sensor places the body (the root sensor on the root bone), else None
@@ -109,6 +173,7 @@ class AnatomicalConverter:
         # above the chain (whose world rotation is its target: no pass over the rig needed for it)
         self._chain_ends = list(self._chains)
         self._chain_calib = np.array([self._calibration_below(self._chains[j] + [j]) for j in self._chain_ends])
+        self._heard_sets = {}  # their offsets have changed
         self.calibrated = True
 
     def sensor_position(self, pos):
@@ -117,30 +182,77 @@ class AnatomicalConverter:
     def bone_targets(self, readings):
         """{joint: (world rotation, world head position)} for the bones whose sensor has a reading
         (all sensors at once: a suit streams twenty of them every frame)."""
-        keys = [k for k in self.attachments if k in readings]
-        if not keys:
-            return {}
-        pos = np.array([readings[k][0] for k in keys], float)
-        s_world = self.tracker @ rotations.to_matrix(np.array([readings[k][1] for k in keys], float))
-        rot = s_world @ np.array([self.offsets[k] for k in keys])
-        head = pos @ self.tracker.T + self.origin + np.einsum("nij,nj->ni", s_world,
-                                                              np.array([self.head_offsets[k] for k in keys]))
-        return {self.attachments[k]: (r, h) for k, r, h in zip(keys, rot, head)}
+        heard, rot, head = self._targets(readings)
+        return {} if rot is None else dict(zip(heard.bones, zip(rot, head)))
+
+    def _targets(self, readings):
+        """(the sensors heard, their bones' world rotations (n, 3, 3), head positions (n, 3))."""
+        heard = self._heard(readings)
+        if not heard.keys:
+            return heard, None, None
+        pos = np.array([readings[k][0] for k in heard.keys], float)
+        s_world = self.tracker @ rotations.to_matrix(np.array([readings[k][1] for k in heard.keys], float))
+        rot = s_world @ heard.offsets
+        head = pos @ self.tracker.T + self.origin + np.einsum("nij,nj->ni", s_world, heard.head_offsets)
+        return heard, rot, head
+
+    def _heard(self, readings):
+        """What stays the same while the same sensors are heard (until the next calibration): built
+        once per set of sensors, not per pose."""
+        keys = tuple(k for k in self.attachments if k in readings)
+        sets = self._heard_sets  # a recalibration (a glove gesture, in the pump thread) starts a new table
+        if keys not in sets:
+            sets[keys] = _Heard(self, keys)
+        return sets[keys]
 
     def solve(self, readings):
         """Local pose bases (J, 4, 4) of the rig for the newest readings."""
         if not self.calibrated:
             raise CalibrationError("calibrate first: stand in the calibration pose and press Calibrate")
-        targets = self.bone_targets(readings)
+        heard, rot, head = self._targets(readings)
+        targets = {} if rot is None else dict(zip(heard.bones, zip(rot, head)))
+        turns = self._chain_turns(heard, rot)
+        if targets and turns is not None and not any(end in targets for _, _, end in self._limbs):
+            return self._from_targets(heard, rot, targets, turns)
+        return self._by_forward_pass(heard, rot, targets, turns)
+
+    def _by_forward_pass(self, heard, rot, targets, turns):
+        """The pose by a pass down the hierarchy with world frames (positions too): what two-bone
+        IK needs, and a chain whose upper sensor bone has no reading yet."""
         basis = self.calib_basis.copy()
-        turns = self._chain_turns(targets)
         if turns is None:  # a sensor above a chain has no reading yet: its bone is where a first pass puts it
-            turns = self._chain_turns(targets, self._forward(basis, targets))
+            turns = self._chain_turns(heard, rot, self._forward(basis, targets))
         world = self._forward(basis, targets, turns)
         for upper, lower, end in self._limbs:
             if end not in targets:
                 continue  # that sensor has not spoken yet
             self._two_bone_ik(basis, world, upper, lower, end, targets[end])
+        return basis
+
+    def _from_targets(self, heard, rot, targets, turns):
+        """The pose when no limb needs IK (a suit with a sensor on every segment): a sensor bone's
+        world rotation is its target, so its local rotation needs only its parent's world rotation,
+        all sensor bones at once. The bones without a reading (fingers, toes, a spine's chain bones
+        with their share of the turn) go down from the sensor bones level by level, each level at
+        once. No positions: without IK only the root sensor's bone leaves the rig's bone lengths."""
+        rest_rot, up = self._rest_rot, self._parent_or_identity
+        basis = self.calib_basis.copy()
+        world_rot = np.empty((len(up) + 1, 3, 3))
+        world_rot[-1] = np.eye(3)  # what a root's frame stands on
+        world_rot[heard.joints] = rot
+        for level in heard.levels:  # a bone's frame: its parent's world rotation on its rest offset
+            frame = world_rot[up[level]] @ rest_rot[level]
+            world_rot[level] = frame @ basis[level, :3, :3]
+            turned = [i for i, j in enumerate(level) if j in turns]
+            if turned:
+                bones = level[turned]
+                world_rot[bones] = np.array([turns[j] for j in bones]) @ world_rot[bones]
+                basis[bones, :3, :3] = np.swapaxes(frame[turned], 1, 2) @ world_rot[bones]
+        frame = world_rot[up[heard.joints]] @ rest_rot[heard.joints]
+        basis[heard.joints, :3, :3] = np.swapaxes(frame, 1, 2) @ rot
+        if self._placed in targets:  # the root bone: its frame is its rest frame
+            r = self._placed
+            basis[r, :3, 3] = rest_rot[r].T @ (targets[r][1] - self.rest_local[r, :3, 3])
         return basis
 
     def _forward(self, basis, targets, turns=None):
@@ -169,35 +281,27 @@ class AnatomicalConverter:
             out = out @ self.rest_local[b, :3, :3] @ self.calib_basis[b, :3, :3]
         return out
 
-    def _chain_turns(self, targets, world=None):
+    def _chain_turns(self, heard, rot, world=None):
         """{bone: world rotation}: every sensor bone's turn relative to its calibration pose
         (the chain above it in the calibration pose below the sensor bone above the chain, as
-        its target or `world` has it), shared evenly by the bones without sensors between the
-        two (their joints bend together, like a spine), so it is not all taken at one joint:
+        its target `rot` or `world` has it), shared evenly by the bones without sensors between
+        the two (their joints bend together, like a spine), so it is not all taken at one joint:
         each of the n bones of a chain with its sensor bone turns by the n-th root of the turn
         (same axis, 1/n of the angle). All chains at once: an MVN suit has several. None when
         a sensor above a chain has no reading and no `world` is given."""
-        parents = self.skeleton.parents
-        ends = [k for k, j in enumerate(self._chain_ends) if j in targets]
-        if not ends:
+        if not heard.chains:
             return {}
-        joints = [self._chain_ends[k] for k in ends]
-        uppers = [parents[self._chains[j][0]] for j in joints]
-        if world is None:
-            if any(a not in targets for a in uppers):
-                return None
-            upper = np.array([targets[a][0] for a in uppers])
+        if world is not None:
+            upper = world[heard.chain_uppers, :3, :3]
+        elif heard.chain_upper_rows is None:
+            return None
         else:
-            upper = world[uppers, :3, :3]
-        calib = upper @ self._chain_calib[ends]
-        turn = rotations.from_matrix(np.array([targets[j][0] for j in joints]) @ np.swapaxes(calib, 1, 2))
-        sin_half = np.linalg.norm(turn[:, 1:], axis=1)
-        half = np.arctan2(sin_half, turn[:, 0]) / [len(self._chains[j]) + 1 for j in joints]
-        axis = np.divide(turn[:, 1:], sin_half[:, None], out=np.zeros((len(joints), 3)),
-                         where=sin_half[:, None] > 1e-12)
-        shares = rotations.to_matrix(np.column_stack((np.cos(half), axis * np.sin(half)[:, None])))
+            upper = rot[heard.chain_upper_rows]
+        calib = upper @ self._chain_calib[heard.chains]
+        turn = rot[heard.chain_end_rows] @ np.swapaxes(calib, 1, 2)
+        shares = root_of_rotation(turn, heard.chain_lengths)
         turns = {}
-        for j, share in zip(joints, shares):
+        for j, share in zip(heard.chain_ends, shares):
             for b in self._chains[j]:  # a bone in two chains (a branch point) takes both turns
                 turns[b] = share @ turns[b] if b in turns else share
         return turns
