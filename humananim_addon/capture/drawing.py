@@ -4,29 +4,21 @@ capture runs (job.LIVE)."""
 
 import logging
 
-import bpy
 import numpy as np
 
 from ...solver.hands.grasp_automaton import SENSOR_COLOURS
+from ..view_overlay import ViewOverlay
 
 log = logging.getLogger(__name__)
 
 
 # -- the overlay: the hand's state colour and its sensors (lighter when touching) ----------------------------
-_handle = None
-
-
 def enable_overlay():
-    global _handle
-    if _handle is None:
-        _handle = bpy.types.SpaceView3D.draw_handler_add(_draw, (), "WINDOW", "POST_VIEW")
+    _OVERLAY.enable()
 
 
 def disable_overlay():
-    global _handle
-    if _handle is not None:
-        bpy.types.SpaceView3D.draw_handler_remove(_handle, "WINDOW")
-        _handle = None
+    _OVERLAY.disable()
 
 
 def overlay_geometry(live):
@@ -72,3 +64,6 @@ def _draw():
         gpu.state.blend_set("NONE")
     except Exception:
         log.exception("capture overlay")
+
+
+_OVERLAY = ViewOverlay(_draw)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
+from ..view_overlay import ViewOverlay
 from . import job as motion_control
 
 log = logging.getLogger(__name__)
@@ -73,31 +74,6 @@ def _crosses(points, size, flat=False):
     axes = np.eye(3)[:2 if flat else 3] * size
     segs = [np.stack((p - a, p + a)) for p in np.asarray(points, float) for a in axes]
     return np.array(segs).reshape(-1, 2, 3)
-
-
-# ---- the draw handler ----------------------------------------------------------------------------
-
-_handle = None
-
-
-def is_enabled():
-    return _handle is not None
-
-
-def enable():
-    global _handle
-    if _handle is None:
-        _handle = bpy.types.SpaceView3D.draw_handler_add(_draw, (), "WINDOW", "POST_VIEW")
-
-
-def disable():
-    global _handle
-    if _handle is not None:
-        bpy.types.SpaceView3D.draw_handler_remove(_handle, "WINDOW")
-        _handle = None
-
-
-register, unregister = enable, disable
 
 
 def _draw():
@@ -472,3 +448,10 @@ def _stage(scene, data, points, along, view, resolution, title, extra=()):
         scene.collection.objects.link(obj)
         made.append(obj)
     return made
+
+
+# ---- the draw handler ----------------------------------------------------------------------------
+
+_OVERLAY = ViewOverlay(_draw)
+is_enabled, enable, disable = _OVERLAY.is_enabled, _OVERLAY.enable, _OVERLAY.disable
+register, unregister = enable, disable
