@@ -23,6 +23,11 @@ from .body import inertia
 from .vector_math import cross
 
 
+# the ground's contact basis, rows (normal, t1, t2): up, then the tangents the colliders' rule gives
+# an upward normal (t1 = n x x, t2 = n x t1), exactly
+GROUND_BASIS = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+
+
 @dataclass
 class Collisions:
     """The contact impulses of one control loop, and what they leave for the next step."""
@@ -54,30 +59,31 @@ class Collisions:
         bodies = body.spheres[0]
         radii = body.contacts.radii
         centres = kinematics.body_points(d, bodies, body.sphere_hom)
-        rows = []  # (sphere, point (3,), normal (3,), target normal speed, other velocity (3,), kind)
         vel = kinematics.body_velocities(m, d, q, v).take(bodies, axis=0)
         if ground or self.settings.colliders:
             sphere_vel = vel[:, 3:] + cross(vel[:, :3], centres)
             vz = sphere_vel[:, 2]
         else:  # a swing foot alone asks the spheres' vertical speed: v_z + (omega x centre)_z
             vz = vel[:, 5] + (vel[:, 0] * centres[:, 1] - vel[:, 1] * centres[:, 0])
+        # the ground's rows, all at once: sphere, contact point (its bottom), target normal speed
+        ground_ks, ground_points, ground_targets = np.zeros(0, int), np.zeros((0, 3)), np.zeros(0)
         if ground:
             gap = centres[:, 2] - radii - self.ground
             # speculative: every sphere that could reach the ground within the step
-            near = gap < np.maximum(-vz, 0.0) * dt + 0.01
-            for k in np.flatnonzero(near):
-                g = gap[k]
-                target = -g / dt if g > 0 else -self.settings.fall_correction * g / dt
-                point = centres[k] - np.array([0.0, 0.0, radii[k]])
-                rows.append((k, point, np.array([0.0, 0.0, 1.0]), target, np.zeros(3), None))
+            ground_ks = np.flatnonzero(gap < np.maximum(-vz, 0.0) * dt + 0.01)
+            g = gap[ground_ks]
+            ground_targets = np.where(g > 0, -g / dt, -self.settings.fall_correction * g / dt)
+            ground_points = centres[ground_ks]
+            ground_points[:, 2] -= radii[ground_ks]
         elif swing is not None:  # standing: a foot that is not planted (a swing foot) may not pass below the ground
             gap = centres[:, 2] - radii - self.ground
             near = swing & (gap < np.maximum(-vz, 0.0) * dt)
             if near.any():
                 v = self.swing_ground(body, q, v, dt, np.flatnonzero(near), centres, gap)
-        # finite-mass colliders that gave their impulse and are still touching (kept across steps)
+        # the colliders' rows: (sphere, point (3,), normal (3,), collider velocity (3,)); finite-mass
+        # colliders that gave their impulse and are still touching are kept across steps (spent)
         spent = self.spent
-        owners = [None] * len(rows)  # collider index per row (None: the ground)
+        rows, owners = [], []  # owners: the collider of each row
         if self.settings.colliders:
             ia, ib = body.capsules
         for ci, col in enumerate(self.settings.colliders):
@@ -94,29 +100,31 @@ class Collisions:
             for cap, c, axis_point, n in hits:
                 k = ia[cap]
                 point = axis_point - radii[k] * n
-                rows.append((k, point, n, None, vel_c[c], col.mass))
+                rows.append((k, point, n, vel_c[c]))
                 owners.append(ci)
-        if not rows:
+        ng = len(ground_ks)
+        if not ng and not rows:
             return v
-        ks = np.array([r[0] for r in rows])
-        points = np.array([r[1] for r in rows])
+        # contacts: the ground's first (ng), then the colliders' (contact ng + i is rows[i])
+        ks = np.concatenate((ground_ks, [r[0] for r in rows])).astype(int)
+        points = np.concatenate((ground_points, np.reshape([r[1] for r in rows], (-1, 3))))
         jac = point_jacobians(m, d, q, bodies[ks], points)  # (c, 3, nv)
-        normals = np.array([r[2] for r in rows])
-        t1 = cross(normals, [1.0, 0.0, 0.0])
-        t1[np.linalg.norm(t1, axis=1) < 1e-6] = cross(normals, [0.0, 1.0, 0.0])[np.linalg.norm(t1, axis=1) < 1e-6]
-        t1 /= np.linalg.norm(t1, axis=1)[:, None]
-        t2 = cross(normals, t1)
-        basis = np.stack((normals, t1, t2), axis=1)  # (c, 3, 3) rows n, t1, t2
+        basis = np.empty((len(ks), 3, 3))  # (c, 3, 3) rows n, t1, t2
+        basis[:ng] = GROUND_BASIS
+        if rows:
+            normals = np.array([r[2] for r in rows])
+            t1 = cross(normals, [1.0, 0.0, 0.0])
+            t1[np.linalg.norm(t1, axis=1) < 1e-6] = cross(normals, [0.0, 1.0, 0.0])[np.linalg.norm(t1, axis=1) < 1e-6]
+            t1 /= np.linalg.norm(t1, axis=1)[:, None]
+            basis[ng:] = np.stack((normals, t1, cross(normals, t1)), axis=1)
         jr = np.einsum("cij,cjn->cin", basis, jac).reshape(-1, m.nv)  # (3c, nv)
-        other = np.array([r[4] for r in rows])
-        rel0 = jr @ v - np.einsum("cij,cj->ci", basis, other).ravel()
-        targets = np.empty(len(rows))
-        for i, r in enumerate(rows):
-            if r[3] is not None:
-                targets[i] = r[3]
-            else:  # a collider: bounce at restitution when approaching
-                vn = rel0[3 * i]
-                targets[i] = -self.settings.restitution * vn if vn < 0 else -np.inf
+        rel0 = jr @ v
+        targets = np.empty(len(ks))
+        targets[:ng] = ground_targets
+        if rows:  # a collider: bounce at restitution when approaching
+            rel0[3 * ng:] -= np.einsum("cij,cj->ci", basis[ng:], np.array([r[3] for r in rows])).ravel()
+            vn = rel0[3 * ng::3]
+            targets[ng:] = np.where(vn < 0, -self.settings.restitution * vn, -np.inf)
         active = targets > -np.inf
         if not active.any():
             return v
@@ -129,7 +137,7 @@ class Collisions:
         w = jr @ hij
         # a collider of finite mass M is one translating body: its rows couple through B B' / M
         rows_basis = basis[idx].reshape(-1, 3)  # (3c, 3)
-        row_owner = np.repeat([-1 if owners[i] is None else owners[i] for i in idx], 3)
+        row_owner = np.repeat([-1 if i < ng else owners[i - ng] for i in idx], 3)
         for ci in set(row_owner[row_owner >= 0].tolist()):
             mass = float(self.settings.colliders[ci].mass)
             if np.isfinite(mass) and mass > 0.0:
@@ -141,15 +149,16 @@ class Collisions:
         # pushing; a finite-mass one gave its whole momentum here (like an instant Impulse)
         wrench = None
         for j, i in enumerate(idx):
-            if owners[i] is None:
+            if i < ng:  # the ground
                 continue
-            if np.isfinite(self.settings.colliders[owners[i]].mass):
-                spent.add(owners[i])
+            ci = owners[i - ng]
+            if np.isfinite(self.settings.colliders[ci].mass):
+                spent.add(ci)
                 continue
             force = basis[i].T @ p[3 * j:3 * j + 3] / dt
-            x = rows[i][1]
+            k, x = rows[i - ng][:2]
             wrench = np.zeros((m.nb, 6)) if wrench is None else wrench
-            wrench[bodies[rows[i][0]]] += np.r_[cross(x, force), force]
+            wrench[bodies[k]] += np.r_[cross(x, force), force]
         self.wrench = wrench
         return v
 
@@ -278,41 +287,65 @@ def pgs(w, rel, targets, mu, iterations):
     contact by contact, its three speeds come from the impulses at once (one 3 x 3c product) and
     its rows are updated on plain floats through its own 3 x 3 block: the same sweeps, saving
     28 % of Dynamic Control's time with contacts (a fallen body's ground contacts, up to 39 at a
-    step; a fist: benchmarks/microopt.py, collisions_pgs_contact_blocks)."""
+    step; a fist: benchmarks/microopt.py, collisions_pgs_contact_blocks). The 3 x 3c product is
+    its rows' bound `dot` (a third of `@`'s call overhead, the same BLAS product), the impulses are
+    also kept as a list of floats beside the array (read without a numpy call) and written back
+    element by element, and the projections are comparisons, not max/min calls (a knocked-over
+    bake makes ~10^6 of them): the same floats as max(0, x) and min(max(x, -cap), cap), bit for
+    bit (the fallen body is sensitive to its contacts' last bits: docs/physics.md)."""
     n = len(targets)
     p = np.zeros(3 * n)
-    rows = [w[3 * c:3 * c + 3] for c in range(n)]
+    floats = [0.0] * (3 * n)  # p's values, read on plain floats
+    # each contact's three speeds from the impulses: its rows' bound dot (a third of `@`'s call)
+    row_dots = [w[3 * c:3 * c + 3].dot for c in range(n)]
     blocks = [w[3 * c:3 * c + 3, 3 * c:3 * c + 3].tolist() for c in range(n)]
-    rel_rows = [rel[3 * c:3 * c + 3] for c in range(n)]
+    rel_rows = np.asarray(rel, float).reshape(n, 3).tolist()
     targets = np.asarray(targets, float).tolist()
     for _ in range(iterations):
         change = 0.0
         for c in range(n):
             i = 3 * c
-            u0, u1, u2 = (rel_rows[c] + rows[c] @ p).tolist()
-            pn, p1, p2 = old = p[i:i + 3].tolist()
+            s0, s1, s2 = row_dots[c](p).tolist()
+            r0, r1, r2 = rel_rows[c]
+            u0, u1, u2 = r0 + s0, r1 + s1, r2 + s2
+            pn, p1, p2 = floats[i:i + 3]
+            moved = False
             (d0, _, _), (w10, d1, _), (w20, w21, d2) = blocks[c]
-            new = max(0.0, pn + (targets[c] - u0) / d0)
+            new = pn + (targets[c] - u0) / d0
+            new = new if new > 0.0 else 0.0  # max(0, new)
             dp = new - pn
             if dp:
                 pn = new
                 u1 += w10 * dp
                 u2 += w20 * dp
-                change = max(change, abs(dp))
+                moved = True
+                dp = abs(dp)
+                change = dp if dp > change else change
             cap = mu * pn
-            new = min(max(p1 - u1 / d1, -cap), cap)
+            new = p1 - u1 / d1
+            new = -cap if new < -cap else new  # min(max(new, -cap), cap)
+            new = cap if new > cap else new
             dp = new - p1
             if dp:
                 p1 = new
                 u2 += w21 * dp
-                change = max(change, abs(dp))
-            new = min(max(p2 - u2 / d2, -cap), cap)
+                moved = True
+                dp = abs(dp)
+                change = dp if dp > change else change
+            new = p2 - u2 / d2
+            new = -cap if new < -cap else new
+            new = cap if new > cap else new
             dp = new - p2
             if dp:
                 p2 = new
-                change = max(change, abs(dp))
-            if [pn, p1, p2] != old:
-                p[i:i + 3] = pn, p1, p2
+                moved = True
+                dp = abs(dp)
+                change = dp if dp > change else change
+            if moved:
+                floats[i:i + 3] = pn, p1, p2
+                p[i] = pn  # element by element: half a slice assignment's time
+                p[i + 1] = p1
+                p[i + 2] = p2
         if change < 1e-7:
             break
     return p
