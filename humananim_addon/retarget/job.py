@@ -85,7 +85,8 @@ def _direction(skel, rest, j, nxt):
 
 def _heads_away(skel, rest, j):
     """Direction (unit) from joint j's head to the mean head of its nearest descendants more than
-    1 cm away, when all its children start at its head; None otherwise (or with no children)."""
+    1 cm away (those with a role, where some have one), when all its children start at its head;
+    None otherwise (or with no children)."""
     head = rest[j, :3, 3]
 
     def far(k):
@@ -95,6 +96,8 @@ def _heads_away(skel, rest, j):
         return None
     while level:
         found = [k for k in level if far(k)]
+        # role joints first: an exporter's leaf bones (FBX's "_end") at the same depth would pull it
+        found = [k for k in found if skel.roles.role_of(skel.names[k]) is not None] or found
         if found:
             d = np.mean(rest[found, :3, 3], axis=0) - head
             return d / np.linalg.norm(d)
@@ -299,7 +302,7 @@ def swung_from_rest(view, traj):
     a Stretch To aims them, no control rolls them) given the roll the rig gives them: their rest
     on their parent's retargeted frame, turned by the smallest rotation onto their retargeted
     direction. Their direction, and every other bone's frame, unchanged. The source's turn of such
-    a bone about its own axis (up to 37 deg on CMU's thumbs) can't be shown on that rig."""
+    a bone about its own axis (up to 20 deg on CMU's thumbs onto Rigify) can't be shown there."""
     from ..rig.writeback import swung_bones
     joints = swung_bones(view.obj, view.skeleton) if view.control_rig else []
     if not joints:
