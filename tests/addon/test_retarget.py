@@ -224,7 +224,8 @@ def test_the_cmu_walk_onto_a_generated_rigify_rig(generated_rigify_file):
 
 def test_a_zero_length_source_joint_points_to_its_descendants(empty_scene):
     """CMU's wrists have their hand bone starting at their own head: the importer gives them an axis
-    up the forearm; the retarget takes their direction from the hand's bones beyond them."""
+    of its own choosing (up the forearm in Blender 5.0); the retarget takes their direction from
+    the finger bones beyond them."""
     source, _, _ = import_bvh(CMU_WALK, update_scene=False)
     skel = RigView(source, bpy.context.scene).skeleton
     for s in ("Left", "Right"):
