@@ -67,14 +67,42 @@ def role_pairs(src, tgt):
     return pairs
 
 
-def _direction(rest, j, nxt):
+def _direction(skel, rest, j, nxt):
     """Unit direction of joint j in rest (world frames): towards the next role joint's head, else the
-    bone's own axis."""
+    bone's own axis; but where every child of the bone starts at its head (a zero-length joint in
+    the file, CMU's wrists: the importer gives it an axis of its own choosing: up the forearm in Blender 5.0),
+    towards the nearest descendants' heads away from it."""
+    head = rest[j, :3, 3]
     if nxt is not None:
-        d = rest[nxt, :3, 3] - rest[j, :3, 3]
+        d = rest[nxt, :3, 3] - head
         if np.linalg.norm(d) > 0.01:
             return d / np.linalg.norm(d)
+    away = _heads_away(skel, rest, j)
+    if away is not None:
+        return away
     return rest[j, :3, 1] / np.linalg.norm(rest[j, :3, 1])
+
+
+def _heads_away(skel, rest, j):
+    """Direction (unit) from joint j's head to the mean head of its nearest descendants more than
+    1 cm away (those with a role, where some have one), when all its children start at its head;
+    None otherwise (or with no children)."""
+    head = rest[j, :3, 3]
+
+    def far(k):
+        return np.linalg.norm(rest[k, :3, 3] - head) > 0.01
+    level = list(skel.children(j))
+    if not level or any(far(k) for k in level):
+        return None
+    while level:
+        found = [k for k in level if far(k)]
+        # role joints first: an exporter's leaf bones (FBX's "_end") at the same depth would pull it
+        found = [k for k in found if skel.roles.role_of(skel.names[k]) is not None] or found
+        if found:
+            d = np.mean(rest[found, :3, 3], axis=0) - head
+            return d / np.linalg.norm(d)
+        level = [c for k in level for c in skel.children(k)]
+    return None
 
 
 def _arc(a, b):
@@ -115,7 +143,7 @@ def map_motion(src, src_traj, tgt, tgt_to_world):
     F = src_traj.frame_count
     rot = {}  # target joint -> (F, 3, 3) world rotation
     for a, b, an, bn in role_pairs(src, tgt):
-        align = _arc(_direction(t_rest, b, bn), turn @ _direction(s_rest, a, an))
+        align = _arc(_direction(tgt, t_rest, b, bn), turn @ _direction(src, s_rest, a, an))
         delta = turn @ s_world[:, a, :3, :3] @ s_rest[a, :3, :3].T @ turn.T
         rot[b] = delta @ (align @ t_rest[b, :3, :3])
     pelvis_s, pelvis_t = src.role_index("pelvis"), tgt.role_index("pelvis")
@@ -233,6 +261,7 @@ def retarget(source, target, scene, action=None, frame_range=None, name=None, ou
     rot[:, keep], trans[:, keep] = planted_traj.rotations, planted_traj.translations
     traj = Trajectories(traj.frames, traj.fps, rot, trans, traj.armature_to_world)
     traj = ik_bends(tgt_view, traj)
+    traj = swung_from_rest(tgt_view, traj)
     result = tgt_view.write(traj, name or f"{action.name}.{target.name}", output)
     # the source's action is "source_motion", not "source_action": the motion QA would read it on the target
     summary = {"command": "retarget", "armature": target.name, "source": source.name, "source_motion": action.name,
@@ -266,6 +295,40 @@ def ik_bends(view, traj):
         rot[:, j] = rotations.from_matrix(np.linalg.solve(base, world[:, j])[:, :3, :3])
     rot[:, changed] = rotations.make_continuous(rot[:, changed])
     return Trajectories(traj.frames, traj.fps, rot, traj.translations, traj.armature_to_world)
+
+
+def swung_from_rest(view, traj):
+    """`traj` with the target's role bones that the rig only swings (rig.writeback.swung_bones:
+    a Stretch To aims them, no control rolls them) given the roll the rig gives them: their rest
+    on their parent's retargeted frame, turned by the smallest rotation onto their retargeted
+    direction. Their direction, and every other bone's frame, unchanged. The source's turn of such
+    a bone about its own axis (up to 20 deg on CMU's thumbs onto Rigify) can't be shown there."""
+    from ..rig.writeback import swung_bones
+    joints = swung_bones(view.obj, view.skeleton) if view.control_rig else []
+    if not joints:
+        return traj
+    skel = view.skeleton
+    world = skel.world_frames(traj.basis())
+    for j in joints:  # parents first: a swung bone's parent may be swung too
+        base = world[:, skel.parents[j]] @ skel.rest_local[j]
+        world[:, j, :3, :3] = _arcs(base[:, :3, 1], world[:, j, :3, 1]) @ base[:, :3, :3]
+    changed = sorted({k for j in joints for k in (j, *skel.children(j))})
+    rot = traj.rotations.copy()
+    for j in changed:
+        p = skel.parents[j]
+        base = skel.rest_local[j] if p < 0 else world[:, p] @ skel.rest_local[j]
+        rot[:, j] = rotations.from_matrix(np.linalg.solve(base, world[:, j])[:, :3, :3])
+    rot[:, changed] = rotations.make_continuous(rot[:, changed])
+    return Trajectories(traj.frames, traj.fps, rot, traj.translations, traj.armature_to_world)
+
+
+def _arcs(a, b):
+    """The smallest rotations (F, 3, 3) turning unit vectors a (F, 3) onto b (F, 3), never opposite."""
+    v, c = np.cross(a, b), np.sum(a * b, axis=-1)
+    k = np.zeros(a.shape[:-1] + (3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    k -= np.swapaxes(k, -1, -2)
+    return np.eye(3) + k + k @ k / (1 + c)[:, None, None]
 
 
 def role_skeleton(skel):

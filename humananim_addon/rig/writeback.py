@@ -302,6 +302,57 @@ def ik_limbs(obj, skeleton):
     return out
 
 
+# constraints that give a bone its rotation: a Stretch To after one of them is no swing from the rest
+_TURNING = {"COPY_ROTATION", "COPY_TRANSFORMS", "TRACK_TO", "DAMPED_TRACK", "LOCKED_TRACK", "IK", "CHILD_OF",
+            "ARMATURE", "TRANSFORM", "ACTION"}
+
+
+def swung_bones(obj, skeleton):
+    """The role joints whose deform bone (through its Copy Transforms) a Stretch To (swing only)
+    aims from a mechanism bone hung, through mechanism bones only, from the joint's body parent
+    (Rigify's first finger and thumb segments: DEF-thumb.01 copies MCH-thumb.01, which hangs from
+    the palm and is stretched to the next segment's control). No control turns such a bone about
+    its own axis: the rig shows it swung from its rest on its parent onto where it points."""
+    pbs = obj.pose.bones
+    out = []
+    for j, name in enumerate(skeleton.names):
+        p = skeleton.parents[j]
+        if skeleton.roles.role_of(name) is None or p < 0:
+            continue
+        bone, seen = name, set()
+        while bone not in seen:
+            seen.add(bone)
+            if _swing_aimed(obj, pbs[bone], skeleton.names[p]):
+                out.append(j)
+                break
+            copied = [c.subtarget for c in pbs[bone].constraints if c.type == "COPY_TRANSFORMS" and not c.mute
+                      and c.influence > 0 and c.target == obj and c.subtarget in pbs]
+            if not copied:
+                break
+            bone = copied[0]
+    return out
+
+
+def _swing_aimed(obj, pb, parent_name):
+    """True when pose bone `pb` is no control, takes no rotation from a constraint before its
+    active swing-only Stretch To, and hangs from `parent_name` through mechanism bones only."""
+    if rc.is_control(obj, pb.name):
+        return False
+    for con in pb.constraints:
+        if con.mute or con.influence <= 0:
+            continue
+        if con.type == "STRETCH_TO":
+            if con.keep_axis != "SWING_Y":
+                return False
+            up = pb.parent
+            while up is not None and up.name != parent_name and not rc.is_control(obj, up.name):
+                up = up.parent
+            return up is not None and up.name == parent_name
+        if con.type in _TURNING:
+            return False
+    return False
+
+
 def _about_axis(rotation, axis, have, want):
     """`rotation` (F, 3, 3) turned about `axis` (F, 3, unit) so that `have` (F, 3) points, around
     that axis, where `want` does."""
