@@ -7,6 +7,8 @@ temporary package for the run).
     python3 benchmarks/control.py --json       # one JSON object (writes benchmarks/results/control.json)
     python3 benchmarks/control.py --repeats 5  # best of 5 bakes per case (default 3)
     python3 benchmarks/control.py --sample     # the CMU cases only, one bake each per implementation
+    python3 benchmarks/control.py --tricks     # also the current code with every "control" trick of
+                                               # benchmarks/microopt.py switched on (keys tricks_...)
 
 What is measured: CPU milliseconds (time.process_time: the machine is shared, wall time is not the
 loop's) per control step, median and worst over the steps of a bake (one step per frame while
@@ -27,6 +29,25 @@ machine's load falls on both; per case the claim is the current median step over
 average, 3.1 ms worst per step (C++, 800 MHz Pentium III). The issue's aims: median step < 0.5 ms
 and a real-time factor > 50 at 30 Hz. Compare implementations side by side in the same minutes
 (absolute times on a shared host swing 2-3x with load: machine_speed gives numpy's a+b then).
+Run it with OPENBLAS_NUM_THREADS=1: on a busy 2-core host OpenBLAS's spinning threads made every
+knocked-over step of both implementations 20x slower (process_time counts their CPU).
+
+Where the current step's time over the baseline's goes (issue #27 item 3, profiled part by part,
+both implementations, standing and CMU steps):
+- the baseline held about 20 micro-optimisations in Dynamic Control (direct LAPACK calls, products
+  with ones for row sums, take for fancy indexing, a preallocated expand buffer, ...) that
+  benchmarks/microopt.py judged one by one under 5 % of a bake, so the product code holds their
+  plain formulas (the project's rule). Together they are about a tenth of a step: `--tricks`
+  bakes the current code with every "control" trick of microopt.py switched on as a third
+  implementation in the same run (tricks_<case>_over_baseline_median);
+- new work by design: the planted legs' exact re-solve (cmu_exact_resolve, foot_iterations=1, not
+  the default) takes the full forward kinematics, which turns a two-axis foot's parent-side axis,
+  instead of the baseline's feet-only chain, which did not; np.errstate around the integration
+  instead of the private np.seterrobj (about 2 us, under 0.5 % of a step); a lifted foot's leg
+  held by the inverse kinematics over its release (feet.RELEASE_TIME): on the CMU walk 57 of the
+  203 steps with a planted foot hold a second leg the baseline had let go (its factorisation and
+  projections, about 25 us in such a step); the modes' memory (under 1 us); a gripped load's body
+  per grip step (built in the steps that take the load up: not in the median).
 """
 
 import argparse
@@ -136,7 +157,32 @@ def figures(name, runs, motion, out):
     out[f"{name}_bake_realtime_factor"] = duration / out[f"{name}_bake_cpu_s"]
 
 
-def measure(repeats=3, sample=False):
+class WithTricks:
+    """The current controller with every "control" trick of benchmarks/microopt.py switched on for
+    the bakes it runs (the product's versions put back after each)."""
+
+    def __init__(self):
+        import importlib.util
+        spec = importlib.util.spec_from_file_location("benchmarks_microopt", Path(__file__).parent / "microopt.py")
+        micro = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(micro)
+        self.tricks = [t for t in micro.tricks() if t.capability == "control"]
+        self.ControlLoop = ctl.ControlLoop
+        for name in ("ControlSettings", "Load", "Impulse"):
+            setattr(self, name, getattr(ctl, name))
+
+    def control(self, *args):
+        held = [(owner, attr, getattr(owner, attr)) for t in self.tricks for owner, attr in t.targets]
+        try:
+            for t in self.tricks:
+                t.use("trick")
+            return ctl.control(*args)
+        finally:
+            for owner, attr, value in held:
+                setattr(owner, attr, value)
+
+
+def measure(repeats=3, sample=False, tricks=False):
     """The current controller's figures (keys <case>_...), the baseline's (baseline_<case>_...) and
     per case the ratio of their median and mean steps (<case>_over_baseline_median, _mean)."""
     out = {"baseline_commit": BASELINE}
@@ -147,6 +193,8 @@ def measure(repeats=3, sample=False):
             base = None
             out["baseline_error"] = str(exc)
         impls = [("", ctl)] + ([("baseline_", base)] if base is not None else [])
+        if tricks:
+            impls.append(("tricks_", WithTricks()))
         todo = {prefix: cases(impl, sample) for prefix, impl in impls}
         for i, (name, sk, motion, _) in enumerate(todo[""]):
             runs = {prefix: [] for prefix, _ in impls}
@@ -159,6 +207,9 @@ def measure(repeats=3, sample=False):
                 for stat in ("median", "mean"):
                     out[f"{name}_over_baseline_{stat}"] = (out[f"{name}_step_{stat}_ms"]
                                                            / out[f"baseline_{name}_step_{stat}_ms"])
+                if tricks:
+                    out[f"tricks_{name}_over_baseline_median"] = (out[f"tricks_{name}_step_median_ms"]
+                                                                  / out[f"baseline_{name}_step_median_ms"])
     return out
 
 
@@ -196,8 +247,10 @@ def main(argv=None):
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--repeats", type=int, default=3, help="bakes per case (the best is reported)")
     parser.add_argument("--sample", action="store_true", help="the CMU cases only, one bake each")
+    parser.add_argument("--tricks", action="store_true",
+                        help="also the current code with microopt.py's control tricks switched on")
     args = parser.parse_args(argv)
-    out = measure(1 if args.sample else args.repeats, sample=args.sample)
+    out = measure(1 if args.sample else args.repeats, sample=args.sample, tricks=args.tricks)
     if args.json:
         report = contract(out)
         print(json.dumps(report))

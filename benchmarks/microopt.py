@@ -175,15 +175,17 @@ def dls_trick(self, jac, r):
 
 
 def dls_plain(self, jac, r):
+    """The product's: the damped pseudo-inverse J' (J J' + lambda^2 I)^-1 once per Jacobian
+    (np.linalg.solve), one product per solve."""
     known = self._dls_factors.get(id(jac))
     if known is None or known[0] is not jac:
         jj = jac.dot(jac.T)
         try:
-            factor = cho_factor(jj + self.damping(jj), check_finite=False)
+            pseudo_inverse = np.linalg.solve(jj + self.damping(jj), jac).T
         except np.linalg.LinAlgError:
             raise np.linalg.LinAlgError("a planted leg's Jacobian is singular") from None
-        known = self._dls_factors[id(jac)] = (jac, factor)
-    return jac.T.dot(cho_solve(known[1], r, check_finite=False))
+        known = self._dls_factors[id(jac)] = (jac, pseudo_inverse)
+    return known[1].dot(r)
 
 
 def _damping(smallest_eigenvalue):
@@ -479,7 +481,9 @@ def ground_wrenches_plain(state, wrench):
 PREDICTED_ERROR_FLOATS = """error = np.array([t0 - h * w[0] - h2 * al[0], t1 - h * w[1] - h2 * al[1], t2 - h * w[2] - h2 * al[2],
                           p0 - x[0] - h * xd[0] - h2 * xdd[0], p1 - x[1] - h * xd[1] - h2 * xdd[1],
                           p2 - x[2] - h * xd[2] - h2 * xdd[2]])"""  # (as dedented by one level)
-PREDICTED_ERROR_PLAIN = "error = np.r_[t0, t1, t2, p0, p1, p2] - (np.r_[0.0, 0.0, 0.0, x] + h * np.r_[w, xd] + h2 * np.r_[al, xdd])"
+PREDICTED_ERROR_PLAIN = """target = np.array([t0, t1, t2, p0, p1, p2])
+        pose = np.array([0.0, 0.0, 0.0, *x])
+        error = target - (pose + h * np.array([*w, *xd]) + h2 * np.array([*al, *xdd]))"""
 
 
 # -- hands.sensors.length: Euclidean lengths of (..., k) vectors ---------------------------------
@@ -785,7 +789,7 @@ def tricks():
               _holders("joint_stress", cc.joint_stress), joint_stress_trick, joint_stress_plain),
         Trick("balance_falling_gesv", "control", "np.linalg.solve(I_base, rhs)",
               _holders("falling", bc.falling), falling_trick, falling_plain),
-        Trick("feet_dls_potrf_potrs", "control", "cho_solve(cho_factor(J J' + lambda^2 I), r) (check_finite=False)",
+        Trick("feet_dls_potrf_potrs", "control", "J' (J J' + lambda^2 I)^-1 once per Jacobian (np.linalg.solve), J^+ r",
               [(feet.PlantedFeet, "dls")], dls_trick, dls_plain),
         Trick("feet_damping_syevd", "control", "np.linalg.eigvalsh(J J')[0]",
               [(feet.PlantedFeet, "damping")], damping_trick, damping_plain),

@@ -23,7 +23,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
 from scipy.ndimage import gaussian_filter1d
 
 from ..dynamics import kinematics
@@ -37,6 +36,7 @@ from .vector_math import cross, cross3, point_motion, rotation_log
 RELEASE_TIME = 0.15
 LANDING_TURN = 0.1  # rad: the most a planted leg's joint (or the root) may turn in a step predicted_resolve serves
 SKATE_SMOOTHING = 0.02  # s, standard deviation of foot_skate's smoothing
+IDENTITY6 = np.eye(6)  # (made once: the damping asks for it at every step of a straight leg)
 CONTACT_SCALE = 0.01  # m: sole points this much above the lowest share the contact by exp(-dz / scale)
 
 
@@ -148,7 +148,7 @@ class PlantedFeet:
     _soles: list = None
     _legs_key: tuple = None
     _legs: list = None
-    _dls_factors: dict = field(default_factory=dict)  # id(leg Jacobian): (Jacobian, Cholesky factor)
+    _dls_factors: dict = field(default_factory=dict)  # id(leg Jacobian): (Jacobian, damped pseudo-inverse)
     _targets_key: tuple = None
     _targets: list = None
 
@@ -353,18 +353,19 @@ class PlantedFeet:
         return [LegJacobian(jac[i], frames[i], dofs[i], leg[i], body.leg_cols[i]) for i in (0, 1)]
 
     def dls(self, jac, r):
-        """Damped least squares J' (J J' + lambda^2)^-1 r of a (6, k) leg Jacobian; the Cholesky
-        factor is remembered per Jacobian (the acceleration and velocity projections share the
-        legs at q)."""
+        """Damped least squares J' (J J' + lambda^2)^-1 r of a (6, k) leg Jacobian. The damped
+        pseudo-inverse J' (J J' + lambda^2)^-1 is made once per Jacobian, as (J J' + lambda^2)^-1 J
+        transposed (the matrix is symmetric): the acceleration, velocity and position projections
+        of a step share the legs at q, and each of their solves is then one product."""
         known = self._dls_factors.get(id(jac))
         if known is None or known[0] is not jac:
             jj = jac.dot(jac.T)
-            try:  # (check_finite=False: a NaN goes on to the bake's errstate check, as LAPACK's own)
-                factor = cho_factor(jj + self.damping(jj), check_finite=False)
+            try:
+                pseudo_inverse = np.linalg.solve(jj + self.damping(jj), jac).T
             except np.linalg.LinAlgError:
                 raise np.linalg.LinAlgError("a planted leg's Jacobian is singular") from None
-            known = self._dls_factors[id(jac)] = (jac, factor)
-        return jac.T.dot(cho_solve(known[1], r, check_finite=False))
+            known = self._dls_factors[id(jac)] = (jac, pseudo_inverse)
+        return known[1].dot(r)
 
     def damping(self, jj):
         """lambda^2 I for the damped least squares of a leg with J J' = jj: foot_damping, growing
@@ -377,7 +378,7 @@ class PlantedFeet:
         low = np.linalg.eigvalsh(jj)[0]  # the smallest eigenvalue of J J': sigma_min^2
         if low >= band2:
             return self.eye6
-        return self.eye6 + (extra * (1.0 - max(low, 0.0) / band2)) * np.eye(6)
+        return self.eye6 + (extra * (1.0 - max(low, 0.0) / band2)) * IDENTITY6
 
     def constrain(self, body, q, v, a, feet, targets):
         """Leg accelerations that give each planted foot its target acceleration: the tracking
@@ -446,7 +447,11 @@ class PlantedFeet:
             t0, t1, t2 = rotation_log(targets[s][0].dot(leg.frame[:3, :3].T)).tolist()
             p0, p1, p2 = targets[s][1].tolist()
             # target - (pose + velocity h + acceleration h^2 / 2), the turn's pose being zero
-            error = np.r_[t0, t1, t2, p0, p1, p2] - (np.r_[0.0, 0.0, 0.0, x] + h * np.r_[w, xd] + h2 * np.r_[al, xdd])
+            # (np.array of the floats, not np.r_: np.r_ parses its index syntax at every call, which
+            # cost more than the rest of the prediction)
+            target = np.array([t0, t1, t2, p0, p1, p2])
+            pose = np.array([0.0, 0.0, 0.0, *x])
+            error = target - (pose + h * np.array([*w, *xd]) + h2 * np.array([*al, *xdd]))
             step[leg.cols] = self.dls(leg.leg, error)
         return step
 

@@ -37,6 +37,8 @@ metres off). 0.2 s, a human reaction time, keeps the thesis's squat results (a 1
 back within 2 deg in 1.7 s rather than 1.9) and the CMU demo's pushes under 100 N m of stress.
 """
 
+import math
+
 import numpy as np
 
 from ..dynamics import kinematics, spatial
@@ -90,7 +92,7 @@ class TrackingController:
     def target_times(self, t):
         """Per DOF (nv,) the time of its target point: the next extremum after t, kept within
         [t + min_horizon, t + max_horizon]."""
-        f = int(np.clip(np.floor(t / self.dt + 1e-9), 0, len(self.q_d) - 1))
+        f = min(max(int(math.floor(t / self.dt + 1e-9)), 0), len(self.q_d) - 1)
         return np.clip(self.next_extremum[f], t + self.min_horizon, t + self.max_horizon)
 
     def _sample(self, times):
