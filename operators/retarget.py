@@ -58,7 +58,7 @@ class HUMANANIM_OT_retarget_motion(bpy.types.Operator):
                 role = max(twisted, key=twisted.get)
                 text += f"; the rig turns {role} {twisted[role]:.0f} deg away from the retargeted pose"
             warned = twisted or s.get("source_rest_warning")
-            if s.get("source_rest_warning"):  # a rest that looks captured moves the result: said first
+            if s.get("source_rest_warning"):  # a rest that looks captured moves the result: said, not hidden
                 text += f"; {s['source_rest_warning']}"
             message = with_qa(self, context, target, s, text, job.GROUND)
             if warned:
