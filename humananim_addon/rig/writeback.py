@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from ...solver import rotations
 from ...solver.errors import HumanAnimError
 from ...solver.progress import run_to_end
 from . import controls as rc
@@ -452,6 +453,48 @@ def _roll(obj, bone, control, want):
     return abs(angle)
 
 
+def _one_free_axis(pb):
+    """The one axis (0-2) a control turns about when its other two are locked, else None."""
+    free = [i for i in range(3) if not pb.lock_rotation[i]]
+    return free[0] if len(free) == 1 else None
+
+
+def _settle_about_free_axis(obj, bone, control, want):
+    """Settles a control that turns about one of its own axes only: moved by the distance the
+    deform bone's head is off `want` (units), then rolled about the bone's axis by the angle it
+    shows off `want` (`_roll`), its turn about its locked axes dropped (`_turn_about_free_axis`)."""
+    pb = obj.pose.bones[control]
+    c = _matrix(pb)
+    c[:3, 3] += want[:3, 3] - np.array(obj.pose.bones[bone].head, dtype=float)
+    _set_world(obj, control, c)
+    bpy.context.view_layer.update()
+    _roll(obj, bone, control, want)
+    _turn_about_free_axis(pb)
+
+
+def _turn_about_free_axis(pb):
+    """A control the animator can turn about one of its own axes only (the other two locked:
+    Rigify's forearm tweak turns about Y) keeps only its turn about that axis (the twist of a
+    swing-twist split of its basis rotation), its location kept. Placed freely, such a control
+    picks up turns about its locked axes that the Stretch To of the deform bone copying it swings
+    away again, so the placement that shows the solve is no single one: pass after pass and frame
+    after frame it drifts (the forearm tweak's turn reached -74 deg about X on the CMU walk's first
+    frame and 2,000 deg about Y by frame 150), and once its axis points nearly away from the
+    Stretch To's target the swing flips the deform bone up to 180 deg about its own axis."""
+    axis = _one_free_axis(pb)
+    if axis is None:
+        return
+    from mathutils import Matrix
+    basis = np.array(pb.matrix_basis, dtype=float)
+    q = rotations.from_matrix(basis[:3, :3] / np.linalg.norm(basis[:3, :3], axis=0))
+    twist = np.zeros(4)
+    twist[0], twist[1 + axis] = q[0], q[1 + axis]
+    if np.linalg.norm(twist) < 1e-9:  # half a turn about a locked axis: no twist to keep
+        twist[0] = 1.0
+    basis[:3, :3] = rotations.to_matrix(twist / np.linalg.norm(twist)) * np.linalg.norm(basis[:3, :3], axis=0)
+    pb.matrix_basis = Matrix(basis.tolist())
+
+
 def _plain_child(obj, name):
     """True when the bone's frame is its parent's frame times its rest offset times its basis (full
     inheritance, local location, no constraint), so it can be placed from the parent's new frame."""
@@ -549,8 +592,14 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
             scene.frame_set(int(f))
             for (b, p), v in plan.switches.items():
                 pbs[b][p] = v
-            for sec in secant.values():
-                sec.next_frame()
+            for h in turning:
+                secant[h.control].next_frame()
+                # a pole-less chain's top the action doesn't key keeps the previous frame's turned
+                # basis: turned again by that frame's turn it would spin (5 deg a frame on the
+                # CMU walk's left arm onto Rigify, which the tweaks then undid up to 180 deg)
+                if h.kind == "twist" and k > 0 and np.allclose(
+                        np.array(pbs[h.control].matrix_basis, dtype=float), out[h.control][k - 1], atol=1e-9):
+                    secant[h.control].turn = 0.0
             start = {}  # a twist control's evaluated frame before any turn
             reach = {h.control: np.zeros(3) for h in targets}
             missed, last_shift, stuck = {}, {}, set()
@@ -590,8 +639,11 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                         left.add(h.control)
                         continue
                     best[h.control] = min(off, best.get(h.control, np.inf))
-                    offset = _shown_offset(obj, skeleton.names[h.joint], h.control)
-                    _set_world(obj, h.control, units[k, h.joint] @ offset, rest_local[h.control])
+                    if _one_free_axis(pbs[h.control]) is None:
+                        offset = _shown_offset(obj, skeleton.names[h.joint], h.control)
+                        _set_world(obj, h.control, units[k, h.joint] @ offset, rest_local[h.control])
+                    else:  # moved by the head's miss, then rolled about the bone: its turn kept about its free axis
+                        _settle_about_free_axis(obj, skeleton.names[h.joint], h.control, units[k, h.joint])
                     moved = max(moved, off)
                 if moved > 0.0:
                     view_layer.update()
