@@ -663,18 +663,8 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                     secant[h.control].step(err[2])
                 for h in targets:  # an IK chain that falls short of its target: the target a little further
                     miss = units[k, h.joint, :3, 3] - np.array(pbs[skeleton.names[h.joint]].head, dtype=float)
-                    c, dist = h.control, float(np.linalg.norm(miss))
-                    if c in stuck or dist < 1e-5:
-                        continue
-                    if dist > 0.7 * missed.get(c, np.inf):  # the chain doesn't follow: back to the best shift
-                        reach[c] -= last_shift[c]
-                        stuck.add(c)
-                        change = max(change, float(np.abs(last_shift[c]).max()))
-                        continue
-                    if np.linalg.norm(reach[c] + miss) < REACH_M / skeleton.unit_scale:
-                        reach[c] += miss
-                        missed[c], last_shift[c] = dist, miss
-                        change = max(change, float(np.abs(miss).max()))
+                    change = max(change, _reach_further(h.control, miss, reach, missed, last_shift, stuck,
+                                                        REACH_M / skeleton.unit_scale))
                 if change < 1e-6:
                     break
             for h in plan.handles:
@@ -687,6 +677,24 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
             pbs[c].matrix_basis = m
         scene.frame_set(keep)
     return out
+
+
+def _reach_further(c, miss, reach, missed, last_shift, stuck, limit):
+    """Moves IK target `c`'s shift (`reach`) by the chain's `miss` (units) while the chain
+    follows and the shift stays under `limit`; back to the best shift, and `stuck`, when it
+    stops following. Updates the per-frame state in place; returns how far the target moved."""
+    dist = float(np.linalg.norm(miss))
+    if c in stuck or dist < 1e-5:
+        return 0.0
+    if dist > 0.7 * missed.get(c, np.inf):  # the chain doesn't follow: back to the best shift
+        reach[c] -= last_shift[c]
+        stuck.add(c)
+        return float(np.abs(last_shift[c]).max())
+    if np.linalg.norm(reach[c] + miss) < limit:
+        reach[c] += miss
+        missed[c], last_shift[c] = dist, miss
+        return float(np.abs(miss).max())
+    return 0.0
 
 
 def _turn(obj, h, units, turn, start, rest_local):

@@ -80,28 +80,8 @@ class Collisions:
             near = swing & (gap < np.maximum(-vz, 0.0) * dt)
             if near.any():
                 v = self.swing_ground(body, q, v, dt, np.flatnonzero(near), centres, gap)
-        # the colliders' rows: (sphere, point (3,), normal (3,), collider velocity (3,)); finite-mass
-        # colliders that gave their impulse and are still touching are kept across steps (spent)
-        spent = self.spent
-        rows, owners = [], []  # owners: the collider of each row
-        if self.settings.colliders:
-            ia, ib = body.capsules
-        for ci, col in enumerate(self.settings.colliders):
-            p0, p1 = self.collider_at(col, t)[0], self.collider_at(col, t + dt)[0]
-            rc = np.asarray(col.radii, float)
-            hits = swept_contacts(centres[ia], centres[ib], radii[ia], 0.5 * (sphere_vel[ia] + sphere_vel[ib]) * dt,
-                                   p0, p1, rc)
-            if not hits:
-                spent.discard(ci)
-                continue
-            if np.isfinite(col.mass) and ci in spent:  # a thrown body gave its impulse: it stays spent while in contact
-                continue
-            vel_c = (p1 - p0) / dt
-            for cap, c, axis_point, n in hits:
-                k = ia[cap]
-                point = axis_point - radii[k] * n
-                rows.append((k, point, n, vel_c[c]))
-                owners.append(ci)
+        rows, owners = (self._collider_rows(body, centres, radii, sphere_vel, t, dt) if self.settings.colliders
+                        else ([], []))
         ng = len(ground_ks)
         if not ng and not rows:
             return v
@@ -145,22 +125,49 @@ class Collisions:
                 w[np.ix_(rs, rs)] += rows_basis[rs] @ rows_basis[rs].T / mass
         p = pgs(w, rel0, targets, self.settings.friction, self.settings.contact_iterations)
         v = v + hij @ p
-        # collider contact forces for the next step's inverse dynamics: a kinematic collider keeps
-        # pushing; a finite-mass one gave its whole momentum here (like an instant Impulse)
+        self.wrench = self._collider_wrench(m, bodies, rows, owners, idx, ng, basis, p, dt)
+        return v
+
+    def _collider_rows(self, body, centres, radii, sphere_vel, t, dt):
+        """The colliders' rows, (sphere, point (3,), normal (3,), collider velocity (3,)) each, and
+        the collider of each row. Finite-mass colliders that gave their impulse and are still
+        touching are kept across steps (spent) and give no row."""
+        rows, owners = [], []
+        ia, ib = body.capsules
+        for ci, col in enumerate(self.settings.colliders):
+            p0, p1 = self.collider_at(col, t)[0], self.collider_at(col, t + dt)[0]
+            rc = np.asarray(col.radii, float)
+            hits = swept_contacts(centres[ia], centres[ib], radii[ia], 0.5 * (sphere_vel[ia] + sphere_vel[ib]) * dt,
+                                   p0, p1, rc)
+            if not hits:
+                self.spent.discard(ci)
+                continue
+            if np.isfinite(col.mass) and ci in self.spent:  # a thrown body gave its impulse: spent while in contact
+                continue
+            vel_c = (p1 - p0) / dt
+            for cap, c, axis_point, n in hits:
+                k = ia[cap]
+                rows.append((k, axis_point - radii[k] * n, n, vel_c[c]))
+                owners.append(ci)
+        return rows, owners
+
+    def _collider_wrench(self, m, bodies, rows, owners, idx, ng, basis, p, dt):
+        """The colliders' contact forces (nb, 6) for the next step's inverse dynamics, or None: a
+        kinematic collider keeps pushing; a finite-mass one gave its whole momentum in the
+        impulses `p` (like an instant Impulse) and is spent."""
         wrench = None
         for j, i in enumerate(idx):
             if i < ng:  # the ground
                 continue
             ci = owners[i - ng]
             if np.isfinite(self.settings.colliders[ci].mass):
-                spent.add(ci)
+                self.spent.add(ci)
                 continue
             force = basis[i].T @ p[3 * j:3 * j + 3] / dt
             k, x = rows[i - ng][:2]
             wrench = np.zeros((m.nb, 6)) if wrench is None else wrench
             wrench[bodies[k]] += np.r_[cross(x, force), force]
-        self.wrench = wrench
-        return v
+        return wrench
 
     def swing_ground(self, body, q, v, dt, ks, centres, gap):
         """Ground impulses on a swing foot's spheres acting on its leg's DOFs only (the leg's own
