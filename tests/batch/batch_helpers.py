@@ -20,6 +20,12 @@ CMU = [os.path.join(REPO, "humananim_addon", "data", "mocap", f) for f in ("cmu_
 SHORT_BANDAI = ["dash_normal_001", "run_normal_001", "walk-back_normal_001", "walk_normal_002", "byebye_angry_001",
                 "run_masculinity_001", "dash_giant_001", "dash_musical_001", "dash_chimpira_001",
                 "bow_masculinity_001"]
+# a batch to interrupt: two short takes that finish at once, then four of the longest (360-480
+# frames) under a pipeline that takes seconds each, so a stop after the short ones always finds
+# takes left to do (with `info` on short clips the whole batch can end before the stop arrives)
+STOPPABLE = SHORT_BANDAI[:2] + ["walk-back_not-confident_001", "walk-back_sad_001", "walk_sad_002",
+                                "walk_not-confident_001"]
+STOPPABLE_PIPELINE = "compress --degrees 0.5"
 PYTHON = sys.executable
 
 

@@ -13,8 +13,8 @@ import time
 
 import pytest
 
-from batch_helpers import (CMU, SHORT_BANDAI, bandai, batch_command, batch_env, needs_dask, progress, run_batch,
-                           wait_for)
+from batch_helpers import (CMU, SHORT_BANDAI, STOPPABLE, STOPPABLE_PIPELINE, bandai, batch_command, batch_env,
+                           needs_dask, progress, run_batch, wait_for)
 
 needs_dask()
 psutil = pytest.importorskip("psutil")
@@ -155,8 +155,8 @@ def test_broken_and_missing_files_are_reported_and_the_others_done(with_broken):
 
 def test_ctrl_c_keeps_finished_takes_and_the_rerun_does_only_the_rest(tmp_path):
     out = str(tmp_path / "out")
-    clips = [bandai(n) for n in SHORT_BANDAI[:6]]
-    args = [*clips, "--pipeline", "info", "--out-dir", out, "--workers", "1", "--no-progress"]
+    clips = [bandai(n) for n in STOPPABLE]
+    args = [*clips, "--pipeline", STOPPABLE_PIPELINE, "--out-dir", out, "--workers", "1", "--no-progress"]
     # started as a script's background job would be, with SIGINT ignored (that survives exec)
     driver = subprocess.Popen(batch_command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                               env=batch_env(), start_new_session=True,

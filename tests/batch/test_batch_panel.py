@@ -12,7 +12,7 @@ import time
 import pytest
 
 os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="humananim-user-"))
-from batch_helpers import SHORT_BANDAI, bandai, needs_dask  # noqa: E402
+from batch_helpers import SHORT_BANDAI, STOPPABLE, STOPPABLE_PIPELINE, bandai, needs_dask  # noqa: E402
 
 needs_dask()
 import bpy  # noqa: E402
@@ -68,11 +68,11 @@ def draw(context):
     return log
 
 
-def _settings(tmp_path, clips):
+def _settings(tmp_path, clips, pipeline="info"):
     bpy.ops.wm.read_homefile(use_empty=True)
     s = bpy.context.scene.humananim_batch
     s.inputs = ";".join(bandai(n) for n in clips)
-    s.pipeline = "info"
+    s.pipeline = pipeline
     s.out_dir = str(tmp_path / "out")
     s.engine, s.workers, s.python, s.timeout = "LOCAL", 1, sys.executable, 300.0
     return s
@@ -110,7 +110,7 @@ def test_start_returns_at_once_and_polling_shows_progress_and_the_report(tmp_pat
 
 
 def test_stop_keeps_finished_takes_and_start_again_does_the_rest(tmp_path):
-    s = _settings(tmp_path, SHORT_BANDAI[:6])
+    s = _settings(tmp_path, STOPPABLE, STOPPABLE_PIPELINE)
     bpy.ops.humananim.batch_start()
     end = time.monotonic() + 300
     while s.done < 1 and time.monotonic() < end:
