@@ -301,7 +301,7 @@ def test_pgs_pair_gives_the_same_impulses_on_the_bakes_contacts(micro):
     def spy(w, rel, targets, mu, iterations):
         out = held(w, rel, targets, mu, iterations)
         if len(seen) < 60 or len(targets) > 20:
-            for fn in (micro.pgs_blocks, micro.pgs_plain):
+            for fn in (micro.pgs_blocks, micro.pgs_plain, micro.pgs_blocks_calls):
                 got = fn(w, rel, targets, mu, iterations)
                 assert np.allclose(got, out, rtol=1e-6, atol=1e-6 * max(1.0, np.abs(out).max()))
                 normal, friction = got[0::3], got.reshape(-1, 3)[:, 1:]
