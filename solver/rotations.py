@@ -181,3 +181,24 @@ def angle_between(a, b):
     """Rotation angle (radians) taking quaternion a to b."""
     d = multiply(conjugate(normalize(a)), normalize(b))
     return 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
+
+
+def axis_angle_matrix(axis, angle):
+    """Rotations (..., 3, 3) about unit axes (..., 3) by angles (...) (Rodrigues)."""
+    axis = np.asarray(axis, float)
+    angle = np.asarray(angle, float)[..., None, None]
+    k = np.zeros(axis.shape[:-1] + (3, 3))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -axis[..., 2], axis[..., 1], -axis[..., 0]
+    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = axis[..., 2], -axis[..., 1], axis[..., 0]
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+
+
+def rotation_between(a, b):
+    """Smallest rotations (..., 3, 3) turning directions a onto b (..., 3)."""
+    a = np.asarray(a, float) / np.linalg.norm(a, axis=-1, keepdims=True)
+    b = np.asarray(b, float) / np.linalg.norm(b, axis=-1, keepdims=True)
+    axis = np.cross(a, b)
+    s = np.linalg.norm(axis, axis=-1)
+    c = np.sum(a * b, axis=-1)
+    safe = np.where(s[..., None] > 1e-12, axis / np.maximum(s, 1e-12)[..., None], [1.0, 0.0, 0.0])
+    return axis_angle_matrix(safe, np.arctan2(s, c))

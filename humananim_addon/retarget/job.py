@@ -311,7 +311,7 @@ def swung_from_rest(view, traj):
     world = skel.world_frames(traj.basis())
     for j in joints:  # parents first: a swung bone's parent may be swung too
         base = world[:, skel.parents[j]] @ skel.rest_local[j]
-        world[:, j, :3, :3] = _arcs(base[:, :3, 1], world[:, j, :3, 1]) @ base[:, :3, :3]
+        world[:, j, :3, :3] = rotations.rotation_between(base[:, :3, 1], world[:, j, :3, 1]) @ base[:, :3, :3]
     changed = sorted({k for j in joints for k in (j, *skel.children(j))})
     rot = traj.rotations.copy()
     for j in changed:
@@ -320,15 +320,6 @@ def swung_from_rest(view, traj):
         rot[:, j] = rotations.from_matrix(np.linalg.solve(base, world[:, j])[:, :3, :3])
     rot[:, changed] = rotations.make_continuous(rot[:, changed])
     return Trajectories(traj.frames, traj.fps, rot, traj.translations, traj.armature_to_world)
-
-
-def _arcs(a, b):
-    """The smallest rotations (F, 3, 3) turning unit vectors a (F, 3) onto b (F, 3), never opposite."""
-    v, c = np.cross(a, b), np.sum(a * b, axis=-1)
-    k = np.zeros(a.shape[:-1] + (3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    k -= np.swapaxes(k, -1, -2)
-    return np.eye(3) + k + k @ k / (1 + c)[:, None, None]
 
 
 def role_skeleton(skel):

@@ -16,6 +16,7 @@ import numpy as np
 from ..body_roles import SIDES, sided
 from ..errors import RigError
 from ..motion_control.limb_ik import LimbIK
+from ..rotations import axis_angle_matrix, rotation_between  # noqa: F401 (walk.py's names)
 
 KNEE_MIN = np.radians(2.0)  # the least knee flexion allowed: no hyperextension
 KNEE_STAND = np.radians(5.0)  # knee flexion when standing
@@ -45,26 +46,6 @@ def rot_z(angle):
     out[..., 0, 0], out[..., 0, 1] = c, -s
     out[..., 1, 0], out[..., 1, 1] = s, c
     return out
-
-
-def axis_angle_matrix(axis, angle):
-    """Rotations (..., 3, 3) about unit axes (..., 3) by angles (...) (Rodrigues)."""
-    axis = np.asarray(axis, float)
-    angle = np.asarray(angle, float)[..., None, None]
-    k = np.zeros(axis.shape[:-1] + (3, 3))
-    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -axis[..., 2], axis[..., 1], -axis[..., 0]
-    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = axis[..., 2], -axis[..., 1], axis[..., 0]
-    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
-
-
-def rotation_between(a, b):
-    """Smallest rotations (..., 3, 3) turning unit vectors a onto b."""
-    a, b = unit(a), unit(b)
-    axis = np.cross(a, b)
-    s = np.linalg.norm(axis, axis=-1)
-    c = np.sum(a * b, axis=-1)
-    safe = np.where(s[..., None] > 1e-12, axis / np.maximum(s, 1e-12)[..., None], [1.0, 0.0, 0.0])
-    return axis_angle_matrix(safe, np.arctan2(s, c))
 
 
 class Foot:
