@@ -58,17 +58,12 @@ def _import_source(path, armature_name, scale, scene):
     if path.lower().endswith(".bvh"):
         from ..bvh_import import import_bvh
         return import_bvh(path, scale, update_scene=False)[0]
-    from ...solver.errors import HumanAnimError
     from ..rig.load import _check_fbx, import_fbx
     _check_fbx(path)
     render = scene.render
     kept = (render.fps, render.fps_base, scene.frame_start, scene.frame_end, scene.frame_current)
-    try:
-        obj = import_fbx(path, armature_name)
-    except HumanAnimError as error:
-        # the importer names the option other commands pick an FBX's armature with; here --armature
-        # is the target rig, the source's armature is --source-armature
-        raise HumanAnimError(str(error).replace("pass --armature", "pass --source-armature")) from None
+    try:  # here --armature is the target rig: the source's armature is --source-armature
+        obj = import_fbx(path, armature_name, armature_option="--source-armature")
     finally:  # Blender's importer sets the scene's rate and range to the file's: the target's scene keeps its own
         file_fps = render.fps / render.fps_base
         render.fps, render.fps_base = kept[:2]

@@ -39,9 +39,10 @@ def _importer():
         addon_utils.enable("io_scene_fbx", default_set=True)
 
 
-def import_fbx(path, armature_name=None):
+def import_fbx(path, armature_name=None, armature_option="--armature"):
     """Import an FBX file into the current scene; returns its armature object (the one named
-    `armature_name` when given) with the imported action active."""
+    `armature_name` when given) with the imported action active. `armature_option`: the command's
+    option that names it, for the message when the file holds several."""
     _check_fbx(path)
     _importer()
     if bpy.ops.object.mode_set.poll():
@@ -64,7 +65,7 @@ def import_fbx(path, armature_name=None):
     elif len(new) == 1:
         obj = new[0]
     else:
-        raise HumanAnimError(f"{len(new)} armatures in {os.path.basename(path)}: pass --armature "
+        raise HumanAnimError(f"{len(new)} armatures in {os.path.basename(path)}: pass {armature_option} "
                              f"({', '.join(o.name for o in new)})")
     bpy.context.view_layer.objects.active = obj
     action = obj.animation_data.action if obj.animation_data else None
