@@ -247,15 +247,21 @@ def plan_controls(obj, skeleton, fk=False):
     return plan
 
 
+def _copied(obj, pb):
+    """The bones of `obj` whose transforms pose bone `pb` copies (its active Copy Transforms
+    targets, in order)."""
+    return [c.subtarget for c in pb.constraints if c.type == "COPY_TRANSFORMS" and not c.mute
+            and c.influence > 0 and c.target == obj and c.subtarget in obj.pose.bones]
+
+
 def _copied_control(obj, name):
     """The control whose transforms deform bone `name` copies (its first active Copy Transforms
     target) when that control turns about its own axis, else None."""
-    for con in obj.pose.bones[name].constraints:
-        if con.type == "COPY_TRANSFORMS" and not con.mute and con.influence > 0 and con.target == obj:
-            c = con.subtarget
-            ok = c in obj.pose.bones and rc.is_control(obj, c) and not obj.pose.bones[c].lock_rotation[1]
-            return c if ok else None
-    return None
+    copied = _copied(obj, obj.pose.bones[name])
+    if not copied:
+        return None
+    c = copied[0]
+    return c if rc.is_control(obj, c) and not obj.pose.bones[c].lock_rotation[1] else None
 
 
 def _ik_limb(obj, skeleton, joints, used):
@@ -326,8 +332,7 @@ def swung_bones(obj, skeleton):
             if _swing_aimed(obj, pbs[bone], skeleton.names[p]):
                 out.append(j)
                 break
-            copied = [c.subtarget for c in pbs[bone].constraints if c.type == "COPY_TRANSFORMS" and not c.mute
-                      and c.influence > 0 and c.target == obj and c.subtarget in pbs]
+            copied = _copied(obj, pbs[bone])
             if not copied:
                 break
             bone = copied[0]
@@ -411,7 +416,7 @@ def _matrix(pb):
     return m
 
 
-def _set_world(obj, name, target, rest_local=None):
+def _set_world(obj, name, target):
     """Sets the bone's basis so that (its parent as evaluated now) it shows `target` (units), by
     Blender's own conversion (which honours local location and the inherit options)."""
     from mathutils import Matrix
@@ -615,7 +620,7 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                         if parent is not None and parent.name in placed and plain[h.control]:
                             moved = _set_basis(pbs[h.control], placed[parent.name], rest_local[h.control], t)
                         else:
-                            moved = _set_world(obj, h.control, t, rest_local[h.control])
+                            moved = _set_world(obj, h.control, t)
                         change = max(change, moved)
                         placed[h.control] = t
                     elif h.kind in ("pole", "twist"):
@@ -623,8 +628,7 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                                                    rest_local[h.control]))
                 if reset_pelvis:  # again: a spine control that also turns the pelvis (Rigify's FK
                     view_layer.update()  # spine) is undone, the pelvis ends each pass where the solve puts it
-                    change = max(change, _set_world(obj, pelvis.control, units[k, pelvis.joint] @ pelvis.offset,
-                                                    rest_local[pelvis.control]))
+                    change = max(change, _set_world(obj, pelvis.control, units[k, pelvis.joint] @ pelvis.offset))
                 view_layer.update()
                 # placed while Blender shows the joint off the solve and, once the other controls
                 # have settled (WARM_PASSES), each placing brings it closer: Rigify's forearm tweak,
@@ -641,7 +645,7 @@ def iter_solve_bases(obj, scene, skeleton, plan, frames, solved):
                     best[h.control] = min(off, best.get(h.control, np.inf))
                     if _one_free_axis(pbs[h.control]) is None:
                         offset = _shown_offset(obj, skeleton.names[h.joint], h.control)
-                        _set_world(obj, h.control, units[k, h.joint] @ offset, rest_local[h.control])
+                        _set_world(obj, h.control, units[k, h.joint] @ offset)
                     else:  # moved by the head's miss, then rolled about the bone: its turn kept about its free axis
                         _settle_about_free_axis(obj, skeleton.names[h.joint], h.control, units[k, h.joint])
                     moved = max(moved, off)
@@ -709,7 +713,7 @@ def _turn(obj, h, units, turn, start, rest_local):
     if h.kind == "pole":
         t = _matrix(pb)
         t[:3, 3] = (spin @ _chain_frame(heads, units[h.chain[0], :3, :3], h.bend) @ h.local)[:3]
-        return _set_world(obj, h.control, t, rest_local)
+        return _set_world(obj, h.control, t)
     b0 = start.setdefault(h.control, np.array(pb.matrix_basis, dtype=float))
     parent = _matrix(pb.parent) if pb.parent is not None else np.eye(4)
     pre = parent @ rest_local @ b0  # where the chain's top is before the IK turns it
