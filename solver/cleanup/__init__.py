@@ -116,15 +116,18 @@ def _points(skeleton, traj):
     return feet.foot_points(skeleton, traj.world_frames(skeleton))
 
 
-def _soles(skeleton, traj):
-    return feet.sole_points(skeleton, traj.world_frames(skeleton))
+def _points_and_soles(skeleton, traj):
+    """The feet's foot points and sole points (feet.foot_points, feet.sole_points) from one pass
+    of forward kinematics."""
+    world = traj.world_frames(skeleton)
+    return feet.foot_points(skeleton, world), feet.sole_points(skeleton, world)
 
 
 def _floor(skeleton, traj, o, report):
     """The whole body moved up or down so the feet's floor (found under the planted feet) is on
     the ground (a height, or a surface: a height field or a mesh, solver.cleanup.ground); then
     each contact put on it (no sinking, no hovering) by the legs' IK."""
-    points = _points(skeleton, traj)
+    points, sole = _points_and_soles(skeleton, traj)
     # contacts found before the feet are put on the floor (which makes every planted frame
     # equally low and would merge them): the skate repair holds the same ones
     report["planted"] = feet.planted_points(points, traj.fps)
@@ -132,7 +135,6 @@ def _floor(skeleton, traj, o, report):
     found = feet.find_floor(points, contacts)  # world Z of the feet's floor
     # a foot placed higher (a marker or a sole) is seen on the capture's own flat floor, before
     # the body is put on a ground whose bumps would look like one
-    sole = _soles(skeleton, traj)
     report["levels"] = feet.own_levels(points, report["planted"], found, sole)
     # and so is each foot's height in the capture, which says whether a contact stands on
     # something else (far above the floor) or on the ground, wherever the ground's bumps put it
@@ -151,11 +153,11 @@ def _floor(skeleton, traj, o, report):
     traj = traj.with_root_pose(skeleton, position, orientation)
     flat = isinstance(surface, ground_surface.Flat)
     report.update(floor_m=found, ground_m=surface.z if flat else None, surface=surface)
-    points = _points(skeleton, traj)
+    points, sole = _points_and_soles(skeleton, traj)
     offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=False, planted=report["planted"],
-                                levels=report["levels"], sole=_soles(skeleton, traj), captured=report["captured"])
+                                levels=report["levels"], sole=sole, captured=report["captured"])
     traj, moved = feet.move_feet(skeleton, traj, offsets)
-    after, sole = _points(skeleton, traj), _soles(skeleton, traj)
+    after, sole = _points_and_soles(skeleton, traj)
     heights = {s: feet.lowest_above(p, sole.get(s), surface) for s, p in after.items()}
     # a contact hovers when even its lowest point stays above the floor
     hovering = sum(int(h[a:b].min() > 0.002) for s, h in heights.items() for a, b in feet.contact_runs(contacts[s]))
@@ -168,14 +170,14 @@ def _floor(skeleton, traj, o, report):
 
 
 def _skate(skeleton, traj, o, report):
-    points = _points(skeleton, traj)
+    points, sole = _points_and_soles(skeleton, traj)
     planted = report.pop("planted", None) or feet.planted_points(points, traj.fps)
     contacts = {side: down.any(axis=1) for side, down in planted.items()}
     report["contacts"] = {s: [[float(traj.frames[a]), float(traj.frames[b - 1])] for a, b in feet.contact_runs(c)]
                           for s, c in contacts.items()}
     surface = report.get("surface")
     offsets = feet.foot_offsets(points, traj.fps, floor=surface, skate=True, planted=planted,
-                                levels=report.get("levels"), sole=_soles(skeleton, traj),
+                                levels=report.get("levels"), sole=sole,
                                 captured=report.get("captured"))
     traj, moved = feet.hold_feet(skeleton, traj, offsets, surface, planted)
     slide = {s: float(100 * np.linalg.norm(d[:, :2], axis=1).max()) for s, d in offsets.items()}
