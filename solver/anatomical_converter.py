@@ -52,30 +52,12 @@ def _swing(a, b):
 
 def root_of_rotation(r, n):
     """The n-th roots of rotation matrices r (k, 3, 3): the rotations about the same axes by 1/n of
-    the angles (0 to 180 degrees). Axis and angle are read off the matrix (the skew part is
-    sin(angle) times the axis, the trace 1 + 2 cos(angle)) and the root is built by Rodrigues'
-    formula; near a half turn the skew part vanishes and carries no axis, so there they go
-    through the rotations' quaternions."""
-    cos = (np.trace(r, axis1=1, axis2=2) - 1) / 2
-    if np.any(cos < -0.9):  # beyond 154 degrees
-        q = rotations.from_matrix(r)
-        sin_half = np.linalg.norm(q[:, 1:], axis=1)
-        half = np.arctan2(sin_half, q[:, 0]) / n
-        axis = np.divide(q[:, 1:], sin_half[:, None], out=np.zeros((len(r), 3)), where=sin_half[:, None] > 1e-12)
-        return rotations.to_matrix(np.column_stack((np.cos(half), axis * np.sin(half)[:, None])))
-    sin_axis = (r[:, [2, 0, 1], [1, 2, 0]] - r[:, [1, 2, 0], [2, 0, 1]]) / 2
-    sin = np.linalg.norm(sin_axis, axis=1)
-    angle = np.arctan2(sin, cos) / n
-    axis = np.divide(sin_axis, sin[:, None], out=np.zeros((len(r), 3)), where=sin[:, None] > 1e-12)
-    c, s = np.cos(angle)[:, None, None], np.sin(angle)[:, None, None]
-    return c * np.eye(3) + s * _cross_matrices(axis) + (1 - c) * axis[:, :, None] * axis[:, None, :]
-
-
-def _cross_matrices(v):
-    """The matrices [v]x (k, 3, 3) with [v]x u = v x u."""
-    x, y, z = v.T
-    o = np.zeros(len(v))
-    return np.stack((o, -z, y, z, o, -x, -y, x, o), axis=1).reshape(-1, 3, 3)
+    the angles (0 to 180 degrees), through the rotations' quaternions (half angle and axis)."""
+    q = rotations.from_matrix(r)
+    sin_half = np.linalg.norm(q[:, 1:], axis=1)
+    half = np.arctan2(sin_half, q[:, 0]) / n
+    axis = np.divide(q[:, 1:], sin_half[:, None], out=np.zeros((len(r), 3)), where=sin_half[:, None] > 1e-12)
+    return rotations.to_matrix(np.column_stack((np.cos(half), axis * np.sin(half)[:, None])))
 
 
 class _Heard:

@@ -97,7 +97,7 @@ def _about(axes, angles):
 
 def test_a_chain_share_is_the_turn_about_its_axis_by_a_fraction_of_its_angle():
     """root_of_rotation against rotations built from axis and angle, from no turn to a half turn
-    (the quaternion route beyond 154 degrees), and the n-th power of the root is the turn."""
+    (small and near-half turns each checked on their own), and the n-th power of the root is the turn."""
     rng = np.random.default_rng(30)
     axes = rng.normal(size=(40, 3))
     axes /= np.linalg.norm(axes, axis=1)[:, None]
@@ -105,7 +105,7 @@ def test_a_chain_share_is_the_turn_about_its_axis_by_a_fraction_of_its_angle():
                                                           np.pi - 1e-4, np.pi - 1e-9, np.pi, np.pi, np.pi]))
     n = rng.integers(2, 5, 40)
     turn = _about(axes, angles)
-    for below in (angles < np.radians(154), angles >= np.radians(154)):  # each route on its own
+    for below in (angles < np.radians(154), angles >= np.radians(154)):  # small and near-half turns apart
         root = root_of_rotation(turn[below], n[below])
         power = root.copy()
         for k in range(len(root)):
